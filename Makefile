@@ -1,0 +1,63 @@
+# ffstream: the two commands of the README, plus helpers.
+#
+#   make demo   installs what is missing, builds, runs the Cornell box end to end
+#   make test   installs what is missing, runs the whole test suite
+#
+# Works on a fresh Debian/Ubuntu machine that has only Rust: the `deps` target installs
+# Open MPI (runtime + headers), libclang (rsmpi's bindgen) and the Python packages of the
+# .ffz reader's tests, each only if missing. Uses sudo when not root.
+
+SHELL := /bin/bash
+CARGO ?= cargo
+PYTHON ?= python3
+SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
+APT_PACKAGES := libopenmpi-dev openmpi-bin libclang-dev pkg-config python3-pip
+PY_PACKAGES := numpy scipy zstandard pytest
+# Open MPI refuses root without these; harmless otherwise. --oversubscribe is passed
+# by the tests and by demo-mpi (this may be a 2-core machine).
+export OMPI_ALLOW_RUN_AS_ROOT := 1
+export OMPI_ALLOW_RUN_AS_ROOT_CONFIRM := 1
+
+.PHONY: demo demo-mpi test deps sys-deps py-deps build bench bench-quick fuzz clean
+
+demo: deps build
+	./target/release/ffstream run builtin:cornell -o out/cornell
+	@echo "==> picture: out/cornell/image.png (radiosity table: out/cornell/radiosity.csv)"
+
+demo-mpi: deps build
+	mpirun -n 3 --oversubscribe ./target/release/ffstream run builtin:cornell -o out/cornell-mpi
+
+test: deps
+	$(CARGO) test
+	$(CARGO) bench --no-run --quiet
+	$(PYTHON) -m pytest -q formats
+
+build:
+	$(CARGO) build --release
+
+deps: sys-deps py-deps
+
+sys-deps:
+	@missing=""; for p in $(APT_PACKAGES); do \
+	  dpkg-query -W -f='$${Status}' $$p 2>/dev/null | grep -q "ok installed" || missing="$$missing $$p"; \
+	done; \
+	if [ -n "$$missing" ]; then \
+	  echo "==> installing:$$missing"; \
+	  $(SUDO) env DEBIAN_FRONTEND=noninteractive apt-get update -qq && \
+	  $(SUDO) env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq $$missing; \
+	fi
+
+py-deps:
+	@$(PYTHON) -c "import numpy, scipy, zstandard, pytest" 2>/dev/null || { \
+	  echo "==> installing Python packages: $(PY_PACKAGES)"; \
+	  $(PYTHON) -m pip install -q $(PY_PACKAGES) || $(PYTHON) -m pip install -q --break-system-packages $(PY_PACKAGES); }
+
+bench: deps build
+	$(PYTHON) bench/run.py
+
+bench-quick: deps build
+	$(PYTHON) bench/run.py --quick
+
+clean:
+	$(CARGO) clean
+	rm -rf out

@@ -1,0 +1,260 @@
+//! `ffstream compute`: build the job from the arguments (every MPI rank does this itself)
+//! and run it embedded or under MPI.
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::sync::Arc;
+
+use anyhow::{bail, Context};
+use clap::Args;
+
+use ffstream::ffz::{FileMeta, Layout, WriterOptions};
+use ffstream::formfactor::{FormFactorConfig, Method, RowEngine};
+use ffstream::geometry::bvh::Occluders;
+use ffstream::geometry::subdivide::{default_max_edge, subdivide};
+use ffstream::scene::{self, Scene};
+use ffstream::service::{ComputeJob, ComputeReport, RowSelection, Schedule};
+
+use super::SceneInput;
+
+#[derive(Args, Debug, Clone)]
+pub struct ComputeArgs {
+    #[command(flatten)]
+    pub input: SceneInput,
+    /// Output .ffz file.
+    #[arg(short, long, value_name = "OUT.ffz")]
+    pub output: PathBuf,
+    #[command(flatten)]
+    pub opts: ComputeOptions,
+}
+
+/// Settings of the form-factor computation and of the service (shared with `run`).
+#[derive(Args, Debug, Clone)]
+pub struct ComputeOptions {
+    /// Settings preset: fast, accurate (default) or reference. Options given explicitly
+    /// override the preset's values.
+    #[arg(long, default_value = "accurate", value_name = "PRESET")]
+    pub preset: String,
+    /// Form-factor method: point (centroid kernel, 1 ray: the paper's baseline), mc
+    /// (stratified area-to-area Monte Carlo), contour (exact unoccluded double contour
+    /// integral times a ray-estimated visibility).
+    #[arg(long, value_name = "METHOD")]
+    pub method: Option<String>,
+    /// Visibility samples per pair (mc: point pairs; contour: up to this many rays, fewer
+    /// when the first rays agree).
+    #[arg(long, value_name = "S")]
+    pub samples: Option<u32>,
+    /// Keep only the K largest entries of each row (the dropped mass is stored per row).
+    #[arg(long, value_name = "K")]
+    pub top_k: Option<u32>,
+    /// Compute threads per process (embedded) or per worker rank (MPI). Default: all cores.
+    #[arg(long, value_name = "T")]
+    pub threads: Option<usize>,
+    /// Work distribution: dynamic (workers ask for batches) or folded (the paper's static
+    /// assignment).
+    #[arg(long, default_value = "dynamic", value_name = "SCHEDULE")]
+    pub schedule: String,
+    /// Seed of the visibility sampling (rows depend on it and on (i, j) only, never on
+    /// threads or ranks).
+    #[arg(long, default_value_t = 0, value_name = "N")]
+    pub seed: u64,
+    /// Which rows: all, or needed (skip rows of patches that neither reflect nor emit:
+    /// a gathering solve never reads them; the file marks them skipped).
+    #[arg(long, default_value = "all", value_name = "ROWS")]
+    pub rows: String,
+    /// Complete a partial file (after a crash or kill): compute only the missing rows.
+    #[arg(long)]
+    pub resume: bool,
+    /// The paper's design, as a baseline: every rank computes, rank 0 gathers the dense
+    /// f64 matrix in memory and writes it at the end.
+    #[arg(long)]
+    pub gather: bool,
+    /// zstd compression level of the row chunks.
+    #[arg(long, default_value_t = 1, value_name = "LEVEL")]
+    pub zstd_level: i32,
+    /// Target uncompressed size of a row chunk, in KiB.
+    #[arg(long, default_value_t = 1024, value_name = "KIB")]
+    pub chunk_kib: usize,
+    /// Seconds after which a compute thread sends its pending rows even if its chunk is
+    /// not full (bounds the work a killed run loses).
+    #[arg(long, default_value_t = 5.0, value_name = "SECONDS")]
+    pub flush_seconds: f64,
+    /// Do not fsync the file at the end (faster; a power loss may lose the index).
+    #[arg(long)]
+    pub no_fsync: bool,
+    /// No progress display.
+    #[arg(short, long)]
+    pub quiet: bool,
+}
+
+/// Load a scene: an OBJ path or builtin:NAME[:PARAM].
+pub fn load_scene(spec: &str) -> anyhow::Result<Scene> {
+    if let Some(rest) = spec.strip_prefix("builtin:") {
+        let (name, param) = match rest.split_once(':') {
+            Some((n, p)) => (n, Some(p.parse::<f64>().with_context(|| format!("builtin scene parameter '{p}' is not a number"))?)),
+            None => (rest, None),
+        };
+        return Ok(scene::builtin(name, param)?);
+    }
+    Ok(scene::load_obj(std::path::Path::new(spec))?)
+}
+
+/// Everything built from the scene: patches and the engine. `announce` prints what was
+/// chosen (rank 0 / embedded only).
+pub fn build_job(input: &SceneInput, output: PathBuf, o: &ComputeOptions, announce: bool) -> anyhow::Result<ComputeJob> {
+    let scene = load_scene(&input.scene)?;
+    if announce {
+        for w in &scene.warnings {
+            eprintln!("ffstream: warning: {w}");
+        }
+    }
+    let max_edge = match input.max_edge {
+        Some(l) if l.is_finite() && l > 0.0 => l,
+        Some(l) => bail!("--max-edge must be a positive length, got {l}"),
+        None => default_max_edge(&scene, input.patches),
+    };
+    let patches = Arc::new(subdivide(&scene, max_edge));
+    if announce {
+        let how = if input.max_edge.is_some() { "given" } else { "chosen for about --patches" };
+        eprintln!("ffstream: {} faces -> {} patches (max edge {max_edge:.6} scene units, {how})", scene.faces.len(), patches.len());
+    }
+    if patches.is_empty() {
+        bail!("{}: the scene has no patches", input.scene);
+    }
+    let mut cfg = FormFactorConfig::preset(&o.preset).map_err(anyhow::Error::msg)?;
+    if let Some(m) = &o.method {
+        cfg.method = m.parse::<Method>().map_err(anyhow::Error::msg)?;
+    }
+    if let Some(s) = o.samples {
+        if s == 0 {
+            bail!("--samples must be at least 1");
+        }
+        cfg.samples = s;
+    }
+    cfg.seed = o.seed;
+    cfg.top_k = match o.top_k {
+        Some(0) => bail!("--top-k must be at least 1"),
+        k => k,
+    };
+    let occluders = Arc::new(Occluders::new(scene.triangles().collect()));
+    let engine = RowEngine::new(Arc::clone(&patches), occluders, cfg.clone());
+    let layout = match cfg.top_k {
+        Some(k) => Layout::TopK { k },
+        None => Layout::Dense,
+    };
+    let meta = FileMeta {
+        layout,
+        method: cfg.method.to_string(),
+        params: format!("{} max_edge={max_edge} scene={}", engine.describe(), input.scene),
+        scene_hash: patches.content_hash(),
+        created: format!("ffstream {} ", env!("CARGO_PKG_VERSION")),
+        patches: (*patches).clone(),
+    };
+    let threads = o.threads.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
+    if threads == 0 {
+        bail!("--threads must be at least 1");
+    }
+    if o.chunk_kib == 0 {
+        bail!("--chunk-kib must be at least 1");
+    }
+    Ok(ComputeJob {
+        output,
+        meta,
+        patches,
+        engine: Arc::new(engine),
+        resume: o.resume,
+        schedule: o.schedule.parse::<Schedule>().map_err(anyhow::Error::msg)?,
+        rows: o.rows.parse::<RowSelection>().map_err(anyhow::Error::msg)?,
+        threads,
+        writer: WriterOptions { zstd_level: o.zstd_level, chunk_bytes: o.chunk_kib * 1024, fsync: !o.no_fsync },
+        flush_seconds: o.flush_seconds,
+        progress: !o.quiet,
+    })
+}
+
+/// Where this process stands after a compute: rank 0 / embedded get the report.
+pub enum Outcome {
+    Master(ComputeReport),
+    Worker,
+}
+
+/// Run a compute job, under MPI when launched by mpirun, else embedded.
+pub fn execute(input: &SceneInput, output: PathBuf, o: &ComputeOptions) -> anyhow::Result<Outcome> {
+    if o.gather && o.top_k.is_some() {
+        bail!("--gather reproduces the paper's dense design and cannot be combined with --top-k");
+    }
+    if o.gather && o.resume {
+        bail!("--gather writes the file at the end only: it cannot resume");
+    }
+    #[cfg(feature = "mpi")]
+    if ffstream::service::mpi::launched_by_mpi() {
+        return execute_mpi(input, output, o);
+    }
+    let job = build_job(input, output, o, true)?;
+    let report = if o.gather {
+        ffstream::service::gather::run_gather_embedded(&job)?
+    } else {
+        ffstream::service::embedded::run_embedded(&job)?
+    };
+    Ok(Outcome::Master(report))
+}
+
+#[cfg(feature = "mpi")]
+fn execute_mpi(input: &SceneInput, output: PathBuf, o: &ComputeOptions) -> anyhow::Result<Outcome> {
+    use ffstream::service::mpi::{agree_on_job, run, run_gather, MpiContext};
+    let ctx = MpiContext::init()?;
+    if ctx.size() == 1 {
+        // `mpirun -n 1`: nobody to compute for a pure master; run embedded.
+        let job = build_job(input, output, o, true)?;
+        drop(ctx);
+        let report = ffstream::service::embedded::run_embedded(&job)?;
+        return Ok(Outcome::Master(report));
+    }
+    let rank = ctx.rank();
+    let input = scene_for_rank(input, rank);
+    let built = build_job(&input, output, o, rank == 0).map_err(|e| format!("{e:#}"));
+    let result = agree_on_job(&ctx, built).and_then(|job| if o.gather { run_gather(&ctx, &job) } else { run(&ctx, &job) });
+    match result {
+        Ok(Some(report)) => Ok(Outcome::Master(report)),
+        Ok(None) => Ok(Outcome::Worker),
+        Err(e) if rank == 0 => {
+            // Rank 0 has finished the file with what it had; stop every rank.
+            eprintln!("ffstream: error: {e}");
+            eprintln!("ffstream: rows written so far are kept: rerun with --resume to complete the file");
+            ctx.abort(1)
+        }
+        Err(e) => {
+            // Rank 0 names the failure and aborts the job; wait for it in MPI_Finalize.
+            eprintln!("ffstream: rank {rank}: {e}");
+            drop(ctx);
+            std::process::exit(1)
+        }
+    }
+}
+
+/// Test hook (documented in the README): `FFSTREAM_TEST_SCENE_RANK=R:SCENE` makes rank R
+/// load SCENE instead, to exercise the start-up check that names a rank whose scene
+/// differs or is missing.
+#[cfg(feature = "mpi")]
+fn scene_for_rank(input: &SceneInput, rank: i32) -> SceneInput {
+    let mut input = input.clone();
+    if let Ok(v) = std::env::var("FFSTREAM_TEST_SCENE_RANK") {
+        if let Some((r, scene)) = v.split_once(':') {
+            if r.parse::<i32>() == Ok(rank) {
+                input.scene = scene.to_string();
+            }
+        }
+    }
+    input
+}
+
+pub fn run(a: ComputeArgs) -> anyhow::Result<ExitCode> {
+    match execute(&a.input, a.output.clone(), &a.opts)? {
+        Outcome::Master(report) => {
+            eprintln!("{}", report.summary());
+            eprintln!("ffstream: wrote {}", a.output.display());
+        }
+        Outcome::Worker => {}
+    }
+    Ok(ExitCode::SUCCESS)
+}

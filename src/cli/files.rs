@@ -1,0 +1,54 @@
+//! `ffstream info | verify | export`: thin wrappers over `ffstream::ffz::tools`.
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use clap::Args;
+
+#[derive(Args, Debug)]
+pub struct InfoArgs {
+    /// The .ffz file.
+    pub file: PathBuf,
+}
+
+#[derive(Args, Debug)]
+pub struct VerifyArgs {
+    /// The .ffz file.
+    pub file: PathBuf,
+    /// Compare row by row with this file (same scene): reports identical rows, the
+    /// largest difference, and rows present in only one of them.
+    #[arg(long, value_name = "OTHER.ffz")]
+    pub against: Option<PathBuf>,
+}
+
+#[derive(Args, Debug)]
+pub struct ExportArgs {
+    /// The .ffz file.
+    pub file: PathBuf,
+    /// Write the matrix as Matrix Market coordinate real general (1-based i j F_ij).
+    #[arg(long, value_name = "F.mtx")]
+    pub matrix: Option<PathBuf>,
+    /// Write the patch table as CSV (patch,group,area,cx,cy,cz,nx,ny,nz,rho_*,e_*).
+    #[arg(long, value_name = "patches.csv")]
+    pub patches: Option<PathBuf>,
+}
+
+pub fn info(a: InfoArgs) -> anyhow::Result<ExitCode> {
+    let mut out = std::io::stdout().lock();
+    ffstream::ffz::tools::info(&a.file, &mut out)?;
+    Ok(ExitCode::SUCCESS)
+}
+
+pub fn verify(a: VerifyArgs) -> anyhow::Result<ExitCode> {
+    let mut out = std::io::stdout().lock();
+    let ok = ffstream::ffz::tools::verify(&a.file, a.against.as_deref(), &mut out)?;
+    Ok(if ok { ExitCode::SUCCESS } else { ExitCode::from(3) })
+}
+
+pub fn export(a: ExportArgs) -> anyhow::Result<ExitCode> {
+    if a.matrix.is_none() && a.patches.is_none() {
+        anyhow::bail!("nothing to export: give --matrix F.mtx and/or --patches patches.csv");
+    }
+    ffstream::ffz::tools::export(&a.file, a.matrix.as_deref(), a.patches.as_deref())?;
+    Ok(ExitCode::SUCCESS)
+}

@@ -1,0 +1,105 @@
+//! Command-line layer: clap structures holding raw values, turned into validated
+//! library settings by each subcommand's module. The library never sees clap.
+
+mod compute;
+mod files;
+mod render;
+mod run;
+mod scene;
+mod solve;
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use clap::{Args, Parser, Subcommand};
+
+#[derive(Parser, Debug)]
+#[command(
+    name = "ffstream",
+    version,
+    about = "Radiosity form factors for large triangle meshes, streamed into compressed .ffz files, solved out of core and rendered",
+    long_about = "Radiosity form factors for large triangle meshes, computed in parallel \
+(threads, or MPI ranks under mpirun with rank 0 as a pure I/O master), streamed into a \
+chunked zstd-compressed .ffz file, solved out of core and rendered.\n\n\
+Run without mpirun for one process (embedded mode); under `mpirun -n P` rank 0 writes the \
+file and ranks 1..P-1 compute. Scenes are OBJ+MTL files (Kd = reflectance, Ke = emitted \
+exitance) or built-in scenes written as builtin:NAME (see `ffstream scene --help`)."
+)]
+pub struct Cli {
+    /// More log output (-v: info, -vv: debug). RUST_LOG overrides.
+    #[arg(short, long, action = clap::ArgAction::Count, global = true)]
+    pub verbose: u8,
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+pub enum Command {
+    /// Write a built-in scene as OBJ + MTL (cornell, cube, plates, perpendicular, obstructed, room).
+    Scene(scene::SceneArgs),
+    /// Compute the form-factor matrix of a scene into an .ffz file.
+    Compute(compute::ComputeArgs),
+    /// Show a file's header, sizes, compression ratio and which rows are present.
+    Info(files::InfoArgs),
+    /// Check every checksum, row sums and reciprocity; optionally compare with another file.
+    Verify(files::VerifyArgs),
+    /// Export the matrix (Matrix Market) and the patch table (CSV).
+    Export(files::ExportArgs),
+    /// Solve the radiosity from an .ffz file, out of core.
+    Solve(solve::SolveArgs),
+    /// Render the lit scene to a PNG with a software rasterizer.
+    Render(render::RenderArgs),
+    /// The main job: compute + solve + render, with good defaults.
+    Run(run::RunArgs),
+}
+
+/// How the scene is given and cut into patches (shared by compute and run).
+#[derive(Args, Debug, Clone)]
+pub struct SceneInput {
+    /// OBJ file (with its MTL), or builtin:NAME[:PARAM] for a built-in scene.
+    pub scene: String,
+    /// Longest patch edge, in scene units. Default: chosen so the scene gets about
+    /// --patches patches (the value chosen is printed).
+    #[arg(long, value_name = "L")]
+    pub max_edge: Option<f64>,
+    /// Target patch count used to choose --max-edge when it is not given.
+    #[arg(long, value_name = "N", default_value_t = 2000)]
+    pub patches: usize,
+}
+
+pub fn init_tracing(verbose: u8) {
+    use tracing_subscriber::EnvFilter;
+    let default = match verbose {
+        0 => "warn",
+        1 => "info",
+        _ => "debug",
+    };
+    let filter = EnvFilter::try_from_default_env().unwrap_or_else(|_| EnvFilter::new(default));
+    let _ = tracing_subscriber::fmt().with_env_filter(filter).with_writer(std::io::stderr).with_target(false).try_init();
+}
+
+pub fn dispatch(cli: Cli) -> anyhow::Result<ExitCode> {
+    match cli.command {
+        Command::Scene(a) => scene::run(a),
+        Command::Compute(a) => compute::run(a),
+        Command::Info(a) => files::info(a),
+        Command::Verify(a) => files::verify(a),
+        Command::Export(a) => files::export(a),
+        Command::Solve(a) => solve::run(a),
+        Command::Render(a) => render::run(a),
+        Command::Run(a) => run::run(a),
+    }
+}
+
+/// A path argument's display form for messages.
+pub fn show(p: &std::path::Path) -> String {
+    p.display().to_string()
+}
+
+/// Default output directory of `run`.
+pub fn default_run_dir(scene: &str) -> PathBuf {
+    let stem = scene.strip_prefix("builtin:").map(|s| s.split(':').next().unwrap_or(s).to_string()).unwrap_or_else(|| {
+        std::path::Path::new(scene).file_stem().map_or("scene".into(), |s| s.to_string_lossy().into_owned())
+    });
+    PathBuf::from(format!("out/{stem}"))
+}

@@ -1,0 +1,23 @@
+//! Errors of the compute service (transport and coordination).
+
+use crate::ffz::FfzError;
+
+/// What can go wrong while computing and streaming rows.
+#[derive(Debug, thiserror::Error)]
+pub enum ServiceError {
+    /// The file layer failed (the path is in the inner error).
+    #[error(transparent)]
+    File(#[from] FfzError),
+    /// A worker reported a failure; the run was stopped.
+    #[error("rank {rank}: row {row}: {message}")]
+    WorkerFailed { rank: i32, row: i64, message: String },
+    /// A worker could not set up (scene missing, different scene, ...).
+    #[error("rank {rank}: {message}")]
+    Setup { rank: i32, message: String },
+    /// The link between master and workers broke (a thread or rank went away).
+    #[error("transport: {0}")]
+    Transport(String),
+    /// The job's settings are inconsistent.
+    #[error("{0}")]
+    Config(String),
+}

@@ -1,0 +1,113 @@
+//! What a compute run is asked to do and what it reports.
+
+use std::path::PathBuf;
+use std::sync::Arc;
+
+use crate::ffz::{FileMeta, WriterOptions};
+use crate::formfactor::RowEngine;
+use crate::patch::PatchSet;
+use crate::service::schedule::Schedule;
+
+/// Which rows a run computes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum RowSelection {
+    /// Every row.
+    All,
+    /// Only rows a gathering solve needs: patches that neither reflect nor emit get a
+    /// row marked *skipped* in the file (DESIGN.md §3, "skip what a scene does not need").
+    Needed,
+}
+
+impl std::str::FromStr for RowSelection {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        match s {
+            "all" => Ok(RowSelection::All),
+            "needed" => Ok(RowSelection::Needed),
+            _ => Err(format!("unknown row selection '{s}' (expected all or needed)")),
+        }
+    }
+}
+
+/// A fully validated compute job: everything every rank needs to take part.
+#[derive(Clone)]
+pub struct ComputeJob {
+    pub output: PathBuf,
+    pub meta: FileMeta,
+    pub patches: Arc<PatchSet>,
+    pub engine: Arc<RowEngine>,
+    pub resume: bool,
+    pub schedule: Schedule,
+    pub rows: RowSelection,
+    /// Compute threads per process (embedded) or per worker rank (MPI).
+    pub threads: usize,
+    pub writer: WriterOptions,
+    /// A compute thread flushes its pending rows as a chunk at least this often, so a
+    /// killed run loses little work.
+    pub flush_seconds: f64,
+    /// Show a progress bar / periodic progress lines.
+    pub progress: bool,
+}
+
+/// What one worker (embedded pool or MPI rank) did.
+#[derive(Clone, Debug, Default)]
+pub struct WorkerStats {
+    pub rank: i32,
+    pub rows: u64,
+    /// Seconds the compute threads spent computing rows, summed over threads.
+    pub busy_seconds: f64,
+    pub threads: u32,
+    /// Peak resident set size of the worker process in bytes (0 if unknown).
+    pub peak_rss: u64,
+}
+
+/// What a finished compute run reports.
+#[derive(Clone, Debug, Default)]
+pub struct ComputeReport {
+    pub n: usize,
+    pub rows_computed: u64,
+    pub rows_skipped: u64,
+    pub rows_already_present: u64,
+    pub wall_seconds: f64,
+    /// Fraction of the master's wall time spent waiting for messages.
+    pub master_idle_fraction: f64,
+    pub bytes_on_disk: u64,
+    pub raw_bytes: u64,
+    pub master_peak_rss: u64,
+    pub workers: Vec<WorkerStats>,
+}
+
+impl ComputeReport {
+    /// Human-readable summary (several lines, no trailing newline).
+    pub fn summary(&self) -> String {
+        let ratio = if self.bytes_on_disk > 0 { self.raw_bytes as f64 / self.bytes_on_disk as f64 } else { 0.0 };
+        let mut s = format!(
+            "rows: {} computed, {} skipped (not needed), {} already present, n = {}\n\
+             wall {:.2} s, {:.1} rows/s; file {:.2} MB on disk ({:.2} MB raw, ratio {:.2})\n\
+             I/O master: idle {:.1}% of wall time, peak RSS {:.1} MB",
+            self.rows_computed,
+            self.rows_skipped,
+            self.rows_already_present,
+            self.n,
+            self.wall_seconds,
+            self.rows_computed as f64 / self.wall_seconds.max(1e-9),
+            self.bytes_on_disk as f64 / 1e6,
+            self.raw_bytes as f64 / 1e6,
+            ratio,
+            100.0 * self.master_idle_fraction,
+            self.master_peak_rss as f64 / 1e6,
+        );
+        for w in &self.workers {
+            s.push_str(&format!(
+                "\nworker rank {}: {} rows, {} threads, busy {:.2} s ({:.0}% of wall x threads), peak RSS {:.1} MB",
+                w.rank,
+                w.rows,
+                w.threads,
+                w.busy_seconds,
+                100.0 * w.busy_seconds / (self.wall_seconds * w.threads.max(1) as f64).max(1e-9),
+                w.peak_rss as f64 / 1e6
+            ));
+        }
+        s
+    }
+}

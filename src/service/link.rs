@@ -1,0 +1,42 @@
+//! The link between the I/O master and its workers, behind two traits so the same
+//! master and worker code runs over crossbeam channels (embedded) and MPI.
+
+use std::time::Duration;
+
+use crate::ffz::EncodedChunk;
+use crate::service::{ServiceError, WorkerStats};
+
+/// A message a worker sends to the master.
+#[derive(Debug)]
+pub enum ToMaster {
+    /// Worker `worker` wants more rows (dynamic schedule).
+    Request { worker: usize },
+    /// Compressed rows, ready to append.
+    Chunk { worker: usize, chunk: EncodedChunk },
+    /// The worker failed; `row` is -1 when no row was involved.
+    Failed { worker: usize, rank: i32, row: i64, message: String },
+    /// The worker computed all its rows and sent every chunk.
+    Done { worker: usize, stats: WorkerStats },
+}
+
+/// The master's side of the link.
+pub trait MasterLink {
+    /// Number of workers (embedded: 1 pool; MPI: P-1 ranks).
+    fn workers(&self) -> usize;
+    /// Wait up to `timeout` for the next message. Waiting must not burn a core: the
+    /// master shares the machine with compute threads.
+    fn poll(&mut self, timeout: Duration) -> Result<Option<ToMaster>, ServiceError>;
+    /// Give `rows` to `worker`; an empty list means "no more work".
+    fn assign(&mut self, worker: usize, rows: Vec<u32>) -> Result<(), ServiceError>;
+}
+
+/// A worker's side of the link.
+pub trait WorkerLink {
+    /// Ask for more rows (dynamic schedule); the answer arrives via `try_assignment`.
+    fn request(&mut self) -> Result<(), ServiceError>;
+    /// The answer to the last request if it has arrived; `Some(vec![])` = no more work.
+    fn try_assignment(&mut self) -> Result<Option<Vec<u32>>, ServiceError>;
+    fn send_chunk(&mut self, chunk: EncodedChunk) -> Result<(), ServiceError>;
+    fn failed(&mut self, row: i64, message: &str) -> Result<(), ServiceError>;
+    fn done(&mut self, stats: WorkerStats) -> Result<(), ServiceError>;
+}

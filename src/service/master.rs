@@ -1,0 +1,250 @@
+//! The I/O master: receives compressed chunks from workers and streams them into the
+//! `.ffz` file; hands out rows under the dynamic schedule. It computes nothing.
+//!
+//! Receiving and writing overlap: the master thread only moves messages; a writer thread
+//! owns the [`FfzWriter`] and appends chunks handed to it over a bounded crossbeam
+//! channel. When the disk is slower than the workers the channel fills, the master stops
+//! receiving, and the backpressure reaches the workers (their sends block): memory at
+//! the master is bounded by the channel capacity, whatever n is.
+
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use crossbeam::channel::{bounded, Sender};
+
+use crate::ffz::{encode_chunk, EncodedChunk, FfzError, FfzWriter, Layout, WriterStats};
+use crate::rows::Row;
+use crate::service::link::{MasterLink, ToMaster};
+use crate::service::progress::Progress;
+use crate::service::schedule::{DynamicQueue, Schedule};
+use crate::service::{ServiceError, WorkerStats};
+
+/// Chunks queued between the master thread and the writer thread.
+const WRITER_QUEUE: usize = 8;
+
+/// What the master is told to do.
+pub struct MasterPlan {
+    /// Rows the workers compute (already excludes rows present in a resumed file).
+    pub todo: Vec<u32>,
+    /// Rows to record as skipped on purpose (not needed by a gathering solve).
+    pub skipped: Vec<u32>,
+    pub schedule: Schedule,
+    /// Smallest dynamic batch (usually the threads per worker).
+    pub min_batch: usize,
+    pub layout: Layout,
+    pub n: u32,
+    pub zstd_level: i32,
+    pub progress: bool,
+}
+
+/// What the master observed.
+#[derive(Debug, Default)]
+pub struct MasterOutcome {
+    pub writer: WriterStats,
+    pub rows_received: u64,
+    pub idle_seconds: f64,
+    pub wall_seconds: f64,
+    pub workers: Vec<WorkerStats>,
+}
+
+enum WriterJob {
+    Chunk(EncodedChunk),
+}
+
+/// Shared counters the writer thread updates for the progress display.
+#[derive(Default)]
+struct WriterCounters {
+    disk: AtomicU64,
+    raw: AtomicU64,
+}
+
+/// Run the master until every worker is done, then finish the file (index + footer).
+///
+/// On a worker failure the master stops handing out rows, finishes the file with what
+/// it has (so `--resume` can complete it) and returns [`ServiceError::WorkerFailed`].
+///
+/// # Errors
+/// A worker failure, a broken link, or a file error (disk full, ...). In every case the
+/// chunks written so far stay recoverable.
+pub fn run_master(link: &mut dyn MasterLink, writer: FfzWriter, plan: &MasterPlan) -> Result<MasterOutcome, ServiceError> {
+    let _span = tracing::info_span!("io_master", rows = plan.todo.len()).entered();
+    let start = Instant::now();
+    let counters = Arc::new(WriterCounters::default());
+    let (tx, rx) = bounded::<WriterJob>(WRITER_QUEUE);
+
+    let writer_counters = Arc::clone(&counters);
+    let writer_thread = std::thread::Builder::new()
+        .name("ffz-writer".into())
+        .spawn(move || -> Result<WriterStats, FfzError> {
+            let mut writer = writer;
+            for job in rx {
+                match job {
+                    WriterJob::Chunk(chunk) => writer.append_chunk(chunk)?,
+                }
+                let s = writer.stats();
+                writer_counters.disk.store(s.bytes_on_disk, Ordering::Relaxed);
+                writer_counters.raw.store(s.raw_bytes, Ordering::Relaxed);
+            }
+            writer.finish()
+        })
+        .map_err(|e| ServiceError::Transport(format!("cannot start the writer thread: {e}")))?;
+
+    let result = master_loop(link, &tx, &counters, plan, start);
+    drop(tx);
+    let written = writer_thread
+        .join()
+        .map_err(|_| ServiceError::Transport("the writer thread panicked".into()))?;
+    let (mut outcome, failure) = result;
+    // A file error is the root cause when both fail (the master saw a closed channel).
+    outcome.writer = written?;
+    outcome.wall_seconds = start.elapsed().as_secs_f64();
+    match failure {
+        Some(e) => Err(e),
+        None => Ok(outcome),
+    }
+}
+
+fn master_loop(
+    link: &mut dyn MasterLink,
+    tx: &Sender<WriterJob>,
+    counters: &WriterCounters,
+    plan: &MasterPlan,
+    start: Instant,
+) -> (MasterOutcome, Option<ServiceError>) {
+    let mut outcome = MasterOutcome::default();
+    let workers = link.workers();
+    let mut progress = Progress::new(plan.todo.len() as u64, plan.progress);
+    let mut queue = match plan.schedule {
+        Schedule::Dynamic => DynamicQueue::new(plan.todo.clone(), workers, plan.min_batch, 256),
+        Schedule::Folded => DynamicQueue::new(Vec::new(), workers, 1, 1),
+    };
+    let mut failure: Option<ServiceError> = None;
+    let mut done = 0usize;
+
+    // Rows skipped on purpose are recorded by the master itself, in small chunks.
+    for ids in plan.skipped.chunks(4096) {
+        let rows: Vec<Row> = ids.iter().map(|&i| Row::skipped(i)).collect();
+        let sent = encode_chunk(&rows, plan.layout, plan.n, plan.zstd_level)
+            .map_err(ServiceError::from)
+            .and_then(|c| tx.send(WriterJob::Chunk(c)).map_err(|_| writer_gone()));
+        if let Err(e) = sent {
+            return (outcome, Some(e));
+        }
+    }
+
+    while done < workers {
+        let t0 = Instant::now();
+        let msg = match link.poll(Duration::from_millis(100)) {
+            Ok(m) => m,
+            Err(e) => {
+                failure.get_or_insert(e);
+                break;
+            }
+        };
+        outcome.idle_seconds += t0.elapsed().as_secs_f64();
+        let Some(msg) = msg else { continue };
+        let handled = match msg {
+            ToMaster::Request { worker } => {
+                // After a failure, answer every request with "no more work".
+                let batch = if failure.is_some() { Vec::new() } else { queue.next_batch() };
+                link.assign(worker, batch)
+            }
+            ToMaster::Chunk { chunk, .. } => {
+                let rows = chunk.row_ids.len() as u64;
+                outcome.rows_received += rows;
+                let sent = tx.send(WriterJob::Chunk(chunk)).map_err(|_| writer_gone());
+                progress.advance(rows, counters.disk.load(Ordering::Relaxed), counters.raw.load(Ordering::Relaxed));
+                sent
+            }
+            ToMaster::Failed { rank, row, message, .. } => {
+                tracing::error!(rank, row, "worker failed: {message}");
+                failure.get_or_insert(ServiceError::WorkerFailed { rank, row, message });
+                Ok(())
+            }
+            ToMaster::Done { stats, .. } => {
+                done += 1;
+                outcome.workers.push(stats);
+                Ok(())
+            }
+        };
+        if let Err(e) = handled {
+            failure.get_or_insert(e);
+            break;
+        }
+        if matches!(failure, Some(ServiceError::WorkerFailed { .. })) {
+            // Stop now: the remaining workers are stopped by the caller (MPI abort, or
+            // the embedded pool seeing its channels close). What was written stays.
+            break;
+        }
+    }
+    progress.finish();
+    outcome.wall_seconds = start.elapsed().as_secs_f64();
+    outcome.workers.sort_by_key(|w| w.rank);
+    (outcome, failure)
+}
+
+fn writer_gone() -> ServiceError {
+    ServiceError::Transport("the writer thread stopped (see the file error)".into())
+}
+
+/// Open (or resume) the output file and work out what to compute.
+///
+/// Returns the writer, the plan, and how many rows were already present.
+///
+/// # Errors
+/// The file cannot be created, or (with `resume`) belongs to a different scene or
+/// layout.
+pub fn prepare(job: &crate::service::ComputeJob, min_batch: usize) -> Result<(FfzWriter, MasterPlan, u64), ServiceError> {
+    use crate::ffz::RowState;
+    use crate::service::RowSelection;
+    let n = job.patches.len() as u32;
+    let (writer, presence) = if job.resume && job.output.exists() {
+        let (w, p) = FfzWriter::resume(&job.output, &job.meta, job.writer.clone())?;
+        (w, Some(p))
+    } else {
+        (FfzWriter::create(&job.output, &job.meta, job.writer.clone())?, None)
+    };
+    let mut todo = Vec::new();
+    let mut skipped = Vec::new();
+    let mut present = 0u64;
+    for i in 0..n {
+        match presence.as_ref().map_or(RowState::Missing, |p| p.state(i)) {
+            RowState::Present | RowState::Skipped => present += 1,
+            RowState::Missing => {
+                if job.rows == RowSelection::Needed && job.patches.patches[i as usize].is_inert() {
+                    skipped.push(i);
+                } else {
+                    todo.push(i);
+                }
+            }
+        }
+    }
+    let plan = MasterPlan {
+        todo,
+        skipped,
+        schedule: job.schedule,
+        min_batch,
+        layout: job.meta.layout,
+        n,
+        zstd_level: job.writer.zstd_level,
+        progress: job.progress,
+    };
+    Ok((writer, plan, present))
+}
+
+/// Turn what the master saw into the run's report.
+pub fn report(job: &crate::service::ComputeJob, plan: &MasterPlan, present: u64, outcome: MasterOutcome) -> crate::service::ComputeReport {
+    crate::service::ComputeReport {
+        n: job.patches.len(),
+        rows_computed: outcome.rows_received,
+        rows_skipped: plan.skipped.len() as u64,
+        rows_already_present: present,
+        wall_seconds: outcome.wall_seconds,
+        master_idle_fraction: outcome.idle_seconds / outcome.wall_seconds.max(1e-9),
+        bytes_on_disk: outcome.writer.bytes_on_disk,
+        raw_bytes: outcome.writer.raw_bytes,
+        master_peak_rss: crate::service::rss::peak_rss_bytes(),
+        workers: outcome.workers,
+    }
+}

@@ -1,0 +1,197 @@
+//! The MPI service: rank 0 is the I/O master and computes nothing; ranks 1..P-1 are
+//! workers with `--threads` compute threads each (DESIGN.md §4).
+//!
+//! Start-up is collective and explicit, so a bad rank is named before any work starts:
+//!
+//! 1. every rank builds the job itself (loads the scene, subdivides, builds the Bvh:
+//!    milliseconds to seconds, far cheaper than broadcasting the patch table and Bvh, and
+//!    it keeps ranks independent);
+//! 2. rank 0 gathers `(ok, scene hash, n)` from everyone; a rank that failed sends its
+//!    reason (`SETUP`); any failure or hash mismatch aborts with a message naming the rank;
+//! 3. rank 0 opens (or resumes) the file and broadcasts the verdict and, for the folded
+//!    schedule, the rows to compute;
+//! 4. rank 0 runs [`run_master`], the workers [`run_worker`].
+//!
+//! Errors after start-up: rank 0 prints the one-line cause, finishes the file (so
+//! `--resume` can complete it) and calls `MPI_Abort`, which stops every rank with a
+//! non-zero exit code.
+
+mod gather;
+pub mod links;
+pub mod protocol;
+
+use mpi::collective::{CommunicatorCollectives, Root};
+use mpi::environment::Universe;
+use mpi::point_to_point::{Destination, Source};
+use mpi::topology::{Communicator, SimpleCommunicator};
+use mpi::Threading;
+
+pub use gather::run_gather;
+use links::{MpiMasterLink, MpiWorkerLink};
+
+use crate::service::master::{prepare, report, run_master};
+use crate::service::schedule::{folded_share, Schedule};
+use crate::service::worker::{run_worker, WorkerConfig};
+use crate::service::{ComputeJob, ComputeReport, ServiceError};
+
+/// True when this process was started by an MPI launcher (mpirun/mpiexec/srun). Without
+/// one, ffstream does not initialise MPI at all and runs embedded.
+pub fn launched_by_mpi() -> bool {
+    ["OMPI_COMM_WORLD_SIZE", "PMI_SIZE", "PMIX_RANK", "PMI_RANK", "MPI_LOCALNRANKS"]
+        .iter()
+        .any(|v| std::env::var_os(v).is_some())
+}
+
+/// An initialised MPI environment (finalised on drop).
+pub struct MpiContext {
+    _universe: Universe,
+    pub world: SimpleCommunicator,
+}
+
+impl MpiContext {
+    /// Initialise MPI with `Threading::Funneled`: compute threads never call MPI; only
+    /// the main thread does.
+    ///
+    /// # Errors
+    /// MPI was already initialised, or the library cannot provide Funneled threading.
+    pub fn init() -> Result<Self, ServiceError> {
+        let (universe, provided) = mpi::initialize_with_threading(Threading::Funneled)
+            .ok_or_else(|| ServiceError::Transport("MPI was already initialised".into()))?;
+        if provided < Threading::Funneled {
+            return Err(ServiceError::Transport(format!(
+                "the MPI library provides only {provided:?} threading; ffstream needs Funneled"
+            )));
+        }
+        let world = universe.world();
+        Ok(MpiContext { _universe: universe, world })
+    }
+
+    pub fn rank(&self) -> i32 {
+        self.world.rank()
+    }
+
+    pub fn size(&self) -> i32 {
+        self.world.size()
+    }
+
+    /// Stop every rank with `code` (after printing the cause).
+    pub fn abort(&self, code: i32) -> ! {
+        self.world.abort(code)
+    }
+}
+
+/// Collective start-up check. `job` is this rank's attempt to build the job. Returns the
+/// job on every rank when all ranks agree.
+///
+/// # Errors
+/// Names the first rank that failed or disagrees.
+pub fn agree_on_job(ctx: &MpiContext, job: Result<ComputeJob, String>) -> Result<ComputeJob, ServiceError> {
+    let world = &ctx.world;
+    let root = world.process_at_rank(0);
+    let mine: [u64; 3] = match &job {
+        Ok(j) => [1, j.meta.scene_hash, j.patches.len() as u64],
+        Err(_) => [0, 0, 0],
+    };
+    let mut verdict = [0u8; 1]; // 1 = go
+    if ctx.rank() == 0 {
+        let mut all = vec![[0u64; 3]; ctx.size() as usize];
+        root.gather_into_root(&mine, &mut all[..]);
+        let mut problem: Option<ServiceError> = job.as_ref().err().map(|m| ServiceError::Setup { rank: 0, message: m.clone() });
+        for (rank, s) in all.iter().enumerate().skip(1) {
+            let rank = rank as i32;
+            let e = if s[0] == 0 {
+                let (bytes, _) = world.process_at_rank(rank).receive_vec_with_tag::<u8>(protocol::SETUP);
+                Some(ServiceError::Setup { rank, message: String::from_utf8_lossy(&bytes).into_owned() })
+            } else if s[1] != mine[1] || s[2] != mine[2] {
+                Some(ServiceError::Setup {
+                    rank,
+                    message: format!(
+                        "its scene differs from rank 0's ({} patches, hash {:016x}; rank 0 has {} patches, hash {:016x}): every rank must see the same scene file and options",
+                        s[2], s[1], mine[2], mine[1]
+                    ),
+                })
+            } else {
+                None
+            };
+            if problem.is_none() {
+                problem = e;
+            }
+        }
+        verdict[0] = problem.is_none() as u8;
+        root.broadcast_into(&mut verdict[..]);
+        match problem {
+            Some(e) => Err(e),
+            None => job.map_err(|m| ServiceError::Setup { rank: 0, message: m }),
+        }
+    } else {
+        root.gather_into(&mine);
+        if let Err(m) = &job {
+            root.send_with_tag(m.as_bytes(), protocol::SETUP);
+        }
+        root.broadcast_into(&mut verdict[..]);
+        match (verdict[0], job) {
+            (1, Ok(j)) => Ok(j),
+            (_, Err(m)) => Err(ServiceError::Setup { rank: ctx.rank(), message: m }),
+            (_, Ok(_)) => Err(ServiceError::Setup { rank: ctx.rank(), message: "stopped: another rank failed to set up (rank 0 says which)".into() }),
+        }
+    }
+}
+
+/// Run the streaming service on every rank. Rank 0 returns its report; workers return
+/// `None`.
+///
+/// # Errors
+/// As the embedded service; on rank 0 the caller prints the cause and aborts the job.
+pub fn run(ctx: &MpiContext, job: &ComputeJob) -> Result<Option<ComputeReport>, ServiceError> {
+    let world = &ctx.world;
+    let root = world.process_at_rank(0);
+    let workers = (ctx.size() - 1) as usize;
+    if workers == 0 {
+        return Err(ServiceError::Config("mpirun with one rank has no worker: use -n 2 or more, or run without mpirun".into()));
+    }
+    if ctx.rank() == 0 {
+        let prepared = prepare(job, job.threads.max(1));
+        // [ok, rows to broadcast]
+        let mut head = [0u32; 2];
+        if let Ok((_, plan, _)) = &prepared {
+            head[0] = 1;
+            head[1] = if plan.schedule == Schedule::Folded { plan.todo.len() as u32 } else { 0 };
+        }
+        root.broadcast_into(&mut head[..]);
+        let (writer, plan, present) = prepared?;
+        if head[1] > 0 {
+            let mut todo = plan.todo.clone();
+            root.broadcast_into(&mut todo[..]);
+        }
+        let mut link = MpiMasterLink { world };
+        let outcome = run_master(&mut link, writer, &plan)?;
+        Ok(Some(report(job, &plan, present, outcome)))
+    } else {
+        let mut head = [0u32; 2];
+        root.broadcast_into(&mut head[..]);
+        if head[0] == 0 {
+            return Err(ServiceError::Setup { rank: ctx.rank(), message: "stopped: rank 0 could not open the output file".into() });
+        }
+        let static_rows = if job.schedule == Schedule::Folded {
+            let mut todo = vec![0u32; head[1] as usize];
+            if head[1] > 0 {
+                root.broadcast_into(&mut todo[..]);
+            }
+            Some(folded_share(&todo, workers, (ctx.rank() - 1) as usize))
+        } else {
+            None
+        };
+        let cfg = WorkerConfig {
+            rank: ctx.rank(),
+            threads: job.threads.max(1),
+            layout: job.meta.layout,
+            n: job.patches.len() as u32,
+            zstd_level: job.writer.zstd_level,
+            chunk_bytes: job.writer.chunk_bytes,
+            flush_seconds: job.flush_seconds,
+        };
+        let mut link = MpiWorkerLink { world };
+        run_worker(&job.engine, &cfg, &mut link, static_rows)?;
+        Ok(None)
+    }
+}

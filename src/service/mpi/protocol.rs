@@ -1,0 +1,148 @@
+//! Message layouts and tags of the MPI service, all in one place.
+//!
+//! Row ids always travel in the payload, never only in the tag: the MPI standard
+//! guarantees tags only up to 32767 (MPI 4.0 §3.2.3, `MPI_TAG_UB`), and the paper's use
+//! of the tag as row index breaks past that. All integers little-endian.
+//!
+//! | tag | direction | payload |
+//! |---|---|---|
+//! | `REQUEST` | worker → 0 | `u32` worker rank |
+//! | `ASSIGN` | 0 → worker | `u32` count, then `count` × `u32` row ids (count 0 = no more work) |
+//! | `CHUNK` | worker → 0 | chunk record bytes (formats/ffz-v1.md), then `count` × `u32` row ids, `u64` raw length, `u32` count |
+//! | `FAILED` | worker → 0 | `i64` row (−1: none), UTF-8 message |
+//! | `DONE` | worker → 0 | `u64` rows, `f64` busy seconds, `u32` threads, `u64` peak RSS |
+//! | `SETUP` | worker → 0 | UTF-8 message: why this rank could not set up |
+//! | `GATHER_ROW` | worker → 0 | `u32` row, then n × `f64` (the `--gather` baseline only) |
+//!
+//! The trailer of `CHUNK` sits after the chunk bytes so the master can cut it off in
+//! place and hand the buffer to the writer without copying.
+
+use mpi::Tag;
+
+use crate::ffz::EncodedChunk;
+use crate::service::{ServiceError, WorkerStats};
+
+pub const REQUEST: Tag = 1;
+pub const ASSIGN: Tag = 2;
+pub const CHUNK: Tag = 3;
+pub const FAILED: Tag = 4;
+pub const DONE: Tag = 5;
+pub const SETUP: Tag = 6;
+pub const GATHER_ROW: Tag = 7;
+
+fn malformed(what: &str, rank: i32) -> ServiceError {
+    ServiceError::Transport(format!("malformed {what} message from rank {rank}"))
+}
+
+pub fn encode_assign(rows: &[u32]) -> Vec<u32> {
+    let mut v = Vec::with_capacity(rows.len() + 1);
+    v.push(rows.len() as u32);
+    v.extend_from_slice(rows);
+    v
+}
+
+pub fn decode_assign(v: &[u32]) -> Result<Vec<u32>, ServiceError> {
+    match v.split_first() {
+        Some((&count, rows)) if rows.len() == count as usize => Ok(rows.to_vec()),
+        _ => Err(malformed("ASSIGN", 0)),
+    }
+}
+
+/// Chunk bytes followed by the trailer (row ids, raw length, count).
+pub fn encode_chunk_message(chunk: EncodedChunk) -> Vec<u8> {
+    let mut v = chunk.bytes;
+    v.reserve(4 * chunk.row_ids.len() + 12);
+    for r in &chunk.row_ids {
+        v.extend_from_slice(&r.to_le_bytes());
+    }
+    v.extend_from_slice(&chunk.raw_len.to_le_bytes());
+    v.extend_from_slice(&(chunk.row_ids.len() as u32).to_le_bytes());
+    v
+}
+
+/// Inverse of [`encode_chunk_message`]; reuses the buffer for the chunk bytes.
+pub fn decode_chunk_message(mut v: Vec<u8>, rank: i32) -> Result<EncodedChunk, ServiceError> {
+    let len = v.len();
+    if len < 12 {
+        return Err(malformed("CHUNK", rank));
+    }
+    let count = u32::from_le_bytes(v[len - 4..].try_into().map_err(|_| malformed("CHUNK", rank))?) as usize;
+    let raw_len = u64::from_le_bytes(v[len - 12..len - 4].try_into().map_err(|_| malformed("CHUNK", rank))?);
+    let ids_start = (len - 12).checked_sub(4 * count).ok_or_else(|| malformed("CHUNK", rank))?;
+    let row_ids = v[ids_start..len - 12]
+        .chunks_exact(4)
+        .map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+        .collect();
+    v.truncate(ids_start);
+    Ok(EncodedChunk { row_ids, bytes: v, raw_len })
+}
+
+pub fn encode_failed(row: i64, message: &str) -> Vec<u8> {
+    let mut v = row.to_le_bytes().to_vec();
+    v.extend_from_slice(message.as_bytes());
+    v
+}
+
+pub fn decode_failed(v: &[u8], rank: i32) -> Result<(i64, String), ServiceError> {
+    if v.len() < 8 {
+        return Err(malformed("FAILED", rank));
+    }
+    let row = i64::from_le_bytes(v[..8].try_into().map_err(|_| malformed("FAILED", rank))?);
+    Ok((row, String::from_utf8_lossy(&v[8..]).into_owned()))
+}
+
+pub fn encode_done(s: &WorkerStats) -> Vec<u8> {
+    let mut v = Vec::with_capacity(28);
+    v.extend_from_slice(&s.rows.to_le_bytes());
+    v.extend_from_slice(&s.busy_seconds.to_le_bytes());
+    v.extend_from_slice(&s.threads.to_le_bytes());
+    v.extend_from_slice(&s.peak_rss.to_le_bytes());
+    v
+}
+
+pub fn decode_done(v: &[u8], rank: i32) -> Result<WorkerStats, ServiceError> {
+    if v.len() != 28 {
+        return Err(malformed("DONE", rank));
+    }
+    let u64_at = |o: usize| u64::from_le_bytes([v[o], v[o + 1], v[o + 2], v[o + 3], v[o + 4], v[o + 5], v[o + 6], v[o + 7]]);
+    Ok(WorkerStats {
+        rank,
+        rows: u64_at(0),
+        busy_seconds: f64::from_bits(u64_at(8)),
+        threads: u32::from_le_bytes([v[16], v[17], v[18], v[19]]),
+        peak_rss: u64_at(20),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn chunk_message_round_trip_keeps_bytes_and_ids() {
+        let chunk = EncodedChunk { row_ids: vec![7, 70_000, 3], bytes: vec![1, 2, 3, 4, 5], raw_len: 1234 };
+        let back = decode_chunk_message(encode_chunk_message(chunk.clone()), 1).unwrap();
+        assert_eq!(back.row_ids, chunk.row_ids);
+        assert_eq!(back.bytes, chunk.bytes);
+        assert_eq!(back.raw_len, 1234);
+    }
+
+    #[test]
+    fn truncated_chunk_message_is_an_error_not_a_panic() {
+        let msg = encode_chunk_message(EncodedChunk { row_ids: vec![1, 2], bytes: vec![9; 3], raw_len: 5 });
+        for cut in 0..msg.len() {
+            let _ = decode_chunk_message(msg[cut..].to_vec(), 2);
+        }
+        assert!(decode_chunk_message(vec![0; 5], 2).is_err());
+    }
+
+    #[test]
+    fn assign_and_done_round_trip() {
+        assert_eq!(decode_assign(&encode_assign(&[5, 6])).unwrap(), vec![5, 6]);
+        assert_eq!(decode_assign(&encode_assign(&[])).unwrap(), Vec::<u32>::new());
+        assert!(decode_assign(&[3, 1]).is_err());
+        let s = WorkerStats { rank: 4, rows: 9, busy_seconds: 1.5, threads: 2, peak_rss: 77 };
+        let d = decode_done(&encode_done(&s), 4).unwrap();
+        assert_eq!((d.rows, d.busy_seconds, d.threads, d.peak_rss), (9, 1.5, 2, 77));
+    }
+}

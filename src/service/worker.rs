@@ -1,0 +1,243 @@
+//! The worker driver: one per embedded process or MPI worker rank.
+//!
+//! Its thread is the only one that talks to the master (for MPI: the only thread that
+//! calls MPI, `Threading::Funneled`). It feeds row ids to `threads` compute threads over
+//! a crossbeam channel; each compute thread computes rows with the shared
+//! [`RowEngine`], gathers them into a chunk and compresses it itself (so the master only
+//! appends bytes), then hands the chunk back to the driver, which forwards it.
+//!
+//! A compute thread flushes its pending rows when they reach the chunk size or when
+//! `flush_seconds` have passed, so a killed run loses at most that much work per thread.
+
+use std::panic::{catch_unwind, AssertUnwindSafe};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::time::{Duration, Instant};
+
+use crossbeam::channel::{bounded, unbounded, Receiver, RecvTimeoutError, Sender};
+
+use crate::ffz::{encode_chunk, EncodedChunk, Layout};
+use crate::formfactor::{RowEngine, Scratch};
+use crate::rows::{Row, RowValues};
+use crate::service::link::WorkerLink;
+use crate::service::rss::peak_rss_bytes;
+use crate::service::{ServiceError, WorkerStats};
+
+/// Environment variable that makes a worker fail on purpose when it reaches this row
+/// (fault-injection for tests of the failure path). Documented in the README.
+pub const FAIL_ROW_ENV: &str = "FFSTREAM_FAIL_ROW";
+
+/// How one worker runs.
+#[derive(Clone, Debug)]
+pub struct WorkerConfig {
+    pub rank: i32,
+    pub threads: usize,
+    pub layout: Layout,
+    pub n: u32,
+    pub zstd_level: i32,
+    /// Target uncompressed bytes per chunk.
+    pub chunk_bytes: usize,
+    pub flush_seconds: f64,
+}
+
+/// What a compute thread hands back to the driver.
+enum FromCompute {
+    Chunk(EncodedChunk),
+    Failed { row: i64, message: String },
+}
+
+/// Compute rows until the master says there are no more (dynamic), or `static_rows`
+/// are all done (folded), forwarding compressed chunks over `link`.
+///
+/// # Errors
+/// A failed row (reported to the master first) or a broken link.
+pub fn run_worker(
+    engine: &RowEngine,
+    cfg: &WorkerConfig,
+    link: &mut dyn WorkerLink,
+    static_rows: Option<Vec<u32>>,
+) -> Result<WorkerStats, ServiceError> {
+    let _span = tracing::info_span!("worker", rank = cfg.rank, threads = cfg.threads).entered();
+    let fail_row: Option<u32> = std::env::var(FAIL_ROW_ENV).ok().and_then(|v| v.parse().ok());
+    let threads = cfg.threads.max(1);
+    let (jobs_tx, jobs_rx) = unbounded::<u32>();
+    let (out_tx, out_rx) = bounded::<FromCompute>(2 * threads);
+    let computed = AtomicU64::new(0);
+    let busy_nanos = AtomicU64::new(0);
+    let stop = AtomicBool::new(false);
+
+    let result = std::thread::scope(|s| {
+        for t in 0..threads {
+            let jobs_rx = jobs_rx.clone();
+            let out_tx = out_tx.clone();
+            let counters = Counters { computed: &computed, busy_nanos: &busy_nanos, stop: &stop };
+            std::thread::Builder::new()
+                .name(format!("compute-{t}"))
+                .spawn_scoped(s, move || compute_thread(engine, cfg, fail_row, &jobs_rx, &out_tx, counters))
+                .map_err(|e| ServiceError::Transport(format!("cannot start a compute thread: {e}")))?;
+        }
+        drop(out_tx);
+        // `out_rx` moves into the driver and is dropped when it returns: on an error the
+        // compute threads then see closed channels and `stop`, and exit promptly.
+        let driven = drive(cfg, link, jobs_tx, out_rx, &computed, static_rows);
+        stop.store(true, Ordering::Relaxed);
+        driven
+    });
+
+    let stats = WorkerStats {
+        rank: cfg.rank,
+        rows: computed.load(Ordering::Relaxed),
+        busy_seconds: busy_nanos.load(Ordering::Relaxed) as f64 * 1e-9,
+        threads: threads as u32,
+        peak_rss: peak_rss_bytes(),
+    };
+    result?;
+    link.done(stats.clone())?;
+    Ok(stats)
+}
+
+/// The driver loop: hand out rows, forward chunks, ask for more before threads starve.
+fn drive(
+    cfg: &WorkerConfig,
+    link: &mut dyn WorkerLink,
+    jobs_tx: Sender<u32>,
+    out_rx: Receiver<FromCompute>,
+    computed: &AtomicU64,
+    static_rows: Option<Vec<u32>>,
+) -> Result<(), ServiceError> {
+    let mut jobs_tx = Some(jobs_tx);
+    let mut assigned = 0u64;
+    let mut requested = false;
+    let low_water = 2 * cfg.threads.max(1) as u64;
+    if let Some(rows) = static_rows {
+        if let Some(tx) = jobs_tx.take() {
+            for r in rows {
+                // The receivers live until every job is taken: send cannot fail here.
+                let _ = tx.send(r);
+            }
+        }
+    }
+    loop {
+        if let Some(tx) = &jobs_tx {
+            if !requested && assigned.saturating_sub(computed.load(Ordering::Relaxed)) <= low_water {
+                link.request()?;
+                requested = true;
+            }
+            if requested {
+                if let Some(rows) = link.try_assignment()? {
+                    requested = false;
+                    if rows.is_empty() {
+                        jobs_tx = None; // no more work: threads flush and exit
+                    } else {
+                        assigned += rows.len() as u64;
+                        for r in rows {
+                            let _ = tx.send(r);
+                        }
+                    }
+                }
+            }
+        }
+        match out_rx.recv_timeout(Duration::from_millis(2)) {
+            Ok(FromCompute::Chunk(chunk)) => link.send_chunk(chunk)?,
+            Ok(FromCompute::Failed { row, message }) => {
+                link.failed(row, &message)?;
+                return Err(ServiceError::WorkerFailed { rank: cfg.rank, row, message });
+            }
+            Err(RecvTimeoutError::Timeout) => {}
+            Err(RecvTimeoutError::Disconnected) => return Ok(()), // every thread finished
+        }
+    }
+}
+
+/// Counters shared by the compute threads of one worker.
+#[derive(Clone, Copy)]
+struct Counters<'a> {
+    computed: &'a AtomicU64,
+    busy_nanos: &'a AtomicU64,
+    /// Set when the driver gave up: threads stop taking rows.
+    stop: &'a AtomicBool,
+}
+
+/// One compute thread: rows in, compressed chunks out.
+fn compute_thread(
+    engine: &RowEngine,
+    cfg: &WorkerConfig,
+    fail_row: Option<u32>,
+    jobs: &Receiver<u32>,
+    out: &Sender<FromCompute>,
+    counters: Counters<'_>,
+) {
+    let Counters { computed, busy_nanos, stop } = counters;
+    let mut scratch = Scratch::default();
+    let mut pending: Vec<Row> = Vec::new();
+    let mut pending_bytes = 0usize;
+    let mut oldest: Option<Instant> = None;
+    let flush_after = Duration::from_secs_f64(cfg.flush_seconds.max(0.01));
+    loop {
+        let wait = oldest.map_or(flush_after, |t| flush_after.saturating_sub(t.elapsed()));
+        let (next, finished) = match jobs.recv_timeout(wait) {
+            Ok(i) => (Some(i), false),
+            Err(RecvTimeoutError::Timeout) => (None, false),
+            Err(RecvTimeoutError::Disconnected) => (None, true),
+        };
+        if stop.load(Ordering::Relaxed) {
+            return;
+        }
+        if let Some(i) = next {
+            let t0 = Instant::now();
+            let row = if fail_row == Some(i) {
+                Err(format!("failure injected by {FAIL_ROW_ENV}={i}"))
+            } else {
+                catch_unwind(AssertUnwindSafe(|| engine.compute_row(i, &mut scratch)))
+                    .map_err(|p| panic_message(p.as_ref()))
+            };
+            busy_nanos.fetch_add(t0.elapsed().as_nanos() as u64, Ordering::Relaxed);
+            match row {
+                Ok(row) => {
+                    pending_bytes += raw_row_bytes(&row);
+                    pending.push(row);
+                    oldest.get_or_insert_with(Instant::now);
+                    computed.fetch_add(1, Ordering::Relaxed);
+                }
+                Err(message) => {
+                    let _ = out.send(FromCompute::Failed { row: i as i64, message });
+                    return;
+                }
+            }
+        }
+        let due = oldest.is_some_and(|t| t.elapsed() >= flush_after);
+        if !pending.is_empty() && (finished || due || pending_bytes >= cfg.chunk_bytes) {
+            let msg = match encode_chunk(&pending, cfg.layout, cfg.n, cfg.zstd_level) {
+                Ok(chunk) => FromCompute::Chunk(chunk),
+                Err(e) => FromCompute::Failed { row: pending[0].index as i64, message: e.to_string() },
+            };
+            pending.clear();
+            pending_bytes = 0;
+            oldest = None;
+            if out.send(msg).is_err() {
+                return; // the driver stopped (failure elsewhere)
+            }
+        }
+        if finished {
+            return;
+        }
+    }
+}
+
+/// Uncompressed size of a row, for chunk sizing.
+fn raw_row_bytes(row: &Row) -> usize {
+    16 + match &row.values {
+        RowValues::Dense(v) => 4 * v.len(),
+        RowValues::Sparse { cols, .. } => 8 * cols.len(),
+        RowValues::Skipped => 0,
+    }
+}
+
+fn panic_message(p: &(dyn std::any::Any + Send)) -> String {
+    if let Some(s) = p.downcast_ref::<&str>() {
+        format!("panic: {s}")
+    } else if let Some(s) = p.downcast_ref::<String>() {
+        format!("panic: {s}")
+    } else {
+        "panic".to_string()
+    }
+}

@@ -1,0 +1,162 @@
+//! The MPI service under a real `mpirun` (Open MPI, as root with --oversubscribe on a
+//! small machine): rank-count invariance, the folded schedule, the gather baseline, a
+//! worker failure, a rank that sees a different scene, and kill + resume.
+//!
+//! These tests need mpirun and a binary built with the `mpi` feature; `make test`
+//! installs Open MPI. Without them each test prints why it did nothing (only when
+//! FFSTREAM_SKIP_MPI=1 is set; otherwise a missing mpirun is a failure).
+
+use std::path::Path;
+use std::time::{Duration, Instant};
+
+use ffstream::ffz::FfzReader;
+
+use crate::common::{mpi_available, mpirun, ok, path_str};
+use crate::service::assert_same_rows;
+
+const CUBE: &[&str] = &["builtin:cube", "--max-edge", "0.25", "--quiet", "--threads", "1"];
+
+fn need_mpi() -> bool {
+    if mpi_available() {
+        return true;
+    }
+    if std::env::var_os("FFSTREAM_SKIP_MPI").is_some() {
+        eprintln!("skipped: FFSTREAM_SKIP_MPI is set and mpirun or the mpi feature is missing");
+        return false;
+    }
+    panic!("mpirun not found or ffstream built without the mpi feature (run `make test`, or set FFSTREAM_SKIP_MPI=1)");
+}
+
+fn mpi_compute(ranks: usize, out: &Path, extra: &[&str]) -> std::process::Output {
+    let mut args = vec!["compute"];
+    args.extend_from_slice(CUBE);
+    args.extend_from_slice(&["-o", path_str(out)]);
+    args.extend_from_slice(extra);
+    mpirun(ranks, &args).output().expect("cannot start mpirun")
+}
+
+fn assert_ok(out: &std::process::Output, what: &str) {
+    assert!(
+        out.status.success(),
+        "{what} failed: {}\nstdout:\n{}\nstderr:\n{}",
+        out.status,
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+fn embedded_reference(dir: &Path) -> std::path::PathBuf {
+    let reference = dir.join("embedded.ffz");
+    let mut args = vec!["compute"];
+    args.extend_from_slice(CUBE);
+    args.extend_from_slice(&["-o", path_str(&reference)]);
+    ok(&args);
+    reference
+}
+
+#[test]
+fn rows_are_identical_for_2_3_5_ranks_and_embedded() {
+    if !need_mpi() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let reference = embedded_reference(dir.path());
+    for ranks in [2, 3, 5] {
+        let f = dir.path().join(format!("n{ranks}.ffz"));
+        let out = mpi_compute(ranks, &f, &["--chunk-kib", "8"]);
+        assert_ok(&out, &format!("mpirun -n {ranks}"));
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(stderr.contains("worker rank"), "rank 0 reports each worker: {stderr}");
+        assert_same_rows(&reference, &f);
+    }
+}
+
+#[test]
+fn folded_schedule_and_gather_baseline_give_the_same_rows() {
+    if !need_mpi() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let reference = embedded_reference(dir.path());
+    let folded = dir.path().join("folded.ffz");
+    assert_ok(&mpi_compute(3, &folded, &["--schedule", "folded"]), "folded");
+    assert_same_rows(&reference, &folded);
+    let gather = dir.path().join("gather.ffz");
+    assert_ok(&mpi_compute(3, &gather, &["--gather"]), "gather");
+    assert_same_rows(&reference, &gather);
+}
+
+#[test]
+fn worker_failure_is_named_file_stays_readable_and_resume_completes_it() {
+    if !need_mpi() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let reference = embedded_reference(dir.path());
+    let f = dir.path().join("failed.ffz");
+    let mut args = vec!["compute"];
+    args.extend_from_slice(CUBE);
+    args.extend_from_slice(&["-o", path_str(&f), "--chunk-kib", "4"]);
+    let out = mpirun(3, &args).env("FFSTREAM_FAIL_ROW", "50").output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "the job must fail");
+    assert!(stderr.contains("row 50") && stderr.contains("rank "), "rank and row named: {stderr}");
+    let r = FfzReader::open(&f).expect("the file written so far is readable");
+    assert!(r.row(50).unwrap().is_none());
+    drop(r);
+    assert_ok(&mpi_compute(3, &f, &["--resume"]), "resume");
+    assert_same_rows(&reference, &f);
+}
+
+#[test]
+fn a_rank_with_a_different_scene_is_named_before_computing() {
+    if !need_mpi() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let f = dir.path().join("x.ffz");
+    let mut args = vec!["compute"];
+    args.extend_from_slice(CUBE);
+    args.extend_from_slice(&["-o", path_str(&f)]);
+    let out = mpirun(3, &args).env("FFSTREAM_TEST_SCENE_RANK", "2:builtin:plates").output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(stderr.contains("rank 2") && stderr.contains("scene differs"), "{stderr}");
+    let out = mpirun(3, &args).env("FFSTREAM_TEST_SCENE_RANK", "1:/nonexistent/scene.obj").output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(stderr.contains("rank 1") && stderr.contains("nonexistent"), "{stderr}");
+}
+
+#[test]
+fn killed_mpi_run_resumes_to_the_same_rows() {
+    if !need_mpi() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let scene = ["builtin:cube", "--max-edge", "0.1", "--quiet", "--threads", "1", "--samples", "8"];
+    let full = dir.path().join("full.ffz");
+    let mut args = vec!["compute"];
+    args.extend_from_slice(&scene);
+    args.extend_from_slice(&["-o", path_str(&full)]);
+    ok(&args);
+    let part = dir.path().join("part.ffz");
+    let mut args = vec!["compute"];
+    args.extend_from_slice(&scene);
+    args.extend_from_slice(&["-o", path_str(&part), "--chunk-kib", "16", "--flush-seconds", "0.05"]);
+    let mut child = mpirun(3, &args).spawn().unwrap();
+    let target = std::fs::metadata(&full).unwrap().len() / 3;
+    let t0 = Instant::now();
+    while std::fs::metadata(&part).map_or(0, |m| m.len()) < target && t0.elapsed() < Duration::from_secs(60) {
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    child.kill().unwrap(); // SIGKILL to mpirun: Open MPI then kills every rank
+    let _ = child.wait();
+    std::thread::sleep(Duration::from_millis(300));
+    let r = FfzReader::open(&part).expect("a killed run's file opens (by scan)");
+    drop(r);
+    args.push("--resume");
+    let out = mpirun(2, &args).output().unwrap();
+    assert_ok(&out, "resume under mpirun -n 2");
+    assert_same_rows(&full, &part);
+}
