@@ -22,6 +22,9 @@ use glam::DVec3;
 use crate::patch::{Patch, PatchSet};
 use crate::scene::{polygon_area, polygon_normal, Face, Scene};
 
+/// Patch count [`default_max_edge`] aims at when the user gives no `--max-edge`.
+pub const DEFAULT_TARGET_PATCHES: usize = 2000;
+
 /// Grid size of a face: `(k, k)` for a triangle (k² patches), `(a, b)` for a quad
 /// (a·b patches).
 fn grid(face: &Face, max_edge: f64) -> (usize, usize) {
@@ -54,8 +57,12 @@ pub fn patch_count(scene: &Scene, max_edge: f64) -> usize {
         .sum()
 }
 
-/// Cut every face of `scene` so that no patch edge is longer than `max_edge` (> 0).
+/// Cut every face of `scene` so that no patch edge is longer than `max_edge`.
 /// Patches are in face order; within a face, row by row.
+///
+/// `max_edge` must be positive and finite (the caller validates user input); the
+/// result has [`patch_count`] patches, which the caller may check first against a
+/// memory budget.
 pub fn subdivide(scene: &Scene, max_edge: f64) -> PatchSet {
     debug_assert!(max_edge > 0.0, "max_edge must be positive, got {max_edge}");
     let mut patches = Vec::with_capacity(patch_count(scene, max_edge));
@@ -252,5 +259,70 @@ mod tests {
         }
         let e = default_max_edge(&s, 1);
         assert_eq!(patch_count(&s, e), s.faces.len());
+    }
+}
+
+#[cfg(test)]
+mod proptests {
+    use super::*;
+    use crate::scene::{Material, Scene};
+    use proptest::prelude::*;
+
+    fn point() -> impl Strategy<Value = DVec3> {
+        (-10.0..10.0f64, -10.0..10.0f64, -10.0..10.0f64).prop_map(|(x, y, z)| DVec3::new(x, y, z))
+    }
+
+    fn scene_of(corners: Vec<DVec3>) -> Scene {
+        Scene {
+            faces: vec![Face {
+                corners,
+                group: 0,
+                material: 0,
+                line: 0,
+            }],
+            groups: vec!["g".into()],
+            materials: vec![Material {
+                name: "m".into(),
+                rho: [0.5; 3],
+                emission: [0.0; 3],
+            }],
+            ..Scene::default()
+        }
+    }
+
+    proptest! {
+        /// Random triangles and random planar convex quads (a parallelogram sheared at
+        /// one corner, kept convex), at random max_edge: edges bounded, area conserved,
+        /// every patch with the face's orientation.
+        #[test]
+        fn random_faces(a in point(), b in point(), c in point(),
+                        t in 0.05..0.95f64, s in 0.05..0.95f64, frac in 0.02..1.5f64,
+                        quad in any::<bool>()) {
+            let corners = if quad {
+                // o, o+u, o+u+v, o+v with the third corner pulled towards the centre:
+                // stays planar and convex.
+                let (u, v) = (b - a, c - a);
+                vec![a, a + u, a + (u + v) * (0.5 + 0.5 * t) + (u - v) * (0.25 * (s - 0.5)), a + v]
+            } else {
+                vec![a, b, c]
+            };
+            let scene = scene_of(corners);
+            prop_assume!(scene.validate().is_ok());
+            let face = &scene.faces[0];
+            let max_edge = face.longest_edge() * frac;
+            let ps = subdivide(&scene, max_edge);
+            prop_assert_eq!(ps.len(), patch_count(&scene, max_edge));
+            let n = face.normal();
+            let mut area = 0.0;
+            for p in &ps.patches {
+                let c = p.corners();
+                for i in 0..c.len() {
+                    prop_assert!(c[i].distance(c[(i + 1) % c.len()]) <= max_edge * (1.0 + 1e-12));
+                }
+                prop_assert!(polygon_normal(c).dot(n) > 1.0 - 1e-9);
+                area += p.area;
+            }
+            prop_assert!((area - face.area()).abs() <= 1e-11 * face.area());
+        }
     }
 }

@@ -46,7 +46,7 @@ pub enum SceneError {
         reason: String,
     },
     /// A `usemtl` names a material no material library defines.
-    #[error("{}:{line}: material `{name}` is not defined by any material library", path.display())]
+    #[error("{}:{line}: material `{name}` is not defined by a material library loaded before this line", path.display())]
     MissingMaterial {
         path: PathBuf,
         line: u32,

@@ -340,3 +340,25 @@ fn subdivision_is_scale_invariant() {
         }
     }
 }
+
+#[test]
+fn polygons_are_triangulated_keeping_area_and_orientation() {
+    let s = load_obj(&data("scenes/polygons.obj")).unwrap();
+    // Only the non-convex quad is worth a warning; polygons with more corners are normal.
+    assert_eq!(s.warnings.len(), 1, "{:?}", s.warnings);
+    assert!(s.warnings[0].contains("1 non-convex quad") && s.warnings[0].contains("line 34"));
+    assert_eq!(s.validate(), Ok(()));
+    // (line, triangles, area by the shoelace formula)
+    for (line, n, area) in [(26, 4, 3.0), (30, 3, 1.5), (34, 2, 1.5)] {
+        let faces: Vec<_> = s.faces.iter().filter(|f| f.line == line).collect();
+        assert_eq!(faces.len(), n, "line {line}");
+        assert!(faces.iter().all(|f| f.corners.len() == 3));
+        assert!(faces.iter().all(|f| f.normal() == DVec3::Y), "line {line}");
+        let a: f64 = faces.iter().map(|f| f.area()).sum();
+        assert!((a - area).abs() < 1e-12, "line {line}: {a}");
+    }
+    let light: Vec<_> = s.faces.iter().filter(|f| f.line == 37).collect();
+    assert_eq!(light.len(), 1);
+    assert_eq!(light[0].corners.len(), 4);
+    assert_eq!(s.groups, ["l_shape", "pentagon", "dart", "light"]);
+}
