@@ -12,6 +12,8 @@
 //! The small scenes have analytic form factors (REFERENCES.md), e.g. between the two
 //! `plates` at distance 1: 0.19982; `perpendicular` with h = 1: 0.20004.
 
+use std::collections::HashMap;
+
 use glam::DVec3;
 
 use super::{room, Face, Material, Scene, SceneError};
@@ -81,6 +83,7 @@ pub fn builtin(name: &str, param: Option<f64>) -> Result<Scene, SceneError> {
 /// written OBJ back does, so [`super::write_obj`] round-trips).
 pub(super) struct Builder {
     scene: Scene,
+    group_ids: HashMap<String, u32>,
 }
 
 impl Builder {
@@ -90,6 +93,7 @@ impl Builder {
                 source: format!("builtin:{name}"),
                 ..Scene::default()
             },
+            group_ids: HashMap::new(),
         }
     }
 
@@ -105,13 +109,15 @@ impl Builder {
 
     /// Add a face (3 or 4 corners, counter-clockwise seen from the front).
     pub(super) fn face(&mut self, group: &str, material: u32, corners: &[DVec3]) {
-        let g = match self.scene.groups.iter().rposition(|g| g == group) {
-            Some(g) => g,
+        let g = match self.group_ids.get(group) {
+            Some(&g) => g,
             None => {
+                let g = self.scene.groups.len() as u32;
                 self.scene.groups.push(group.to_owned());
-                self.scene.groups.len() - 1
+                self.group_ids.insert(group.to_owned(), g);
+                g
             }
-        } as u32;
+        };
         self.scene.faces.push(Face {
             corners: corners.to_vec(),
             group: g,

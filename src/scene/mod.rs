@@ -12,13 +12,14 @@
 //!   because their form factors are known or their size can be dialled.
 //!
 //! [`write_obj`] writes a scene back as OBJ + MTL; loading that file gives the same
-//! scene. Subdivision into patches lives in [`crate::geometry::subdivide`].
+//! scene. [`open_scene`] takes either kind of name from the command line. Subdivision into patches lives in [`crate::geometry::subdivide`].
 
 mod builtin;
 mod error;
 mod obj;
 mod polygon;
 mod room;
+mod spec;
 mod write;
 
 pub use builtin::{builtin, builtin_names, builtin_perpendicular};
@@ -26,6 +27,7 @@ pub use error::SceneError;
 pub use obj::load_obj;
 pub use polygon::{polygon_area, polygon_normal};
 pub use room::builtin_room;
+pub use spec::open_scene;
 pub use write::write_obj;
 
 use glam::DVec3;
