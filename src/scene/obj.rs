@@ -45,7 +45,8 @@ struct MtlLines {
 }
 
 /// Load and validate an OBJ file and the MTL libraries it names (relative to the
-/// OBJ file's directory).
+/// OBJ file's directory). Each `o`/`g` name is a group (a name used twice is one
+/// group); faces before any of them are in group `unnamed_object`.
 ///
 /// # Errors
 /// [`SceneError`] naming the OBJ or MTL file and line: unreadable file, malformed
@@ -118,11 +119,8 @@ pub fn load_obj(path: &Path) -> Result<Scene, SceneError> {
     let mut k = 0usize; // global element counter, matches `pre.elements`
     for model in &models {
         let mesh = &model.mesh;
-        let name = if model.name.is_empty() {
-            "default"
-        } else {
-            model.name.as_str()
-        };
+        // tobj names faces before any `o`/`g` (or after a bare `g`) `unnamed_object`.
+        let name = model.name.as_str();
         let arities: Vec<usize> = if mesh.face_arities.is_empty() {
             vec![3; mesh.indices.len() / 3]
         } else {

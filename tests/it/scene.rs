@@ -362,3 +362,14 @@ fn polygons_are_triangulated_keeping_area_and_orientation() {
     assert_eq!(light[0].corners.len(), 4);
     assert_eq!(s.groups, ["l_shape", "pentagon", "dart", "light"]);
 }
+
+#[test]
+fn polylines_are_ignored_and_ungrouped_faces_get_a_group() {
+    let s = load_obj(&data("bad/line_element.obj")).unwrap();
+    // tobj names faces before any `o`/`g` (or after a bare `g`) `unnamed_object`.
+    assert_eq!(s.groups, ["unnamed_object", "light"]);
+    assert_eq!(s.faces.len(), 2);
+    assert_eq!((s.faces[0].line, s.faces[1].line), (12, 16));
+    assert_eq!(s.warnings.len(), 1, "{:?}", s.warnings);
+    assert!(s.warnings[0].contains("ignored 1 line element") && s.warnings[0].contains("line 13"));
+}
