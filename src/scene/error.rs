@@ -1,0 +1,131 @@
+//! The scene layer's error type. Every variant that comes from a file names the file
+//! and, where one exists, the 1-based line (OBJ or MTL) that caused it.
+
+use std::path::{Path, PathBuf};
+
+/// Why a scene could not be loaded, built or written.
+#[derive(Debug, thiserror::Error)]
+pub enum SceneError {
+    /// The OBJ or MTL file could not be read.
+    #[error("{}: cannot read: {source}", path.display())]
+    Read {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    /// A statement the loader needs could not be parsed.
+    #[error("{}:{line}: malformed `{keyword}` statement: {reason}", path.display())]
+    Malformed {
+        path: PathBuf,
+        line: u32,
+        keyword: String,
+        reason: String,
+    },
+    /// A face refers to a vertex (or texture coordinate / normal) that does not exist.
+    #[error("{}:{line}: {what} index {index} out of range ({count} defined before this line)", path.display())]
+    IndexOutOfRange {
+        path: PathBuf,
+        line: u32,
+        what: &'static str,
+        index: i64,
+        count: usize,
+    },
+    /// A vertex coordinate is NaN or infinite.
+    #[error("{}:{line}: non-finite vertex coordinate `{value}`", path.display())]
+    NonFinite {
+        path: PathBuf,
+        line: u32,
+        value: String,
+    },
+    /// An `mtllib` names a file that does not exist or cannot be read.
+    #[error("{}:{line}: material library {} cannot be read: {reason}", path.display(), mtl.display())]
+    MissingMtl {
+        path: PathBuf,
+        line: u32,
+        mtl: PathBuf,
+        reason: String,
+    },
+    /// A `usemtl` names a material no material library defines.
+    #[error("{}:{line}: material `{name}` is not defined by a material library loaded before this line", path.display())]
+    MissingMaterial {
+        path: PathBuf,
+        line: u32,
+        name: String,
+    },
+    /// A face comes before any `usemtl`: it has no reflectance.
+    #[error("{}:{line}: face has no material (no `usemtl` before it)", path.display())]
+    NoMaterial { path: PathBuf, line: u32 },
+    /// A `Kd` channel outside [0, 1) (DESIGN.md §3); `path` is the MTL file.
+    #[error("{}:{line}: material `{material}`: Kd {value} is outside [0, 1)", path.display())]
+    Reflectance {
+        path: PathBuf,
+        line: u32,
+        material: String,
+        value: f64,
+    },
+    /// A `Ke` channel negative or not finite; `path` is the MTL file.
+    #[error("{}:{line}: material `{material}`: Ke {value} must be finite and >= 0", path.display())]
+    Emission {
+        path: PathBuf,
+        line: u32,
+        material: String,
+        value: f64,
+    },
+    /// No usable face at all.
+    #[error("{}: the scene has no faces (after dropping degenerate ones)", path.display())]
+    Empty { path: PathBuf },
+    /// `tobj` refused the file for a reason the loader's own checks did not catch.
+    #[error("{}: OBJ/MTL parser: {message}", path.display())]
+    Parser { path: PathBuf, message: String },
+    /// `builtin` was asked for a scene it does not know.
+    #[error("unknown built-in scene `{name}` (known: {known})")]
+    UnknownBuiltin { name: String, known: String },
+    /// A built-in scene's parameter is out of range.
+    #[error("built-in scene `{name}`: {reason}")]
+    BadParam { name: String, reason: String },
+    /// Writing an OBJ or MTL file failed.
+    #[error("{}: cannot write: {source}", path.display())]
+    Write {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+}
+
+impl SceneError {
+    /// The file the error is about, if any.
+    pub fn path(&self) -> Option<&Path> {
+        use SceneError::*;
+        match self {
+            Read { path, .. }
+            | Malformed { path, .. }
+            | IndexOutOfRange { path, .. }
+            | NonFinite { path, .. }
+            | MissingMtl { path, .. }
+            | MissingMaterial { path, .. }
+            | NoMaterial { path, .. }
+            | Reflectance { path, .. }
+            | Emission { path, .. }
+            | Empty { path }
+            | Parser { path, .. }
+            | Write { path, .. } => Some(path),
+            UnknownBuiltin { .. } | BadParam { .. } => None,
+        }
+    }
+
+    /// The 1-based line in [`SceneError::path`] the error is about, if any.
+    pub fn line(&self) -> Option<u32> {
+        use SceneError::*;
+        match self {
+            Malformed { line, .. }
+            | IndexOutOfRange { line, .. }
+            | NonFinite { line, .. }
+            | MissingMtl { line, .. }
+            | MissingMaterial { line, .. }
+            | NoMaterial { line, .. }
+            | Reflectance { line, .. }
+            | Emission { line, .. } => Some(*line),
+            _ => None,
+        }
+    }
+}
