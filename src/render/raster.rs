@@ -18,6 +18,9 @@
 
 use super::setup::{edge_function, ScreenScene, Triangle, WIRE_COLOUR};
 
+/// Sample budget of one band (depth f64 + colour 3 × f32: 20 bytes per sample).
+const MAX_BAND_SAMPLES: usize = 1 << 20;
+
 /// Linear RGB per pixel, row-major, top row first, black background.
 pub fn rasterize(
     scene: &ScreenScene,
@@ -33,8 +36,13 @@ pub fn rasterize(
     } else {
         threads
     };
-    // About four bands per thread, for balance when the scene is uneven.
-    let band_rows = h.div_ceil(threads * 4).max(1);
+    // About four bands per thread, for balance when the scene is uneven, and no more
+    // than MAX_BAND_SAMPLES samples per band, to bound memory for huge images.
+    let samples_per_row = (w * (ss as usize).pow(2)).max(1);
+    let band_rows = h
+        .div_ceil(threads * 4)
+        .min(MAX_BAND_SAMPLES / samples_per_row)
+        .max(1);
     let bands: Vec<BandSlice> = pixels
         .chunks_mut(band_rows * w)
         .enumerate()

@@ -682,6 +682,14 @@ fn synthetic_radiosity(s: &PatchSet) -> Vec<[f32; 3]> {
         .collect()
 }
 
+/// Writes `img` under `$FFSTREAM_KEEP_RENDER` when set, to look at by eye.
+fn keep(img: &Image, name: &str) {
+    if let Some(d) = std::env::var_os("FFSTREAM_KEEP_RENDER") {
+        img.write_png(&std::path::PathBuf::from(d).join(name))
+            .unwrap();
+    }
+}
+
 /// Sums of the red and green codes over a pixel rectangle.
 fn red_green(img: &Image, xs: std::ops::Range<u32>, ys: std::ops::Range<u32>) -> (u64, u64) {
     let (mut r, mut g) = (0, 0);
@@ -869,11 +877,8 @@ fn cornell_box_wireframe_and_flat() {
         dark(&smooth)
     );
     assert_ne!(flat.rgb, smooth.rgb);
-    if let Some(d) = std::env::var_os("FFSTREAM_KEEP_RENDER") {
-        let d = std::path::PathBuf::from(d);
-        wired.write_png(&d.join("cornell_wire.png")).unwrap();
-        flat.write_png(&d.join("cornell_flat.png")).unwrap();
-    }
+    keep(&wired, "cornell_wire.png");
+    keep(&flat, "cornell_flat.png");
 }
 
 #[test]
@@ -907,6 +912,7 @@ fn frame_looks_into_the_open_cornell_box() {
         },
     )
     .unwrap();
+    keep(&img, "cornell_framed.png");
     let (r, g) = red_green(&img, 0..w / 3, 60..140);
     assert!(r > g, "left third red {r} green {g}");
     let (r, g) = red_green(&img, 2 * w / 3..w, 60..140);
@@ -959,6 +965,24 @@ fn frame_goes_inside_a_closed_room_and_outside_an_object() {
             back_face_scale: 0.0,
             ..opts(64, 64, 1)
         };
+        let img = render(
+            &scene,
+            &rad,
+            &cam,
+            &RenderOptions {
+                wireframe: true,
+                ..o.clone()
+            },
+        )
+        .unwrap();
+        keep(
+            &img,
+            if inward {
+                "cube_inside.png"
+            } else {
+                "cube_outside.png"
+            },
+        );
         let img = render(&scene, &rad, &cam, &o).unwrap();
         assert_eq!(img.pixel(32, 32), [SRGB_0_5; 3], "inward {inward}");
         if inward {
