@@ -30,11 +30,19 @@ pub struct Row {
 
 impl Row {
     pub fn dense(index: u32, vals: Vec<f32>) -> Self {
-        Row { index, values: RowValues::Dense(vals), dropped: 0.0 }
+        Row {
+            index,
+            values: RowValues::Dense(vals),
+            dropped: 0.0,
+        }
     }
 
     pub fn skipped(index: u32) -> Self {
-        Row { index, values: RowValues::Skipped, dropped: 0.0 }
+        Row {
+            index,
+            values: RowValues::Skipped,
+            dropped: 0.0,
+        }
     }
 
     /// Σ of the stored values, accumulated in f64.

@@ -2,5 +2,6 @@
 //! file). Each module holds the tests of one capability.
 mod common;
 mod mpi;
+mod render;
 mod scene;
 mod service;
