@@ -151,6 +151,8 @@ pub struct Solution {
     pub h: Vec<Vec<[f64; 3]>>,
     /// The emission solved for (copied from the input, for the outputs).
     pub e: Vec<Vec<[f64; 3]>>,
+    /// The reflectance solved with, per patch (copied from the input).
+    pub rho: Vec<[f32; 3]>,
     /// Sweeps (Jacobi, Gauss–Seidel) or shots (shooting).
     pub iterations: usize,
     /// Sequential scans of the row source, final pass included.
@@ -327,6 +329,7 @@ pub fn solve(
         b: split(&it.b),
         h: split(&it.h),
         e: split(&sys.e),
+        rho: rho.to_vec(),
         iterations: it.iterations,
         passes: it.passes,
         rows_read: it.rows_read,

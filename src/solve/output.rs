@@ -3,7 +3,7 @@
 //!
 //! Radiosity CSV: header [`CSV_HEADER`], then one line per patch in patch order:
 //! patch index (0-based, as the matrix rows), group name (quoted per RFC 4180 if
-//! needed), area, B, E (the case's exitance), ρ, H. Floats are written in the shortest
+//! needed), area, B, E (the case's exitance), ρ (as solved with), H. Floats are written in the shortest
 //! form that reads back to the same value. With K > 1 emission cases each case goes to
 //! its own file ([`case_path`]): every file is then a complete radiosity table that
 //! `render --radiosity` can take, with no case column to filter on.
@@ -73,7 +73,7 @@ pub fn write_csv(
         for x in e[i] {
             let _ = write!(line, ",{}", x as f32);
         }
-        for x in p.rho {
+        for x in solution.rho[i] {
             let _ = write!(line, ",{x}");
         }
         for x in h[i] {
@@ -91,7 +91,7 @@ fn check_case(patches: &PatchSet, solution: &Solution, case: usize) -> Result<()
             solution.cases()
         )));
     }
-    if solution.b[case].len() != patches.len() {
+    if solution.b[case].len() != patches.len() || solution.rho.len() != patches.len() {
         return Err(SolveError::InvalidInput(format!(
             "solution has {} patches, the scene {}",
             solution.b[case].len(),

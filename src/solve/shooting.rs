@@ -55,6 +55,7 @@ pub(crate) fn run(
         sys.area[i] * u.iter().zip(&weight).map(|(x, w)| x * w).sum::<f64>()
     };
     let mut priority: Vec<f64> = (0..n).map(|i| priority_of(&unshot, i)).collect();
+    let inv_area: Vec<f64> = sys.area.iter().map(|a| 1.0 / a).collect();
     let mut unshot_power = emitted.clone();
     let max_shots = cfg.max_iterations.max(1).saturating_mul(n.max(1));
     let mut shots = 0usize;
@@ -96,19 +97,38 @@ pub(crate) fn run(
             *p -= sys.area[j] * shot[c];
         }
         let aj = sys.area[j];
+        // Per receiver i with w = F_ji A_j / A_i: d_c = ρ_ic w shot_c. Its priority grows
+        // by A_i Σ_c d_c weight_c = F_ji A_j Σ_ch ρ_i,ch Σ_k shot_(k,ch) weight_(k,ch)
+        // (A_i cancels), and the unshot power of column c by A_i d_c, summed per channel
+        // over the row (`rho_sum`) and applied once after it.
+        let mut per_channel = [0.0f64; 3];
+        for (c, (s, w)) in shot.iter().zip(&weight).enumerate() {
+            per_channel[c % 3] += s * w;
+        }
+        let mut rho_sum = [0.0f64; 3];
         view.visit(n, |i, f| {
             if !sys.reflects[i] {
                 return;
             }
-            let w = f * aj / sys.area[i];
-            for c in 0..m {
-                let d = sys.rho_col(i, c) * w * shot[c];
-                b[i * m + c] += d;
-                unshot[i * m + c] += d;
-                unshot_power[c] += sys.area[i] * d;
+            let rho = &sys.rho[i];
+            let w = f * aj * inv_area[i];
+            for (c, (bc, uc)) in b[i * m..(i + 1) * m]
+                .iter_mut()
+                .zip(&mut unshot[i * m..(i + 1) * m])
+                .enumerate()
+            {
+                let d = rho[c % 3] * w * shot[c];
+                *bc += d;
+                *uc += d;
             }
-            priority[i] = priority_of(&unshot, i);
+            for ch in 0..3 {
+                rho_sum[ch] += f * rho[ch];
+            }
+            priority[i] += f * aj * (0..3).map(|ch| rho[ch] * per_channel[ch]).sum::<f64>();
         })?;
+        for (c, p) in unshot_power.iter_mut().enumerate() {
+            *p += aj * shot[c] * rho_sum[c % 3];
+        }
         // j's own entry (F_jj ≠ 0 on curved patches) may have given it new unshot power.
         priority[j] = priority_of(&unshot, j);
         shots += 1;
