@@ -197,11 +197,12 @@ fn dense_reference(
                 .max_by(|&x, &y| a[x][k].abs().total_cmp(&a[y][k].abs()))
                 .unwrap();
             a.swap(k, p);
-            for i in k + 1..n {
-                let m = a[i][k] / a[k][k];
+            let pivot = a[k].clone();
+            for row in a.iter_mut().skip(k + 1) {
+                let m = row[k] / pivot[k];
                 if m != 0.0 {
-                    for j in k..=n {
-                        a[i][j] -= m * a[k][j];
+                    for (x, p) in row[k..].iter_mut().zip(&pivot[k..]) {
+                        *x -= m * p;
                     }
                 }
             }
@@ -536,7 +537,7 @@ fn multi_rhs_equals_single_solves_and_is_linear() {
         .unwrap();
         assert_eq!(joint.cases(), 3);
         for (k, e) in [&e1, &e2, &e3].into_iter().enumerate() {
-            let alone = solve(&src, &[e.clone()], &rho, &cfg(method, tol)).unwrap();
+            let alone = solve(&src, std::slice::from_ref(e), &rho, &cfg(method, tol)).unwrap();
             let d = rel_diff(&joint.b[k], &alone.b[0]);
             assert!(d < bound, "{method} case {k}: joint vs alone {d:e}");
             let reference = dense_reference(&src, e, &rho, true);
@@ -918,9 +919,7 @@ fn csv_round_trip_and_group_table() {
     assert_eq!(lines.len(), 5);
     assert!(lines[1].starts_with("0,\"floor, east\",1,"), "{}", lines[1]);
     let back = read_radiosity_csv(&path, 4).unwrap();
-    for i in 0..4 {
-        assert_eq!(back[i], s.radiosity_f32(1)[i]);
-    }
+    assert_eq!(back, s.radiosity_f32(1));
     // The other columns: E, rho and H read back exactly.
     let fields: Vec<&str> = lines[3].rsplitn(10, ',').collect();
     let tail: Vec<&str> = fields[..9].iter().rev().copied().collect();
@@ -976,7 +975,9 @@ fn emission_cases_file_drives_a_multi_case_solve() {
 
 /// Parse a PLY file written by `write_ply_with` (either encoding): vertices with
 /// colours, faces.
-fn parse_ply(bytes: &[u8]) -> (Vec<[f32; 3]>, Vec<[u8; 3]>, Vec<Vec<i32>>) {
+type PlyMesh = (Vec<[f32; 3]>, Vec<[u8; 3]>, Vec<Vec<i32>>);
+
+fn parse_ply(bytes: &[u8]) -> PlyMesh {
     let end = bytes
         .windows(11)
         .position(|w| w == b"end_header\n")
@@ -1119,4 +1120,31 @@ fn ply_round_trip() {
     write_ply_with(&path, &ps, &radiosity, &opts).unwrap();
     let (_, col, _) = parse_ply(&std::fs::read(&path).unwrap());
     assert!(col.iter().all(|c| *c == [188, 137, 99]), "{:?}", col[0]);
+}
+
+/// The summary names the method, the counts and every case's power balance.
+#[test]
+fn summary_reports_iterations_residual_and_energy() {
+    let areas = [1.0; 6];
+    let src = source(&areas, cube_rows());
+    let mut e = vec![[0.0f32; 3]; 6];
+    e[0] = [1.0; 3];
+    let rho = vec![[0.5f32; 3]; 6];
+    let mut c = cfg(SolveMethod::Jacobi, 1e-12);
+    c.max_iterations = 3;
+    let s = solve(&src, &[e.clone(), e], &rho, &c).unwrap();
+    assert!(!s.converged);
+    assert_eq!(s.iterations, 3);
+    let text = s.summary();
+    eprintln!("{text}");
+    assert!(text.starts_with("jacobi: 3 sweeps"), "{text}");
+    assert!(
+        text.contains("NOT converged") && text.contains("case 1 power"),
+        "{text}"
+    );
+    assert!(
+        s.warnings[0].contains("iteration limit"),
+        "{:?}",
+        s.warnings
+    );
 }
