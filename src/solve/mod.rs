@@ -1,1 +1,346 @@
-//! (being written)
+//! Out-of-core radiosity: solve B = E + ρ F B from a stored form-factor matrix.
+//!
+//! The matrix never sits in memory. Rows come one at a time from a [`RowSource`] (the
+//! `.ffz` reader, or [`MemoryRows`]); the solver keeps only vectors of n × 3K values
+//! (K emission cases × RGB, all solved together so one pass over the file serves every
+//! case and channel). Radiosity B and irradiance H are per unit area; E is the emitted
+//! exitance (MTL `Ke`), ρ the diffuse reflectance (`Kd`) (DESIGN.md §3).
+//!
+//! # Methods ([`SolveMethod`])
+//! - `jacobi`: full sweeps B ← E + ρ F B, rows in file order (`jacobi.rs`).
+//! - `gauss-seidel` (default): the same, updating B in place, rows in file order
+//!   (`gauss_seidel.rs`): about half the sweeps of Jacobi, still one sequential scan
+//!   per sweep.
+//! - `shooting`: progressive refinement, one random-access row read per shot
+//!   (`shooting.rs`); stops when the unshot power is below tolerance × emitted power.
+//!
+//! Convergence: the relative residual max_c ‖B − E − ρ F B‖∞ / ‖B‖∞ per column c
+//! (case × channel), computed exactly on the returned B (see each method for how),
+//! must be within [`SolveConfig::tolerance`].
+//!
+//! # Rows the solve reads
+//! A patch that reflects nothing (ρ = 0 in every channel) has B = E: gathering never
+//! reads its row (they are counted in [`Solution::rows_skipped`]), shooting never shoots
+//! from it unless it emits. Rows of patches that neither reflect nor emit in any case
+//! are never read at all, so files computed with only the needed rows suffice; their
+//! irradiance comes by reciprocity (`check.rs`). A needed row that is missing or marked
+//! Skipped is an error naming the row. Top-k rows are rescaled so no light is lost
+//! (`rowview.rs`), unless [`SolveConfig::renormalize_top_k`] is off.
+//!
+//! # Files
+//! - Radiosity CSV ([`write_csv`]): one file per case (`radiosity.csv`, or
+//!   `radiosity_case0.csv`, ... for K > 1, see [`case_path`]), header
+//!   `patch,group,area,B_r,B_g,B_b,E_r,E_g,E_b,rho_r,rho_g,rho_b,H_r,H_g,H_b`.
+//! - Emission cases CSV ([`read_emission_cases`]), header `case,group,e_r,e_g,e_b`: one
+//!   line per (case, group) giving that group's exitance in that case; groups a case
+//!   does not list emit nothing in it; cases are numbered in order of first appearance
+//!   and may be named by any string. Blank lines and lines starting with `#` are ignored.
+//! - PLY ([`write_ply`]): per-vertex colours, tone mapping described in `ply.rs`.
+
+mod cases;
+mod check;
+mod csv;
+mod energy;
+mod error;
+mod gauss_seidel;
+mod jacobi;
+mod output;
+mod ply;
+mod rowview;
+mod shooting;
+mod source;
+mod system;
+
+use std::fmt;
+use std::str::FromStr;
+
+use tracing::info_span;
+
+pub use cases::{parse_emission_cases, read_emission_cases, EmissionCases, CASES_HEADER};
+pub use energy::EnergyReport;
+pub use error::SolveError;
+pub use output::{
+    case_path, format_group_table, group_table, read_radiosity_csv, write_csv, GroupRow, CSV_HEADER,
+};
+pub use ply::{
+    srgb_encode, vertex_radiosity, write_ply, write_ply_with, PlyEncoding, PlyOptions, ToneMap,
+    VertexMesh,
+};
+pub use source::{MemoryRows, RowSource};
+
+use check::{final_pass, FinalPass, Mode};
+use system::{column_max_abs, max_of, relative, System};
+
+/// The iterative method.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum SolveMethod {
+    /// Progressive refinement (random access to rows).
+    Shooting,
+    /// Jacobi sweeps (sequential).
+    Jacobi,
+    /// Gauss–Seidel sweeps in file order (sequential).
+    #[default]
+    GaussSeidel,
+}
+
+impl SolveMethod {
+    pub const ALL: [SolveMethod; 3] = [
+        SolveMethod::Jacobi,
+        SolveMethod::GaussSeidel,
+        SolveMethod::Shooting,
+    ];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            SolveMethod::Shooting => "shooting",
+            SolveMethod::Jacobi => "jacobi",
+            SolveMethod::GaussSeidel => "gauss-seidel",
+        }
+    }
+}
+
+impl fmt::Display for SolveMethod {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl FromStr for SolveMethod {
+    type Err = SolveError;
+
+    fn from_str(s: &str) -> Result<Self, SolveError> {
+        match s.to_ascii_lowercase().as_str() {
+            "shooting" | "progressive" => Ok(SolveMethod::Shooting),
+            "jacobi" => Ok(SolveMethod::Jacobi),
+            "gauss-seidel" | "gauss_seidel" | "gs" => Ok(SolveMethod::GaussSeidel),
+            _ => Err(SolveError::UnknownMethod(s.to_string())),
+        }
+    }
+}
+
+/// Settings of one solve.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SolveConfig {
+    pub method: SolveMethod,
+    /// Relative residual to reach (shooting: unshot power / emitted power). Default 1e-6.
+    pub tolerance: f64,
+    /// Most sweeps (Jacobi, Gauss–Seidel) or shots / n (shooting). Default 10 000.
+    pub max_iterations: usize,
+    /// Scale top-k rows by (stored + dropped) / stored so no light is lost. Default on.
+    pub renormalize_top_k: bool,
+}
+
+impl Default for SolveConfig {
+    fn default() -> Self {
+        SolveConfig {
+            method: SolveMethod::default(),
+            tolerance: 1e-6,
+            max_iterations: 10_000,
+            renormalize_top_k: true,
+        }
+    }
+}
+
+/// The result of a solve. Vectors are indexed `[case][patch]`, RGB inside.
+#[derive(Clone, Debug)]
+pub struct Solution {
+    pub method: SolveMethod,
+    /// Radiosity B.
+    pub b: Vec<Vec<[f64; 3]>>,
+    /// Irradiance H = F B (what a sensor facing along the normal measures).
+    pub h: Vec<Vec<[f64; 3]>>,
+    /// The emission solved for (copied from the input, for the outputs).
+    pub e: Vec<Vec<[f64; 3]>>,
+    /// The reflectance solved with, per patch (copied from the input).
+    pub rho: Vec<[f32; 3]>,
+    /// Sweeps (Jacobi, Gauss–Seidel) or shots (shooting).
+    pub iterations: usize,
+    /// Sequential scans of the row source, final pass included.
+    pub passes: usize,
+    /// Rows read by random access (shooting).
+    pub rows_read: u64,
+    /// Relative residual max ‖B − E − ρ F B‖∞ / ‖B‖∞ over cases and channels.
+    pub residual: f64,
+    /// The same per case and channel.
+    pub residual_per_case: Vec<[f64; 3]>,
+    /// The stopping criterion was met (not just the iteration limit).
+    pub converged: bool,
+    /// Patches that reflect nothing, whose rows gathering does not read (per sweep).
+    pub rows_skipped: usize,
+    /// Power balance per case.
+    pub energy: Vec<EnergyReport>,
+    /// Things the user should know (incomplete irradiance, iteration limit, ...).
+    pub warnings: Vec<String>,
+}
+
+impl Solution {
+    pub fn cases(&self) -> usize {
+        self.b.len()
+    }
+
+    /// Radiosity of one case as f32 (what the renderer takes).
+    pub fn radiosity_f32(&self, case: usize) -> Vec<[f32; 3]> {
+        self.b[case].iter().map(|v| v.map(|x| x as f32)).collect()
+    }
+
+    /// A few lines for the terminal: method, iterations, residual, energy per case.
+    pub fn summary(&self) -> String {
+        let mut s = format!(
+            "{}: {} {} ({} passes over the rows, {} random reads), residual {:.3e}{}, \
+             {} non-reflecting rows skipped\n",
+            self.method,
+            self.iterations,
+            if self.method == SolveMethod::Shooting {
+                "shots"
+            } else {
+                "sweeps"
+            },
+            self.passes,
+            self.rows_read,
+            self.residual,
+            if self.converged {
+                ""
+            } else {
+                " (NOT converged)"
+            },
+            self.rows_skipped
+        );
+        for (k, e) in self.energy.iter().enumerate() {
+            s += &format!("case {k} power (R G B):\n{e}\n");
+        }
+        for w in &self.warnings {
+            s += &format!("warning: {w}\n");
+        }
+        s
+    }
+}
+
+/// What a method hands back besides B.
+pub(crate) struct Iterate {
+    pub b: Vec<f64>,
+    pub h: Vec<f64>,
+    pub state: HState,
+    pub iterations: usize,
+    pub passes: usize,
+    pub rows_read: u64,
+    pub converged: bool,
+}
+
+/// How much of H (and the residual) a method already computed for its B.
+pub(crate) enum HState {
+    /// Everything (a final pass ran).
+    Complete(FinalPass),
+    /// H of reflecting patches and the residual per column (Jacobi).
+    Reflecting(Vec<f64>),
+    /// Nothing (shooting).
+    Missing,
+}
+
+/// The scene's own emission (MTL `Ke`), as one emission case.
+pub fn scene_emission(patches: &crate::patch::PatchSet) -> Vec<[f32; 3]> {
+    patches.patches.iter().map(|p| p.emission).collect()
+}
+
+/// The scene's own reflectance (MTL `Kd`).
+pub fn scene_reflectance(patches: &crate::patch::PatchSet) -> Vec<[f32; 3]> {
+    patches.patches.iter().map(|p| p.rho).collect()
+}
+
+/// Solve B = E + ρ F B per RGB channel for every emission case in `emission_sets`
+/// (each n values), with reflectance `rho` (n values), reading F from `src`.
+///
+/// # Errors
+/// [`SolveError::InvalidInput`] for inconsistent inputs or settings; a needed row
+/// missing, Skipped or malformed ([`SolveError::MissingRow`], [`SolveError::SkippedRow`],
+/// [`SolveError::BadRow`], ...); the row source's own error.
+pub fn solve(
+    src: &dyn RowSource,
+    emission_sets: &[Vec<[f32; 3]>],
+    rho: &[[f32; 3]],
+    cfg: &SolveConfig,
+) -> Result<Solution, SolveError> {
+    let _span = info_span!("solve", method = %cfg.method, cases = emission_sets.len()).entered();
+    if !(cfg.tolerance.is_finite() && cfg.tolerance >= 0.0) {
+        return Err(SolveError::InvalidInput(format!(
+            "tolerance {} must be a finite number ≥ 0",
+            cfg.tolerance
+        )));
+    }
+    let sys = System::new(src.patches(), emission_sets, rho, cfg.renormalize_top_k)?;
+    let mut it = match cfg.method {
+        SolveMethod::Jacobi => jacobi::run(&sys, src, cfg)?,
+        SolveMethod::GaussSeidel => gauss_seidel::run(&sys, src, cfg)?,
+        SolveMethod::Shooting => shooting::run(&sys, src, cfg)?,
+    };
+    let state = std::mem::replace(&mut it.state, HState::Missing);
+    let fp = match state {
+        HState::Complete(fp) => fp,
+        HState::Reflecting(residual_abs) => {
+            let mut fp = FinalPass {
+                residual_abs,
+                dark_sources_missing: None,
+            };
+            if !sys.dark.is_empty() {
+                let dark = final_pass(&sys, src, &it.b, &mut it.h, Mode::DarkOnly)?;
+                it.passes += 1;
+                fp.dark_sources_missing = dark.dark_sources_missing;
+            }
+            fp
+        }
+        HState::Missing => {
+            let fp = final_pass(&sys, src, &it.b, &mut it.h, Mode::Full)?;
+            it.passes += 1;
+            fp
+        }
+    };
+    let residual_cols = relative(&fp.residual_abs, &column_max_abs(&it.b, sys.m));
+    let mut warnings = Vec::new();
+    if !it.converged {
+        warnings.push(format!(
+            "{} stopped at the iteration limit ({} {}) before reaching tolerance {:e}",
+            cfg.method,
+            it.iterations,
+            if cfg.method == SolveMethod::Shooting {
+                "shots"
+            } else {
+                "sweeps"
+            },
+            cfg.tolerance
+        ));
+    }
+    if let Some((first, count)) = fp.dark_sources_missing {
+        warnings.push(format!(
+            "irradiance H of non-reflecting patches lacks the light sent directly by {count} \
+             non-reflecting emitting patch(es) whose rows are not stored (first: row {first})"
+        ));
+    }
+    let energy = energy::energy_reports(&sys, &it.b, &it.h);
+    let split = |v: &[f64]| -> Vec<Vec<[f64; 3]>> {
+        (0..sys.cases)
+            .map(|k| {
+                (0..sys.n)
+                    .map(|i| std::array::from_fn(|ch| v[i * sys.m + 3 * k + ch]))
+                    .collect()
+            })
+            .collect()
+    };
+    Ok(Solution {
+        method: cfg.method,
+        b: split(&it.b),
+        h: split(&it.h),
+        e: split(&sys.e),
+        rho: rho.to_vec(),
+        iterations: it.iterations,
+        passes: it.passes,
+        rows_read: it.rows_read,
+        residual: max_of(&residual_cols),
+        residual_per_case: residual_cols
+            .chunks_exact(3)
+            .map(|c| [c[0], c[1], c[2]])
+            .collect(),
+        converged: it.converged,
+        rows_skipped: sys.dark.len(),
+        energy,
+        warnings,
+    })
+}

@@ -5,3 +5,4 @@ mod mpi;
 mod render;
 mod scene;
 mod service;
+mod solve;

@@ -1,0 +1,155 @@
+//! Where the solver's rows come from.
+//!
+//! The solver never holds the matrix: it asks a [`RowSource`] for one row at a time,
+//! either all of them in storage order ([`RowSource::scan`], the fast sequential path
+//! that the gathering solvers use once per iteration) or one by index
+//! ([`RowSource::row`], random access, used by progressive shooting). The `.ffz` reader
+//! implements it in `ffz_source.rs`; [`MemoryRows`] holds rows in memory for tests and
+//! small scenes.
+
+use crate::patch::PatchSet;
+use crate::rows::Row;
+
+use super::error::SolveError;
+
+/// A stored form-factor matrix, read one row at a time.
+pub trait RowSource {
+    /// The patches the rows belong to (row and column `i` are patch `i`).
+    fn patches(&self) -> &PatchSet;
+
+    /// Visit all stored rows, in storage order (sequential: the fast path). Rows that
+    /// the file marks Skipped are delivered as [`crate::rows::RowValues::Skipped`];
+    /// rows that are missing are not delivered at all. An error returned by `f` stops
+    /// the scan and is returned.
+    ///
+    /// # Errors
+    /// The error of `f`, or the source's own read error.
+    fn scan(&self, f: &mut dyn FnMut(&Row) -> Result<(), SolveError>) -> Result<(), SolveError>;
+
+    /// Row `i` if stored (random access); `None` when it is missing.
+    ///
+    /// # Errors
+    /// The source's read error (corrupt data, I/O).
+    fn row(&self, i: u32) -> Result<Option<Row>, SolveError>;
+}
+
+/// Rows held in memory, in the order given (that order is the "file order" of
+/// [`RowSource::scan`]).
+#[derive(Clone, Debug)]
+pub struct MemoryRows {
+    patches: PatchSet,
+    rows: Vec<Row>,
+    /// `position[i]` = index into `rows` of row `i`.
+    position: Vec<Option<usize>>,
+}
+
+impl MemoryRows {
+    /// Hold `rows` (any order, any subset) for `patches`.
+    ///
+    /// # Errors
+    /// [`SolveError::OutOfRange`] for a row index ≥ n, [`SolveError::DuplicateRow`] when
+    /// an index occurs twice.
+    pub fn new(patches: PatchSet, rows: Vec<Row>) -> Result<Self, SolveError> {
+        let n = patches.len();
+        let mut position = vec![None; n];
+        for (k, r) in rows.iter().enumerate() {
+            let slot = position
+                .get_mut(r.index as usize)
+                .ok_or(SolveError::OutOfRange {
+                    row: r.index,
+                    index: r.index as u64,
+                    n,
+                })?;
+            if slot.is_some() {
+                return Err(SolveError::DuplicateRow { row: r.index });
+            }
+            *slot = Some(k);
+        }
+        Ok(MemoryRows {
+            patches,
+            rows,
+            position,
+        })
+    }
+
+    /// The rows, in scan order.
+    pub fn rows(&self) -> &[Row] {
+        &self.rows
+    }
+}
+
+impl RowSource for MemoryRows {
+    fn patches(&self) -> &PatchSet {
+        &self.patches
+    }
+
+    fn scan(&self, f: &mut dyn FnMut(&Row) -> Result<(), SolveError>) -> Result<(), SolveError> {
+        self.rows.iter().try_for_each(f)
+    }
+
+    fn row(&self, i: u32) -> Result<Option<Row>, SolveError> {
+        Ok(self
+            .position
+            .get(i as usize)
+            .copied()
+            .flatten()
+            .map(|k| self.rows[k].clone()))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn two_patches() -> PatchSet {
+        let mut p = crate::patch::Patch {
+            corners: [glam::DVec3::ZERO; 4],
+            n_corners: 3,
+            normal: glam::DVec3::Z,
+            area: 1.0,
+            group: 0,
+            face: 0,
+            rho: [0.5; 3],
+            emission: [0.0; 3],
+        };
+        let q = p.clone();
+        p.face = 1;
+        PatchSet {
+            patches: vec![q, p],
+            groups: vec!["g".into()],
+        }
+    }
+
+    #[test]
+    fn memory_rows_random_access_and_scan_order() {
+        let rows = vec![
+            Row::dense(1, vec![0.25, 0.0]),
+            Row::dense(0, vec![0.0, 0.5]),
+        ];
+        let m = MemoryRows::new(two_patches(), rows).unwrap();
+        assert_eq!(m.row(0).unwrap().unwrap().to_dense(2), vec![0.0, 0.5]);
+        assert_eq!(m.row(1).unwrap().unwrap().index, 1);
+        assert!(m.row(2).unwrap().is_none());
+        let mut order = Vec::new();
+        m.scan(&mut |r| {
+            order.push(r.index);
+            Ok(())
+        })
+        .unwrap();
+        assert_eq!(order, vec![1, 0]);
+    }
+
+    #[test]
+    fn memory_rows_rejects_duplicates_and_out_of_range() {
+        let dup = vec![Row::dense(0, vec![0.0; 2]), Row::dense(0, vec![0.0; 2])];
+        assert!(matches!(
+            MemoryRows::new(two_patches(), dup),
+            Err(SolveError::DuplicateRow { row: 0 })
+        ));
+        let far = vec![Row::dense(7, vec![0.0; 2])];
+        assert!(matches!(
+            MemoryRows::new(two_patches(), far),
+            Err(SolveError::OutOfRange { row: 7, .. })
+        ));
+    }
+}

@@ -1,0 +1,269 @@
+//! The linear system every solver works on, validated once.
+//!
+//! B = E + ρ F B is solved for `m = 3K` right-hand sides at once (K emission cases ×
+//! RGB). All per-patch vectors are stored row-major as `n × m` f64 arrays: entry
+//! `i * m + c` is patch `i`, column `c = 3 k + channel` (case `k`). Keeping the columns of
+//! one patch together means one read of F_ij serves every case and channel: each
+//! iteration is a single pass over the rows, whatever K is.
+
+use crate::patch::PatchSet;
+
+use super::error::SolveError;
+
+/// Validated inputs of one solve.
+#[derive(Clone, Debug)]
+pub(crate) struct System {
+    pub n: usize,
+    pub cases: usize,
+    /// Columns: 3 × cases.
+    pub m: usize,
+    pub area: Vec<f64>,
+    /// Emission, `n × m`.
+    pub e: Vec<f64>,
+    /// Reflectance per patch and channel.
+    pub rho: Vec<[f64; 3]>,
+    /// ρ > 0 in some channel: the patch's row is needed by a gathering solve.
+    pub reflects: Vec<bool>,
+    /// E > 0 in some column: the patch emits in some case.
+    pub emits: Vec<bool>,
+    /// Patches that reflect nothing (`!reflects`), in index order.
+    pub dark: Vec<u32>,
+    /// Scale top-k rows so that no light is lost (see [`super::rowview`]).
+    pub renormalize: bool,
+}
+
+impl System {
+    /// Check and lay out the inputs.
+    ///
+    /// # Errors
+    /// [`SolveError::InvalidInput`] naming the patch when an emission set or the
+    /// reflectance table has the wrong length, an emission is negative or not finite, a
+    /// reflectance is outside [0, 1), or an area is not positive and finite (shooting and
+    /// the reciprocity relation A_i F_ij = A_j F_ji divide by areas).
+    pub fn new(
+        patches: &PatchSet,
+        emission_sets: &[Vec<[f32; 3]>],
+        rho: &[[f32; 3]],
+        renormalize: bool,
+    ) -> Result<Self, SolveError> {
+        let n = patches.len();
+        let cases = emission_sets.len();
+        if cases == 0 {
+            return Err(SolveError::InvalidInput(
+                "no emission case given (pass the scene's own emission as one case)".into(),
+            ));
+        }
+        if rho.len() != n {
+            return Err(SolveError::InvalidInput(format!(
+                "{} reflectances for {n} patches",
+                rho.len()
+            )));
+        }
+        let m = 3 * cases;
+        let mut area = Vec::with_capacity(n);
+        for (i, p) in patches.patches.iter().enumerate() {
+            if !(p.area.is_finite() && p.area > 0.0) {
+                return Err(SolveError::InvalidInput(format!(
+                    "patch {i} (group \"{}\") has area {}",
+                    patches.group_name(i),
+                    p.area
+                )));
+            }
+            area.push(p.area);
+        }
+        let mut rho64 = Vec::with_capacity(n);
+        let mut reflects = Vec::with_capacity(n);
+        for (i, r) in rho.iter().enumerate() {
+            if r.iter().any(|&x| !(0.0..1.0).contains(&x)) {
+                return Err(SolveError::InvalidInput(format!(
+                    "patch {i}: reflectance {r:?} is outside [0, 1) (the solve would not converge)"
+                )));
+            }
+            rho64.push(r.map(f64::from));
+            reflects.push(r.iter().any(|&x| x > 0.0));
+        }
+        let mut e = vec![0.0; n * m];
+        let mut emits = vec![false; n];
+        for (k, set) in emission_sets.iter().enumerate() {
+            if set.len() != n {
+                return Err(SolveError::InvalidInput(format!(
+                    "emission case {k} has {} values for {n} patches",
+                    set.len()
+                )));
+            }
+            for (i, v) in set.iter().enumerate() {
+                for (ch, &x) in v.iter().enumerate() {
+                    if !(x.is_finite() && x >= 0.0) {
+                        return Err(SolveError::InvalidInput(format!(
+                            "emission case {k}, patch {i}: exitance {v:?} must be finite and ≥ 0"
+                        )));
+                    }
+                    e[i * m + 3 * k + ch] = x as f64;
+                    emits[i] |= x > 0.0;
+                }
+            }
+        }
+        let dark = (0..n as u32).filter(|&i| !reflects[i as usize]).collect();
+        Ok(System {
+            n,
+            cases,
+            m,
+            area,
+            e,
+            rho: rho64,
+            reflects,
+            emits,
+            dark,
+            renormalize,
+        })
+    }
+
+    /// ρ of patch `i` in column `c`.
+    #[inline]
+    pub fn rho_col(&self, i: usize, c: usize) -> f64 {
+        self.rho[i][c % 3]
+    }
+
+    /// Emitted power per column, Σ_i A_i E_ic.
+    pub fn emitted_power(&self) -> Vec<f64> {
+        let mut p = vec![0.0; self.m];
+        for i in 0..self.n {
+            for (c, p) in p.iter_mut().enumerate() {
+                *p += self.area[i] * self.e[i * self.m + c];
+            }
+        }
+        p
+    }
+}
+
+/// Which rows arrived in one scan: catches duplicates and names the first missing row.
+pub(crate) struct Presence {
+    seen: Vec<bool>,
+}
+
+impl Presence {
+    pub fn new(n: usize) -> Self {
+        Presence {
+            seen: vec![false; n],
+        }
+    }
+
+    /// Record row `i` (already range-checked).
+    ///
+    /// # Errors
+    /// [`SolveError::DuplicateRow`] when it was seen before in this scan.
+    pub fn mark(&mut self, i: u32) -> Result<(), SolveError> {
+        let s = &mut self.seen[i as usize];
+        if *s {
+            return Err(SolveError::DuplicateRow { row: i });
+        }
+        *s = true;
+        Ok(())
+    }
+
+    pub fn seen(&self, i: usize) -> bool {
+        self.seen[i]
+    }
+
+    /// The first row with `needed(i)` that was not seen, and how many such rows.
+    pub fn missing(&self, needed: impl Fn(usize) -> bool) -> Option<(u32, usize)> {
+        let mut first = None;
+        let mut count = 0;
+        for (i, &s) in self.seen.iter().enumerate() {
+            if !s && needed(i) {
+                first.get_or_insert(i as u32);
+                count += 1;
+            }
+        }
+        first.map(|f| (f, count))
+    }
+}
+
+/// Check a row index against n.
+///
+/// # Errors
+/// [`SolveError::OutOfRange`].
+#[inline]
+pub(crate) fn check_index(i: u32, n: usize) -> Result<usize, SolveError> {
+    if (i as usize) < n {
+        Ok(i as usize)
+    } else {
+        Err(SolveError::OutOfRange {
+            row: i,
+            index: i as u64,
+            n,
+        })
+    }
+}
+
+/// Per column, the largest |v| over patches.
+pub(crate) fn column_max_abs(v: &[f64], m: usize) -> Vec<f64> {
+    let mut out = vec![0.0f64; m];
+    for chunk in v.chunks_exact(m) {
+        for (o, x) in out.iter_mut().zip(chunk) {
+            *o = nan_max(*o, x.abs());
+        }
+    }
+    out
+}
+
+/// Relative residual per column: `abs[c] / scale[c]`, 0 for an all-zero column that
+/// is solved exactly, infinite when a zero column has a non-zero residual.
+pub(crate) fn relative(abs: &[f64], scale: &[f64]) -> Vec<f64> {
+    abs.iter()
+        .zip(scale)
+        .map(|(&a, &s)| {
+            if s > 0.0 {
+                a / s
+            } else if a == 0.0 {
+                0.0
+            } else {
+                f64::INFINITY
+            }
+        })
+        .collect()
+}
+
+/// The largest value of a slice of non-negative numbers (0 when empty, NaN if any is).
+pub(crate) fn max_of(v: &[f64]) -> f64 {
+    v.iter().copied().fold(0.0, nan_max)
+}
+
+/// `max` that keeps a NaN instead of hiding it (`f64::max` drops NaN operands), so a
+/// broken value shows up in the reported residual.
+#[inline]
+pub(crate) fn nan_max(a: f64, b: f64) -> f64 {
+    if a.is_nan() || b.is_nan() {
+        f64::NAN
+    } else {
+        a.max(b)
+    }
+}
+
+/// Why a gathering solve needs a row.
+pub(crate) const FOR_GATHER: &str = "to gather light (the patch reflects)";
+/// Why progressive shooting needs a row.
+pub(crate) const FOR_SHOOT: &str = "to shoot light (the patch emits or reflects light it received)";
+
+/// The error for row `i` marked Skipped although it is needed.
+pub(crate) fn skipped_error(patches: &PatchSet, i: usize, needed_for: &'static str) -> SolveError {
+    SolveError::SkippedRow {
+        row: i as u32,
+        group: patches.group_name(i).to_string(),
+        needed_for,
+    }
+}
+
+/// The error for needed rows that a scan did not deliver.
+pub(crate) fn missing_error(
+    patches: &PatchSet,
+    (row, missing): (u32, usize),
+    needed_for: &'static str,
+) -> SolveError {
+    SolveError::MissingRow {
+        row,
+        group: patches.group_name(row as usize).to_string(),
+        needed_for,
+        missing,
+    }
+}
