@@ -1,2 +1,5 @@
 //! All integration tests in one binary (faster to build and run than one binary per
 //! file). Each module holds the tests of one capability.
+
+mod ffz_common;
+mod ffz_roundtrip;
