@@ -3,3 +3,5 @@
 
 mod ffz_common;
 mod ffz_roundtrip;
+mod ffz_corrupt;
+mod ffz_kill;
