@@ -5,3 +5,5 @@ mod ffz_common;
 mod ffz_roundtrip;
 mod ffz_corrupt;
 mod ffz_kill;
+mod ffz_golden;
+mod ffz_python;
