@@ -18,7 +18,9 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
-use ffstream::ffz::{encode_chunk, encode_chunk_with, ChunkEncoding, FfzWriter, FileMeta, Layout, WriterOptions};
+use ffstream::ffz::{
+    encode_chunk, encode_chunk_with, ChunkEncoding, FfzWriter, FileMeta, Layout, WriterOptions,
+};
 use ffstream::patch::{Patch, PatchSet};
 use ffstream::rows::{Row, RowValues};
 use glam::DVec3;
@@ -91,7 +93,9 @@ fn kernel_row(ps: &PatchSet, cent: &[DVec3], i: usize, noise: bool) -> Vec<f32> 
 
 /// Top-k of a dense row: the k largest, columns ascending, dropped mass recorded.
 fn top_k(i: u32, v: &[f32], k: usize) -> Row {
-    let mut idx: Vec<u32> = (0..v.len() as u32).filter(|&j| v[j as usize] > 0.0).collect();
+    let mut idx: Vec<u32> = (0..v.len() as u32)
+        .filter(|&j| v[j as usize] > 0.0)
+        .collect();
     idx.sort_unstable_by(|&a, &b| v[b as usize].total_cmp(&v[a as usize]));
     let dropped: f64 = idx.iter().skip(k).map(|&j| v[j as usize] as f64).sum();
     idx.truncate(k);
@@ -128,7 +132,12 @@ fn dd_rate(dir: &Path, mbytes: u64) -> Option<f64> {
     let st = std::process::Command::new("dd")
         .arg("if=/dev/zero")
         .arg(format!("of={}", target.display()))
-        .args(["bs=1M", &format!("count={mbytes}"), "conv=fdatasync", "status=none"])
+        .args([
+            "bs=1M",
+            &format!("count={mbytes}"),
+            "conv=fdatasync",
+            "status=none",
+        ])
         .status()
         .ok()?;
     let el = t.elapsed();
@@ -160,8 +169,12 @@ fn jittered(ps: &PatchSet, g: u32) -> Vec<DVec3> {
 fn study(ps: &PatchSet, grid: &[DVec3], jit: &[DVec3]) {
     let n = ps.len() as u32;
     let rows_per = ((4 << 20) / (4 * n as usize)).max(1).min(n as usize);
-    println!("\n## Shuffle / level study: one chunk of {rows_per} rows of n = {n} (~4 MiB raw dense)\n");
-    println!("| data | layout | zstd level | shuffle | raw bytes | compressed | ratio | encode MB/s |");
+    println!(
+        "\n## Shuffle / level study: one chunk of {rows_per} rows of n = {n} (~4 MiB raw dense)\n"
+    );
+    println!(
+        "| data | layout | zstd level | shuffle | raw bytes | compressed | ratio | encode MB/s |"
+    );
     println!("|---|---|---|---|---|---|---|---|");
     for (data, cent, noise) in [
         ("grid, smooth", grid, false),
@@ -179,11 +192,23 @@ fn study(ps: &PatchSet, grid: &[DVec3], jit: &[DVec3]) {
                 _ => unreachable!(),
             })
             .collect();
-        for (name, rows, layout) in [("dense", &dense, Layout::Dense), ("top-k n/10", &sparse, Layout::TopK { k })] {
+        for (name, rows, layout) in [
+            ("dense", &dense, Layout::Dense),
+            ("top-k n/10", &sparse, Layout::TopK { k }),
+        ] {
             for level in [1, 3] {
                 for shuffle in [false, true] {
                     let t = Instant::now();
-                    let c = encode_chunk_with(rows, layout, n, ChunkEncoding { zstd_level: level, shuffle }).unwrap();
+                    let c = encode_chunk_with(
+                        rows,
+                        layout,
+                        n,
+                        ChunkEncoding {
+                            zstd_level: level,
+                            shuffle,
+                        },
+                    )
+                    .unwrap();
                     let el = t.elapsed();
                     println!(
                         "| {data} | {name} | {level} | {} | {} | {} | {:.3} | {:.0} |",
@@ -265,8 +290,11 @@ fn main() {
             let mut i = 0;
             while i < n {
                 let end = (i + rows_per_chunk).min(n);
-                let rows: Vec<Row> = (i..end).map(|r| Row::dense(r, kernel_row(&ps, &cent, r as usize, true))).collect();
-                tx.send(encode_chunk(&rows, Layout::Dense, n, opts.zstd_level).unwrap()).unwrap();
+                let rows: Vec<Row> = (i..end)
+                    .map(|r| Row::dense(r, kernel_row(&ps, &cent, r as usize, true)))
+                    .collect();
+                tx.send(encode_chunk(&rows, Layout::Dense, n, opts.zstd_level).unwrap())
+                    .unwrap();
                 i = end;
             }
             drop(tx);
@@ -284,12 +312,28 @@ fn main() {
 
     let dd_mb = (st.bytes_on_disk >> 20).max(16);
     let dd = dd_rate(&dir, dd_mb);
-    println!("\n## Write throughput (zstd level {}, chunk {} KiB, fsync at finish)\n", opts.zstd_level, opts.chunk_bytes >> 10);
-    println!("| path | raw MB | on disk MB | ratio | time in writer s | raw MB/s | disk MB/s | wall s |");
+    println!(
+        "\n## Write throughput (zstd level {}, chunk {} KiB, fsync at finish)\n",
+        opts.zstd_level,
+        opts.chunk_bytes >> 10
+    );
+    println!(
+        "| path | raw MB | on disk MB | ratio | time in writer s | raw MB/s | disk MB/s | wall s |"
+    );
     println!("|---|---|---|---|---|---|---|---|");
     for (name, s, t, wall) in [
-        ("push_row (compress + append on one thread)", st, t_write, wall_push),
-        ("append_chunk only (I/O master; 1 worker encodes)", st2, t_append, wall_append),
+        (
+            "push_row (compress + append on one thread)",
+            st,
+            t_write,
+            wall_push,
+        ),
+        (
+            "append_chunk only (I/O master; 1 worker encodes)",
+            st2,
+            t_append,
+            wall_append,
+        ),
     ] {
         println!(
             "| {name} | {:.1} | {:.1} | {:.3} | {:.2} | {:.0} | {:.0} | {:.2} |",
@@ -303,7 +347,9 @@ fn main() {
         );
     }
     match dd {
-        Some(r) => println!("| dd if=/dev/zero bs=1M count={dd_mb} conv=fdatasync | | {dd_mb} | | | | {r:.0} | |"),
+        Some(r) => println!(
+            "| dd if=/dev/zero bs=1M count={dd_mb} conv=fdatasync | | {dd_mb} | | | | {r:.0} | |"
+        ),
         None => println!("(dd not available)"),
     }
     println!(

@@ -33,7 +33,9 @@ impl EncodedChunk {
     /// `n_rows u32, n_skipped u32, row_ids u32[n_rows], skipped u32[n_skipped], record`.
     /// (`raw_len` is inside the record's header.) Not part of the file format.
     pub fn to_wire(&self) -> Vec<u8> {
-        let mut out = Vec::with_capacity(8 + 4 * (self.row_ids.len() + self.skipped.len()) + self.bytes.len());
+        let mut out = Vec::with_capacity(
+            8 + 4 * (self.row_ids.len() + self.skipped.len()) + self.bytes.len(),
+        );
         out.extend_from_slice(&(self.row_ids.len() as u32).to_le_bytes());
         out.extend_from_slice(&(self.skipped.len() as u32).to_le_bytes());
         for r in self.row_ids.iter().chain(&self.skipped) {
@@ -58,7 +60,10 @@ impl EncodedChunk {
         let n_skipped = r.u32().ok_or_else(|| bad("wire buffer cut short".into()))? as usize;
         let mut ids = Vec::with_capacity(n_rows.min(buf.len() / 4));
         for _ in 0..n_rows + n_skipped {
-            ids.push(r.u32().ok_or_else(|| bad("wire buffer cut short in the row ids".into()))?);
+            ids.push(
+                r.u32()
+                    .ok_or_else(|| bad("wire buffer cut short in the row ids".into()))?,
+            );
         }
         let skipped = ids.split_off(n_rows);
         let bytes = buf[r.pos()..].to_vec();
@@ -87,7 +92,12 @@ pub struct ChunkEncoding {
 /// `InvalidRow` when a row does not fit the layout (dense row in a top-k file or the
 /// other way round, wrong length, columns not strictly ascending or ≥ n, negative or
 /// non-finite dropped mass, row id ≥ n or repeated); `Compress` when zstd fails.
-pub fn encode_chunk(rows: &[Row], meta_layout: Layout, n: u32, zstd_level: i32) -> Result<EncodedChunk> {
+pub fn encode_chunk(
+    rows: &[Row],
+    meta_layout: Layout,
+    n: u32,
+    zstd_level: i32,
+) -> Result<EncodedChunk> {
     encode_chunk_with(
         rows,
         meta_layout,
@@ -103,11 +113,20 @@ pub fn encode_chunk(rows: &[Row], meta_layout: Layout, n: u32, zstd_level: i32) 
 ///
 /// # Errors
 /// As [`encode_chunk`].
-pub fn encode_chunk_with(rows: &[Row], layout: Layout, n: u32, enc: ChunkEncoding) -> Result<EncodedChunk> {
+pub fn encode_chunk_with(
+    rows: &[Row],
+    layout: Layout,
+    n: u32,
+    enc: ChunkEncoding,
+) -> Result<EncodedChunk> {
     let raw = encode_raw(rows, layout, n, enc.shuffle)?;
     let payload = zstd::bulk::compress(&raw.bytes, enc.zstd_level).map_err(FfzError::Compress)?;
     let header = ChunkHeaderV1 {
-        flags: if enc.shuffle { spec::CHUNK_FLAG_SHUFFLED } else { 0 },
+        flags: if enc.shuffle {
+            spec::CHUNK_FLAG_SHUFFLED
+        } else {
+            0
+        },
         compressed_len: payload.len() as u64,
         raw_len: raw.bytes.len() as u64,
         row_count: rows.len() as u32,
@@ -153,19 +172,29 @@ pub(crate) fn check_row(row: &Row, layout: Layout, n: u32) -> Result<()> {
         return bad(format!("row id ≥ n = {n}"));
     }
     if !(row.dropped.is_finite() && row.dropped >= 0.0) {
-        return bad(format!("dropped mass {} is not a finite number ≥ 0", row.dropped));
+        return bad(format!(
+            "dropped mass {} is not a finite number ≥ 0",
+            row.dropped
+        ));
     }
     match (&row.values, layout) {
-        (RowValues::Skipped, _) if row.dropped.to_bits() != 0 => bad("skipped row with dropped mass ≠ 0".into()),
+        (RowValues::Skipped, _) if row.dropped.to_bits() != 0 => {
+            bad("skipped row with dropped mass ≠ 0".into())
+        }
         (RowValues::Skipped, _) => Ok(()),
         (RowValues::Dense(v), Layout::Dense) if v.len() == n as usize => Ok(()),
-        (RowValues::Dense(v), Layout::Dense) => bad(format!("dense row has {} values, n = {n}", v.len())),
+        (RowValues::Dense(v), Layout::Dense) => {
+            bad(format!("dense row has {} values, n = {n}", v.len()))
+        }
         (RowValues::Sparse { cols, vals }, Layout::TopK { k }) => {
             if cols.len() != vals.len() {
                 return bad(format!("{} columns but {} values", cols.len(), vals.len()));
             }
             if cols.len() > k.min(n) as usize {
-                return bad(format!("{} entries, more than min(k = {k}, n = {n})", cols.len()));
+                return bad(format!(
+                    "{} entries, more than min(k = {k}, n = {n})",
+                    cols.len()
+                ));
             }
             if let Some(w) = cols.windows(2).position(|w| w[0] >= w[1]) {
                 return bad(format!("columns not strictly ascending at entry {}", w + 1));
@@ -214,11 +243,18 @@ fn get_words(src: &[u8], shuffle: bool) -> Vec<u32> {
     let (p0, rest) = src.split_at(m);
     let (p1, rest) = rest.split_at(m);
     let (p2, p3) = rest.split_at(m);
-    (0..m).map(|k| u32::from_le_bytes([p0[k], p1[k], p2[k], p3[k]])).collect()
+    (0..m)
+        .map(|k| u32::from_le_bytes([p0[k], p1[k], p2[k], p3[k]]))
+        .collect()
 }
 
 /// Build the decompressed payload: row directory then row data (spec §5.2 to §5.5).
-pub(crate) fn encode_raw(rows: &[Row], layout: Layout, n: u32, shuffle: bool) -> Result<RawPayload> {
+pub(crate) fn encode_raw(
+    rows: &[Row],
+    layout: Layout,
+    n: u32,
+    shuffle: bool,
+) -> Result<RawPayload> {
     if u32::try_from(rows.len()).is_err() {
         return Err(FfzError::InvalidRow {
             row: 0,
@@ -388,10 +424,18 @@ impl DecodedChunk {
                     .ok_or_else(|| format!("row {}: column at entry {k} is ≥ n = {n}", e.row))?;
                 cols.push(c);
             }
-            let vals = get_words(dv, shuffle).into_iter().map(f32::from_bits).collect();
+            let vals = get_words(dv, shuffle)
+                .into_iter()
+                .map(f32::from_bits)
+                .collect();
             RowValues::Sparse { cols, vals }
         } else {
-            RowValues::Dense(get_words(data, shuffle).into_iter().map(f32::from_bits).collect())
+            RowValues::Dense(
+                get_words(data, shuffle)
+                    .into_iter()
+                    .map(f32::from_bits)
+                    .collect(),
+            )
         };
         Ok(Row {
             index: e.row,
@@ -416,11 +460,15 @@ pub fn decode_record(
         .ok_or_else(|| here("chunk cut short".into()))?;
     let dir_len = h.row_count as u64 * spec::ROW_DIR_ENTRY_LEN as u64;
     // Bound the allocation by what the header can honestly claim (spec §5.2).
-    let max_raw = (h.row_count as u64).saturating_mul(spec::ROW_DIR_ENTRY_LEN as u64 + 8 * n as u64);
+    let max_raw =
+        (h.row_count as u64).saturating_mul(spec::ROW_DIR_ENTRY_LEN as u64 + 8 * n as u64);
     if h.raw_len < dir_len || h.raw_len > max_raw || h.row_count > n {
         return Err((
             16,
-            format!("raw length {} impossible for {} rows of n = {n}", h.raw_len, h.row_count),
+            format!(
+                "raw length {} impossible for {} rows of n = {n}",
+                h.raw_len, h.row_count
+            ),
         ));
     }
     let raw = zstd::bulk::decompress(payload, h.raw_len as usize)
@@ -442,8 +490,12 @@ pub fn decode_record(
     let sparse = layout.is_sparse();
     let mut entries = Vec::with_capacity(h.row_count as usize);
     let mut next = dir_len;
-    for (k, b) in raw[..dir_len as usize].chunks_exact(spec::ROW_DIR_ENTRY_LEN).enumerate() {
-        let e = RowDirEntryV1::decode(b).ok_or_else(|| here(format!("directory entry {k} cut short")))?;
+    for (k, b) in raw[..dir_len as usize]
+        .chunks_exact(spec::ROW_DIR_ENTRY_LEN)
+        .enumerate()
+    {
+        let e = RowDirEntryV1::decode(b)
+            .ok_or_else(|| here(format!("directory entry {k} cut short")))?;
         let skipped = e.flags & spec::ROW_FLAG_SKIPPED != 0;
         let bad = |w: &str| here(format!("directory entry {k} (row {}): {w}", e.row));
         if e.row >= n {
@@ -452,7 +504,9 @@ pub fn decode_record(
         if e.flags & !(spec::ROW_FLAG_SKIPPED | spec::ROW_FLAG_SPARSE) != 0 {
             return Err(bad(&format!("unknown row flags {:#x}", e.flags)));
         }
-        if skipped && (e.nnz != 0 || e.flags & spec::ROW_FLAG_SPARSE != 0 || e.dropped.to_bits() != 0) {
+        if skipped
+            && (e.nnz != 0 || e.flags & spec::ROW_FLAG_SPARSE != 0 || e.dropped.to_bits() != 0)
+        {
             return Err(bad("skipped row with data or dropped mass"));
         }
         if !skipped && (e.flags & spec::ROW_FLAG_SPARSE != 0) != sparse {
@@ -463,7 +517,10 @@ pub fn decode_record(
         }
         if let Layout::TopK { k } = layout {
             if e.nnz > k.min(n) {
-                return Err(bad(&format!("{} entries, more than min(k = {k}, n = {n})", e.nnz)));
+                return Err(bad(&format!(
+                    "{} entries, more than min(k = {k}, n = {n})",
+                    e.nnz
+                )));
             }
         }
         if e.offset != next {
@@ -473,12 +530,22 @@ pub fn decode_record(
         entries.push(e);
     }
     if next != h.raw_len {
-        return Err(here(format!("row data ends at {next}, payload is {} bytes", h.raw_len)));
+        return Err(here(format!(
+            "row data ends at {next}, payload is {} bytes",
+            h.raw_len
+        )));
     }
-    let mut by_row: Vec<(u32, u32)> = entries.iter().enumerate().map(|(k, e)| (e.row, k as u32)).collect();
+    let mut by_row: Vec<(u32, u32)> = entries
+        .iter()
+        .enumerate()
+        .map(|(k, e)| (e.row, k as u32))
+        .collect();
     by_row.sort_unstable();
     if let Some(w) = by_row.windows(2).find(|w| w[0].0 == w[1].0) {
-        return Err(here(format!("row {} appears twice in the directory", w[0].0)));
+        return Err(here(format!(
+            "row {} appears twice in the directory",
+            w[0].0
+        )));
     }
     Ok(DecodedChunk {
         header: h,
@@ -570,7 +637,10 @@ mod tests {
         ];
         for (row, layout) in cases {
             let e = encode_chunk(std::slice::from_ref(&row), layout, 4, 1);
-            assert!(matches!(e, Err(FfzError::InvalidRow { .. })), "{row:?} accepted");
+            assert!(
+                matches!(e, Err(FfzError::InvalidRow { .. })),
+                "{row:?} accepted"
+            );
         }
         let twice = [Row::skipped(1), Row::skipped(1)];
         assert!(matches!(

@@ -57,7 +57,9 @@ pub enum FfzError {
     #[error("{path}: chunk handed to the writer is malformed: {what}")]
     BadEncodedChunk { path: PathBuf, what: String },
     /// A row id that is already in the file (or in the same chunk).
-    #[error("{path}: row {row} is already in the file (chunk {chunk}); each row may be written once")]
+    #[error(
+        "{path}: row {row} is already in the file (chunk {chunk}); each row may be written once"
+    )]
     DuplicateRow { path: PathBuf, row: u32, chunk: u64 },
     /// `resume` found a file written for something else.
     #[error("{path}: cannot resume: {what}")]
@@ -74,7 +76,11 @@ pub enum FfzError {
 }
 
 impl FfzError {
-    pub(crate) fn io(path: &std::path::Path, op: impl Into<String>, source: std::io::Error) -> Self {
+    pub(crate) fn io(
+        path: &std::path::Path,
+        op: impl Into<String>,
+        source: std::io::Error,
+    ) -> Self {
         FfzError::Io {
             path: path.to_path_buf(),
             op: op.into(),

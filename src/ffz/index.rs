@@ -61,7 +61,10 @@ pub fn write_index(
 pub fn read_index(file: &[u8], n: u32, meta_len: u64) -> Result<IndexData, spec::Fault> {
     let len = file.len() as u64;
     if len < meta_len + spec::FOOTER_LEN as u64 {
-        return Err((len, "no room for a footer (file not finished, or cut short)".into()));
+        return Err((
+            len,
+            "no room for a footer (file not finished, or cut short)".into(),
+        ));
     }
     let foot_at = len - spec::FOOTER_LEN as u64;
     let f = FooterV1::decode(&file[foot_at as usize..]).map_err(|(o, w)| (foot_at + o, w))?;
@@ -80,12 +83,17 @@ pub fn read_index(file: &[u8], n: u32, meta_len: u64) -> Result<IndexData, spec:
     if c != f.index_crc {
         return Err((
             foot_at + 16,
-            format!("index checksum mismatch (stored {:#010x}, computed {c:#010x})", f.index_crc),
+            format!(
+                "index checksum mismatch (stored {:#010x}, computed {c:#010x})",
+                f.index_crc
+            ),
         ));
     }
     let at = |r: &Le<'_>| f.index_offset + r.pos() as u64;
     let mut r = Le::new(ix);
-    let magic: [u8; 4] = r.array().ok_or((f.index_offset, "index cut short".to_string()))?;
+    let magic: [u8; 4] = r
+        .array()
+        .ok_or((f.index_offset, "index cut short".to_string()))?;
     if magic != spec::INDEX_MAGIC {
         return Err((f.index_offset, format!("bad index magic {magic:02x?}")));
     }
@@ -97,10 +105,19 @@ pub fn read_index(file: &[u8], n: u32, meta_len: u64) -> Result<IndexData, spec:
         return Err((f.index_offset + 4, "reserved index field is not 0".into()));
     }
     if n_rows != n as u64 {
-        return Err((f.index_offset + 16, format!("index has {n_rows} rows, header says n = {n}")));
+        return Err((
+            f.index_offset + 16,
+            format!("index has {n_rows} rows, header says n = {n}"),
+        ));
     }
     if IndexV1::total_len(n_chunks, n_rows) != Some(f.index_len) {
-        return Err((f.index_offset + 8, format!("index length {} does not fit {n_chunks} chunks and {n_rows} rows", f.index_len)));
+        return Err((
+            f.index_offset + 8,
+            format!(
+                "index length {} does not fit {n_chunks} chunks and {n_rows} rows",
+                f.index_len
+            ),
+        ));
     }
     let mut chunk_offsets = Vec::with_capacity(n_chunks as usize);
     let mut prev = None;
@@ -111,7 +128,10 @@ pub fn read_index(file: &[u8], n: u32, meta_len: u64) -> Result<IndexData, spec:
             && o + spec::CHUNK_HEADER_LEN as u64 <= f.index_offset
             && prev.is_none_or(|p| o > p);
         if !ok {
-            return Err((pos, format!("chunk {k} offset {o} out of order or outside the chunk area")));
+            return Err((
+                pos,
+                format!("chunk {k} offset {o} out of order or outside the chunk area"),
+            ));
         }
         prev = Some(o);
         chunk_offsets.push(o);

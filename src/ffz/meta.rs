@@ -78,8 +78,12 @@ impl FileMeta {
 /// has 3 or 4 corners, or a string is longer than u32.
 pub fn encode_meta(meta: &FileMeta, zstd_level: i32) -> Result<Vec<u8>, super::FfzError> {
     use super::FfzError::InvalidMeta;
-    let n = u32::try_from(meta.patches.len())
-        .map_err(|_| InvalidMeta(format!("{} patches do not fit a u32 row index", meta.patches.len())))?;
+    let n = u32::try_from(meta.patches.len()).map_err(|_| {
+        InvalidMeta(format!(
+            "{} patches do not fit a u32 row index",
+            meta.patches.len()
+        ))
+    })?;
     let len32 = |s: &str, what: &str| {
         u32::try_from(s.len()).map_err(|_| InvalidMeta(format!("{what} string longer than 4 GiB")))
     };
@@ -95,7 +99,10 @@ pub fn encode_meta(meta: &FileMeta, zstd_level: i32) -> Result<Vec<u8>, super::F
     body.extend_from_slice(meta.created.as_bytes());
     for (i, p) in meta.patches.patches.iter().enumerate() {
         if p.n_corners != 3 && p.n_corners != 4 {
-            return Err(InvalidMeta(format!("patch {i} has {} corners (3 or 4 allowed)", p.n_corners)));
+            return Err(InvalidMeta(format!(
+                "patch {i} has {} corners (3 or 4 allowed)",
+                p.n_corners
+            )));
         }
         if p.group >= n_groups {
             return Err(InvalidMeta(format!(
@@ -144,7 +151,13 @@ pub fn encode_meta(meta: &FileMeta, zstd_level: i32) -> Result<Vec<u8>, super::F
 /// and version faults are reported by the caller, which has the path.
 pub fn decode_header(bytes: &[u8]) -> Result<HeaderV1, spec::Fault> {
     let Some(b) = bytes.get(..spec::HEADER_LEN) else {
-        return Err((0, format!("file has {} bytes, shorter than the 64-byte header", bytes.len())));
+        return Err((
+            0,
+            format!(
+                "file has {} bytes, shorter than the 64-byte header",
+                bytes.len()
+            ),
+        ));
     };
     let mut arr = [0u8; spec::HEADER_LEN];
     arr.copy_from_slice(b);
@@ -154,7 +167,8 @@ pub fn decode_header(bytes: &[u8]) -> Result<HeaderV1, spec::Fault> {
 /// Decode the meta block that follows the header (spec §3.2 to §4.3). `bytes` is the
 /// whole file prefix (at least `header.meta_len` bytes). `Err` holds (file offset, reason).
 pub fn decode_meta(bytes: &[u8], header: &HeaderV1) -> Result<FileMeta, spec::Fault> {
-    let meta_len = usize::try_from(header.meta_len).map_err(|_| (40, "meta_len too large".to_string()))?;
+    let meta_len =
+        usize::try_from(header.meta_len).map_err(|_| (40, "meta_len too large".to_string()))?;
     let min = spec::HEADER_LEN as u64
         + header.method_len as u64
         + header.params_len as u64
@@ -162,12 +176,18 @@ pub fn decode_meta(bytes: &[u8], header: &HeaderV1) -> Result<FileMeta, spec::Fa
         + header.n as u64 * spec::PATCH_RECORD_LEN as u64
         + 8;
     if (meta_len as u64) < min {
-        return Err((40, format!("meta_len {meta_len} is shorter than its contents need ({min})")));
+        return Err((
+            40,
+            format!("meta_len {meta_len} is shorter than its contents need ({min})"),
+        ));
     }
     let Some(block) = bytes.get(..meta_len) else {
         return Err((
             bytes.len() as u64,
-            format!("file ends at byte {} inside the meta block (meta_len {meta_len})", bytes.len()),
+            format!(
+                "file ends at byte {} inside the meta block (meta_len {meta_len})",
+                bytes.len()
+            ),
         ));
     };
     let body = &block[spec::HEADER_LEN..meta_len - 4];
@@ -176,7 +196,9 @@ pub fn decode_meta(bytes: &[u8], header: &HeaderV1) -> Result<FileMeta, spec::Fa
     if stored != actual {
         return Err((
             meta_len as u64 - 4,
-            format!("meta block checksum mismatch (stored {stored:#010x}, computed {actual:#010x})"),
+            format!(
+                "meta block checksum mismatch (stored {stored:#010x}, computed {actual:#010x})"
+            ),
         ));
     }
     let base = spec::HEADER_LEN as u64;
@@ -184,7 +206,9 @@ pub fn decode_meta(bytes: &[u8], header: &HeaderV1) -> Result<FileMeta, spec::Fa
     let at = |r: &Le<'_>| base + r.pos() as u64;
     let string = |r: &mut Le<'_>, len: u32, what: &str| -> Result<String, spec::Fault> {
         let off = at(r);
-        let b = r.take(len as usize).ok_or((off, format!("{what} string cut short")))?;
+        let b = r
+            .take(len as usize)
+            .ok_or((off, format!("{what} string cut short")))?;
         String::from_utf8(b.to_vec()).map_err(|_| (off, format!("{what} string is not UTF-8")))
     };
     let method = string(&mut r, header.method_len, "method")?;
@@ -196,7 +220,8 @@ pub fn decode_meta(bytes: &[u8], header: &HeaderV1) -> Result<FileMeta, spec::Fa
         let rec = r
             .take(spec::PATCH_RECORD_LEN)
             .ok_or((off, format!("patch {i} cut short")))?;
-        let p = PatchRecordV1::decode(rec).map_err(|(o, w)| (off + o, format!("patch {i}: {w}")))?;
+        let p =
+            PatchRecordV1::decode(rec).map_err(|(o, w)| (off + o, format!("patch {i}: {w}")))?;
         patches.push(Patch {
             corners: p.corners.map(DVec3::from_array),
             n_corners: p.n_corners as u8,
@@ -217,7 +242,13 @@ pub fn decode_meta(bytes: &[u8], header: &HeaderV1) -> Result<FileMeta, spec::Fa
         groups.push(string(&mut r, len, "group name")?);
     }
     if r.pos() != body.len() {
-        return Err((at(&r), format!("{} unexplained bytes before the meta checksum", body.len() - r.pos())));
+        return Err((
+            at(&r),
+            format!(
+                "{} unexplained bytes before the meta checksum",
+                body.len() - r.pos()
+            ),
+        ));
     }
     for (i, p) in patches.iter().enumerate() {
         if p.group >= n_groups {
@@ -229,7 +260,8 @@ pub fn decode_meta(bytes: &[u8], header: &HeaderV1) -> Result<FileMeta, spec::Fa
             ));
         }
     }
-    let layout = Layout::from_code(header.layout, header.k).ok_or((20, "bad layout".to_string()))?;
+    let layout =
+        Layout::from_code(header.layout, header.k).ok_or((20, "bad layout".to_string()))?;
     Ok(FileMeta {
         layout,
         method,

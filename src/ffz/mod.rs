@@ -28,7 +28,10 @@ pub mod tools;
 mod verify;
 mod writer;
 
-pub use chunk::{encode_chunk, encode_chunk_with, raw_row_len, ChunkEncoding, DecodedChunk, EncodedChunk, SHUFFLE_DEFAULT};
+pub use chunk::{
+    encode_chunk, encode_chunk_with, raw_row_len, ChunkEncoding, DecodedChunk, EncodedChunk,
+    SHUFFLE_DEFAULT,
+};
 pub use error::FfzError;
 pub use meta::{FileMeta, Layout};
 pub use presence::{RowPresence, RowState};

@@ -36,7 +36,10 @@ impl RowPresence {
 
     /// State of row `i`; `Missing` for `i >= n`.
     pub fn get(&self, i: u32) -> RowState {
-        self.states.get(i as usize).copied().unwrap_or(RowState::Missing)
+        self.states
+            .get(i as usize)
+            .copied()
+            .unwrap_or(RowState::Missing)
     }
 
     /// Set the state of row `i` (ignored for `i >= n`), keeping the counts right.
@@ -84,7 +87,9 @@ impl RowPresence {
 
     /// Ids of the rows in `state`, ascending.
     pub fn ids(&self, state: RowState) -> Vec<u32> {
-        (0..self.states.len() as u32).filter(|&i| self.states[i as usize] == state).collect()
+        (0..self.states.len() as u32)
+            .filter(|&i| self.states[i as usize] == state)
+            .collect()
     }
 
     /// All states, indexed by row.
@@ -105,7 +110,10 @@ mod tests {
         p.set(3, RowState::Skipped);
         p.set(3, RowState::Present);
         p.set(9, RowState::Present); // out of range: ignored
-        assert_eq!((p.present_count(), p.skipped_count(), p.missing_count()), (2, 0, 3));
+        assert_eq!(
+            (p.present_count(), p.skipped_count(), p.missing_count()),
+            (2, 0, 3)
+        );
         assert_eq!(p.missing(), vec![0, 2, 4]);
         assert_eq!(p.get(9), RowState::Missing);
         assert!(!p.is_complete());

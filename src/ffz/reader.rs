@@ -42,7 +42,10 @@ pub struct FfzReader {
 }
 
 /// Map a file and check the header and meta block: shared by the reader and `resume`.
-pub(crate) fn map_and_meta(path: &Path, file: &std::fs::File) -> Result<(Mmap, HeaderV1, FileMeta)> {
+pub(crate) fn map_and_meta(
+    path: &Path,
+    file: &std::fs::File,
+) -> Result<(Mmap, HeaderV1, FileMeta)> {
     let len = file
         .metadata()
         .map_err(|e| FfzError::io(path, "stat", e))?
@@ -125,7 +128,14 @@ impl FfzReader {
     fn recover(&mut self, offset: u64, why: &str) {
         let n = self.header.n;
         let end = self.map.len() as u64;
-        let scan = recover::scan_chunks(&self.map, self.header.meta_len, end, n, self.meta.layout, false);
+        let scan = recover::scan_chunks(
+            &self.map,
+            self.header.meta_len,
+            end,
+            n,
+            self.meta.layout,
+            false,
+        );
         self.row_chunk = vec![spec::NO_CHUNK; n as usize];
         let mut duplicates = 0u64;
         for (k, c) in scan.chunks.iter().enumerate() {
@@ -239,7 +249,10 @@ impl FfzReader {
 
     /// Chunk number that holds row `i` (`None` when missing).
     pub fn chunk_of(&self, i: u32) -> Option<u32> {
-        self.row_chunk.get(i as usize).copied().filter(|&c| c != spec::NO_CHUNK)
+        self.row_chunk
+            .get(i as usize)
+            .copied()
+            .filter(|&c| c != spec::NO_CHUNK)
     }
 
     pub(crate) fn chunk_err(&self, k: u32, rel: u64, what: String) -> FfzError {
@@ -331,10 +344,16 @@ impl FfzReader {
             RowState::Present => self.row_chunk[i as usize],
         };
         let d = self.cached_chunk(k)?;
-        let e = d
-            .find(i)
-            .ok_or_else(|| self.chunk_err(k, 0, format!("the index puts row {i} here but the chunk does not hold it")))?;
-        let row = d.row(e, self.header.n).map_err(|w| self.chunk_err(k, 0, w))?;
+        let e = d.find(i).ok_or_else(|| {
+            self.chunk_err(
+                k,
+                0,
+                format!("the index puts row {i} here but the chunk does not hold it"),
+            )
+        })?;
+        let row = d
+            .row(e, self.header.n)
+            .map_err(|w| self.chunk_err(k, 0, w))?;
         Ok(Some(row))
     }
 
@@ -355,12 +374,17 @@ impl FfzReader {
                         return Err(self.chunk_err(
                             k,
                             0,
-                            format!("holds row {} which the index puts in chunk {}", e.row, self.row_chunk[e.row as usize] as i64),
+                            format!(
+                                "holds row {} which the index puts in chunk {}",
+                                e.row, self.row_chunk[e.row as usize] as i64
+                            ),
                         ));
                     }
                     continue; // a duplicate a recovery scan already took from an earlier chunk
                 }
-                let row = d.row(e, self.header.n).map_err(|w| self.chunk_err(k, 0, w))?;
+                let row = d
+                    .row(e, self.header.n)
+                    .map_err(|w| self.chunk_err(k, 0, w))?;
                 f(&row);
             }
         }

@@ -46,7 +46,14 @@ fn try_chunk(rest: &[u8], n: u32, layout: Layout) -> Result<(DecodedChunk, u64),
 /// Scan `file[start..end]` for chunks. With `stop_at_first_bad`, stop at the first
 /// position that does not hold a good chunk (what `resume` needs); otherwise search on
 /// for the next chunk magic (what a reader recovering a damaged file needs).
-pub fn scan_chunks(file: &[u8], start: u64, end: u64, n: u32, layout: Layout, stop_at_first_bad: bool) -> ScanOutcome {
+pub fn scan_chunks(
+    file: &[u8],
+    start: u64,
+    end: u64,
+    n: u32,
+    layout: Layout,
+    stop_at_first_bad: bool,
+) -> ScanOutcome {
     let end = end.min(file.len() as u64);
     let mut out = ScanOutcome {
         prefix_end: start,
@@ -107,5 +114,6 @@ pub fn scan_chunks(file: &[u8], start: u64, end: u64, n: u32, layout: Layout, st
 
 /// Position of the next chunk magic in `hay`.
 fn find_magic(hay: &[u8]) -> Option<usize> {
-    hay.windows(spec::CHUNK_MAGIC.len()).position(|w| w == spec::CHUNK_MAGIC)
+    hay.windows(spec::CHUNK_MAGIC.len())
+        .position(|w| w == spec::CHUNK_MAGIC)
 }

@@ -173,7 +173,9 @@ impl HeaderV1 {
         if stored != actual {
             return Err((
                 60,
-                format!("header checksum mismatch (stored {stored:#010x}, computed {actual:#010x})"),
+                format!(
+                    "header checksum mismatch (stored {stored:#010x}, computed {actual:#010x})"
+                ),
             ));
         }
         if flags != 0 {
@@ -322,7 +324,13 @@ impl ChunkHeaderV1 {
     /// Decode a chunk header: checks magic, checksum and flags.
     pub fn decode(b: &[u8]) -> Result<Self, Fault> {
         let Some(b) = b.get(..CHUNK_HEADER_LEN) else {
-            return Err((0, format!("chunk header cut short ({} of {CHUNK_HEADER_LEN} bytes)", b.len())));
+            return Err((
+                0,
+                format!(
+                    "chunk header cut short ({} of {CHUNK_HEADER_LEN} bytes)",
+                    b.len()
+                ),
+            ));
         };
         if b[0..4] != CHUNK_MAGIC {
             return Err((0, format!("bad chunk magic {:02x?}", &b[0..4])));
@@ -427,7 +435,9 @@ impl IndexV1 {
     pub fn total_len(n_chunks: u64, n_rows: u64) -> Option<u64> {
         let chunk_table = n_chunks.checked_mul(8)?;
         let row_table = n_rows.checked_mul(8)?;
-        (INDEX_FIXED_LEN as u64).checked_add(chunk_table)?.checked_add(row_table)
+        (INDEX_FIXED_LEN as u64)
+            .checked_add(chunk_table)?
+            .checked_add(row_table)
     }
 }
 
@@ -461,7 +471,10 @@ impl FooterV1 {
             return Err((0, "footer cut short".into()));
         };
         if b[24..32] != FOOTER_MAGIC {
-            return Err((24, "no footer magic (file not finished, or cut short)".into()));
+            return Err((
+                24,
+                "no footer magic (file not finished, or cut short)".into(),
+            ));
         }
         let mut r = Le::new(b);
         let index_offset = r.u64().unwrap_or_default();
@@ -472,7 +485,9 @@ impl FooterV1 {
         if stored != actual {
             return Err((
                 20,
-                format!("footer checksum mismatch (stored {stored:#010x}, computed {actual:#010x})"),
+                format!(
+                    "footer checksum mismatch (stored {stored:#010x}, computed {actual:#010x})"
+                ),
             ));
         }
         Ok(FooterV1 {

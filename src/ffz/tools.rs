@@ -39,7 +39,12 @@ pub fn info(path: &Path, out: &mut dyn Write) -> Result<()> {
     let e = out_err(path);
     writeln!(out, "file:          {}", path.display()).map_err(&e)?;
     writeln!(out, "format:        ffz version {}", spec::VERSION).map_err(&e)?;
-    writeln!(out, "n:             {n} patches in {} groups", m.patches.groups.len()).map_err(&e)?;
+    writeln!(
+        out,
+        "n:             {n} patches in {} groups",
+        m.patches.groups.len()
+    )
+    .map_err(&e)?;
     writeln!(out, "layout:        {}", m.layout).map_err(&e)?;
     writeln!(out, "method:        {}", m.method).map_err(&e)?;
     writeln!(out, "params:        {}", m.params).map_err(&e)?;
@@ -58,7 +63,11 @@ pub fn info(path: &Path, out: &mut dyn Write) -> Result<()> {
         out,
         "chunks:        {}{}",
         r.chunk_count(),
-        if unreadable > 0 { format!(" ({unreadable} with unreadable headers)") } else { String::new() }
+        if unreadable > 0 {
+            format!(" ({unreadable} with unreadable headers)")
+        } else {
+            String::new()
+        }
     )
     .map_err(&e)?;
     writeln!(
@@ -70,13 +79,30 @@ pub fn info(path: &Path, out: &mut dyn Write) -> Result<()> {
         r.file_len() - r.chunk_area_end()
     )
     .map_err(&e)?;
-    writeln!(out, "raw row bytes: {raw} (dense f32 matrix would be {})", n * n * 4).map_err(&e)?;
-    let ratio = if compressed > 0 { raw as f64 / compressed as f64 } else { 0.0 };
-    writeln!(out, "compression:   {ratio:.3} (raw row bytes / chunk bytes)").map_err(&e)?;
+    writeln!(
+        out,
+        "raw row bytes: {raw} (dense f32 matrix would be {})",
+        n * n * 4
+    )
+    .map_err(&e)?;
+    let ratio = if compressed > 0 {
+        raw as f64 / compressed as f64
+    } else {
+        0.0
+    };
+    writeln!(
+        out,
+        "compression:   {ratio:.3} (raw row bytes / chunk bytes)"
+    )
+    .map_err(&e)?;
     writeln!(
         out,
         "index:         {}",
-        if r.is_indexed() { "ok" } else { "missing or bad: rows recovered by scanning" }
+        if r.is_indexed() {
+            "ok"
+        } else {
+            "missing or bad: rows recovered by scanning"
+        }
     )
     .map_err(&e)?;
     for w in r.warnings() {
@@ -100,7 +126,13 @@ pub fn verify(path: &Path, against: Option<&Path>, out: &mut dyn Write) -> Resul
     for w in &rep.open_warnings {
         writeln!(out, "FAIL: {w}").map_err(&e)?;
     }
-    writeln!(out, "chunks:      {} checked, {} bad", rep.chunks_checked, rep.bad_chunks.len()).map_err(&e)?;
+    writeln!(
+        out,
+        "chunks:      {} checked, {} bad",
+        rep.chunks_checked,
+        rep.bad_chunks.len()
+    )
+    .map_err(&e)?;
     for b in &rep.bad_chunks {
         match b.chunk {
             Some(k) => writeln!(out, "FAIL: chunk {k} at byte {}: {}", b.offset, b.what),
@@ -115,7 +147,12 @@ pub fn verify(path: &Path, against: Option<&Path>, out: &mut dyn Write) -> Resul
     )
     .map_err(&e)?;
     if rep.rows_missing > 0 {
-        writeln!(out, "FAIL: {} rows missing (finish them with compute --resume)", rep.rows_missing).map_err(&e)?;
+        writeln!(
+            out,
+            "FAIL: {} rows missing (finish them with compute --resume)",
+            rep.rows_missing
+        )
+        .map_err(&e)?;
     }
     if rep.negative_entries > 0 || rep.non_finite_entries > 0 {
         writeln!(
@@ -132,7 +169,10 @@ pub fn verify(path: &Path, against: Option<&Path>, out: &mut dyn Write) -> Resul
     )
     .map_err(&e)?;
     if let Some(rc) = &rep.reciprocity {
-        let worst = rc.worst.map(|(i, j)| format!(" at ({i}, {j})")).unwrap_or_default();
+        let worst = rc
+            .worst
+            .map(|(i, j)| format!(" at ({i}, {j})"))
+            .unwrap_or_default();
         writeln!(
             out,
             "reciprocity: max |A_i F_ij - A_j F_ji| / max(A_i F_ij, A_j F_ji) = {:.3e}{worst}, mean {:.3e}, over {} stored pairs ({} passes)",
@@ -242,7 +282,11 @@ pub fn export(path: &Path, matrix: Option<&Path>, patches_csv: Option<&Path>) ->
         let f = std::fs::File::create(csv).map_err(|e| FfzError::io(csv, "create", e))?;
         let mut w = BufWriter::new(f);
         let e = |err| FfzError::io(csv, "write", err);
-        writeln!(w, "patch,group,area,cx,cy,cz,nx,ny,nz,rho_r,rho_g,rho_b,e_r,e_g,e_b").map_err(e)?;
+        writeln!(
+            w,
+            "patch,group,area,cx,cy,cz,nx,ny,nz,rho_r,rho_g,rho_b,e_r,e_g,e_b"
+        )
+        .map_err(e)?;
         let ps = &r.meta().patches;
         for (i, p) in ps.patches.iter().enumerate() {
             let c = p.centroid();

@@ -95,6 +95,9 @@ impl VerifyReport {
     }
 }
 
+/// A block of rows held in memory: its row range and the rows (None: not in the file).
+type Block = ((u32, u32), Vec<Option<Row>>);
+
 /// Largest bytes a row of this file can take in memory (for block sizing).
 fn row_bound(n: u32, layout: Layout) -> usize {
     64 + match layout {
@@ -172,7 +175,10 @@ impl FfzReader {
             rep.bad_chunks.push(BadChunk {
                 chunk: None,
                 offset: b.start,
-                what: format!("bytes {}..{} are not a readable chunk: {}", b.start, b.end, b.reason),
+                what: format!(
+                    "bytes {}..{} are not a readable chunk: {}",
+                    b.start, b.end, b.reason
+                ),
             });
         }
         let mut seen = vec![false; n as usize];
@@ -196,7 +202,10 @@ impl FfzReader {
             };
             // In an indexed file, chunks tile the area between meta block and index.
             if self.is_indexed() {
-                let end = offsets.get(k as usize + 1).copied().unwrap_or(self.chunk_area_end());
+                let end = offsets
+                    .get(k as usize + 1)
+                    .copied()
+                    .unwrap_or(self.chunk_area_end());
                 let len = spec::CHUNK_HEADER_LEN as u64 + d.header.compressed_len;
                 if offset + len != end {
                     rep.bad_chunks.push(bad(format!(
@@ -220,7 +229,10 @@ impl FfzReader {
                 seen[e.row as usize] = true;
                 let skipped = e.flags & spec::ROW_FLAG_SKIPPED != 0;
                 if skipped != (p.get(e.row) == RowState::Skipped) {
-                    rep.bad_chunks.push(bad(format!("row {}: skipped flag disagrees with the index", e.row)));
+                    rep.bad_chunks.push(bad(format!(
+                        "row {}: skipped flag disagrees with the index",
+                        e.row
+                    )));
                     chunk_ok = false;
                 }
                 if skipped {
@@ -257,7 +269,9 @@ impl FfzReader {
                     rep.bad_chunks.push(BadChunk {
                         chunk: Some(k as u64),
                         offset: offsets[k as usize],
-                        what: format!("the index places row {i} here but the chunk does not hold it"),
+                        what: format!(
+                            "the index places row {i} here but the chunk does not hold it"
+                        ),
                     });
                 }
             }
@@ -301,10 +315,10 @@ impl FfzReader {
         let blocks = blocks(n, self.layout(), block_bytes);
         let mut rec = Reciprocity::default();
         let mut sum_rel = 0.0;
-        let mut held: Option<((u32, u32), Vec<Option<Row>>)> = None;
+        let mut held: Option<Block> = None;
         for t in 0..=blocks.len() {
             let next = blocks.get(t).copied();
-            let mut collecting: Option<((u32, u32), Vec<Option<Row>>)> =
+            let mut collecting: Option<Block> =
                 next.map(|(b0, b1)| ((b0, b1), vec![None; (b1 - b0) as usize]));
             rec.passes += 1;
             self.scan_good(good, |row| {
@@ -312,7 +326,9 @@ impl FfzReader {
                 if let Some(((b0, b1), rows)) = &held {
                     // Pairs (i, j) with i < j and i in the held block.
                     for_stored_in(&row, *b0, (*b1).min(j), |i, f_ji| {
-                        let Some(ri) = &rows[(i - b0) as usize] else { return };
+                        let Some(ri) = &rows[(i - b0) as usize] else {
+                            return;
+                        };
                         let Some(f_ij) = stored(ri, j) else { return };
                         let a = areas[i as usize] * f_ij as f64;
                         let b = areas[j as usize] * f_ji as f64;
@@ -377,7 +393,10 @@ impl CompareReport {
             && self.only_in_a == 0
             && self.only_in_b == 0
             && self.errors.is_empty()
-            && self.meta_differences.iter().all(|d| !d.starts_with("scene hash") && !d.starts_with("layout"))
+            && self
+                .meta_differences
+                .iter()
+                .all(|d| !d.starts_with("scene hash") && !d.starts_with("layout"))
     }
 }
 
@@ -445,17 +464,22 @@ pub fn compare(a: &FfzReader, b: &FfzReader, opts: VerifyOptions) -> Result<Comp
     };
     let (ma, mb) = (a.meta(), b.meta());
     if ma.scene_hash != mb.scene_hash {
-        rep.meta_differences
-            .push(format!("scene hash {:#018x} vs {:#018x}", ma.scene_hash, mb.scene_hash));
+        rep.meta_differences.push(format!(
+            "scene hash {:#018x} vs {:#018x}",
+            ma.scene_hash, mb.scene_hash
+        ));
     }
     if ma.layout != mb.layout {
-        rep.meta_differences.push(format!("layout {} vs {}", ma.layout, mb.layout));
+        rep.meta_differences
+            .push(format!("layout {} vs {}", ma.layout, mb.layout));
     }
     if ma.method != mb.method {
-        rep.meta_differences.push(format!("method '{}' vs '{}'", ma.method, mb.method));
+        rep.meta_differences
+            .push(format!("method '{}' vs '{}'", ma.method, mb.method));
     }
     if ma.params != mb.params {
-        rep.meta_differences.push(format!("params '{}' vs '{}'", ma.params, mb.params));
+        rep.meta_differences
+            .push(format!("params '{}' vs '{}'", ma.params, mb.params));
     }
     let n = a.n().min(b.n());
     let (pa, pb) = (a.presence(), b.presence());
@@ -538,7 +562,13 @@ pub fn compare(a: &FfzReader, b: &FfzReader, opts: VerifyOptions) -> Result<Comp
 }
 
 /// Rows `b0..b1` of `r` into `held` (one pass over the file).
-fn collect_rows(r: &FfzReader, b0: u32, b1: u32, held: &mut [Option<Row>], errors: &mut Vec<String>) {
+fn collect_rows(
+    r: &FfzReader,
+    b0: u32,
+    b1: u32,
+    held: &mut [Option<Row>],
+    errors: &mut Vec<String>,
+) {
     let n = r.n();
     r.for_each_chunk(|k, res| {
         let d = match res {
@@ -568,9 +598,10 @@ fn bitwise_eq(a: &Row, b: &Row) -> bool {
         && a.dropped.to_bits() == b.dropped.to_bits()
         && match (&a.values, &b.values) {
             (RowValues::Dense(x), RowValues::Dense(y)) => bits(x) == bits(y),
-            (RowValues::Sparse { cols: c1, vals: v1 }, RowValues::Sparse { cols: c2, vals: v2 }) => {
-                c1 == c2 && bits(v1) == bits(v2)
-            }
+            (
+                RowValues::Sparse { cols: c1, vals: v1 },
+                RowValues::Sparse { cols: c2, vals: v2 },
+            ) => c1 == c2 && bits(v1) == bits(v2),
             (RowValues::Skipped, RowValues::Skipped) => true,
             _ => false,
         }

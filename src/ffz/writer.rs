@@ -92,7 +92,8 @@ impl FfzWriter {
             .truncate(true)
             .open(path)
             .map_err(|e| FfzError::io(path, "create", e))?;
-        file.write_all(&block).map_err(|e| FfzError::io(path, "write header", e))?;
+        file.write_all(&block)
+            .map_err(|e| FfzError::io(path, "write header", e))?;
         let n = meta.n();
         Ok(FfzWriter {
             path: path.to_path_buf(),
@@ -122,7 +123,11 @@ impl FfzWriter {
     /// # Errors
     /// `ResumeMismatch` naming the field that differs; `Header` when the file's header
     /// is unreadable; `Io` naming the path.
-    pub fn resume(path: impl AsRef<Path>, meta: &FileMeta, opts: WriterOptions) -> Result<(Self, RowPresence)> {
+    pub fn resume(
+        path: impl AsRef<Path>,
+        meta: &FileMeta,
+        opts: WriterOptions,
+    ) -> Result<(Self, RowPresence)> {
         let path = path.as_ref();
         let file = OpenOptions::new()
             .read(true)
@@ -141,10 +146,17 @@ impl FfzWriter {
             )));
         }
         if header.n != meta.n() {
-            return Err(mismatch(format!("file has n = {}, this run has n = {}", header.n, meta.n())));
+            return Err(mismatch(format!(
+                "file has n = {}, this run has n = {}",
+                header.n,
+                meta.n()
+            )));
         }
         if old.layout != meta.layout {
-            return Err(mismatch(format!("file layout is {}, this run asks for {}", old.layout, meta.layout)));
+            return Err(mismatch(format!(
+                "file layout is {}, this run asks for {}",
+                old.layout, meta.layout
+            )));
         }
         if old.method != meta.method || old.params != meta.params {
             return Err(mismatch(format!(
@@ -173,18 +185,24 @@ impl FfzWriter {
             warnings: Vec::new(),
         };
         // A finished file whose chunks all pass their cheap checks: trust its index.
-        let indexed = index::read_index(&map, n, header.meta_len).ok().and_then(|ix| {
-            let mut raw = 0;
-            for (k, &o) in ix.chunk_offsets.iter().enumerate() {
-                let end = ix.chunk_offsets.get(k + 1).copied().unwrap_or(ix.index_offset);
-                let (h, len) = chunk::check_record(&map[o as usize..end as usize]).ok()?;
-                if o + len != end {
-                    return None;
+        let indexed = index::read_index(&map, n, header.meta_len)
+            .ok()
+            .and_then(|ix| {
+                let mut raw = 0;
+                for (k, &o) in ix.chunk_offsets.iter().enumerate() {
+                    let end = ix
+                        .chunk_offsets
+                        .get(k + 1)
+                        .copied()
+                        .unwrap_or(ix.index_offset);
+                    let (h, len) = chunk::check_record(&map[o as usize..end as usize]).ok()?;
+                    if o + len != end {
+                        return None;
+                    }
+                    raw += h.raw_len;
                 }
-                raw += h.raw_len;
-            }
-            Some((ix, raw))
-        });
+                Some((ix, raw))
+            });
         let keep = match indexed {
             Some((ix, raw)) => {
                 w.chunk_offsets = ix.chunk_offsets;
@@ -194,7 +212,8 @@ impl FfzWriter {
                 ix.index_offset
             }
             None => {
-                let scan = recover::scan_chunks(&map, header.meta_len, file_len, n, meta.layout, true);
+                let scan =
+                    recover::scan_chunks(&map, header.meta_len, file_len, n, meta.layout, true);
                 let mut keep = header.meta_len;
                 'chunks: for c in &scan.chunks[..scan.prefix_chunks] {
                     for e in c.decoded.entries() {
@@ -233,12 +252,16 @@ impl FfzWriter {
             }
         };
         drop(map);
-        w.file.set_len(keep).map_err(|e| FfzError::io(path, "truncate for resume", e))?;
+        w.file
+            .set_len(keep)
+            .map_err(|e| FfzError::io(path, "truncate for resume", e))?;
         w.file
             .seek(SeekFrom::Start(keep))
             .map_err(|e| FfzError::io(path, "seek", e))?;
         if opts.fsync {
-            w.file.sync_all().map_err(|e| FfzError::io(path, "fsync", e))?;
+            w.file
+                .sync_all()
+                .map_err(|e| FfzError::io(path, "fsync", e))?;
         }
         w.pos = keep;
         let presence = w.presence.clone();
@@ -250,7 +273,11 @@ impl FfzWriter {
     ///
     /// # Errors
     /// As `resume` and `create`.
-    pub fn resume_or_create(path: impl AsRef<Path>, meta: &FileMeta, opts: WriterOptions) -> Result<(Self, RowPresence)> {
+    pub fn resume_or_create(
+        path: impl AsRef<Path>,
+        meta: &FileMeta,
+        opts: WriterOptions,
+    ) -> Result<(Self, RowPresence)> {
         let path = path.as_ref();
         if path.exists() {
             Self::resume(path, meta, opts)
@@ -277,7 +304,9 @@ impl FfzWriter {
 
     fn check_usable(&self) -> Result<()> {
         if self.poisoned {
-            return Err(FfzError::Poisoned { path: self.path.clone() });
+            return Err(FfzError::Poisoned {
+                path: self.path.clone(),
+            });
         }
         Ok(())
     }
@@ -297,10 +326,15 @@ impl FfzWriter {
         };
         let (h, len) = chunk::check_record(&c.bytes).map_err(|(_, w)| bad(w))?;
         if len != c.bytes.len() as u64 {
-            return Err(bad(format!("record is {len} bytes but {} were handed over", c.bytes.len())));
+            return Err(bad(format!(
+                "record is {len} bytes but {} were handed over",
+                c.bytes.len()
+            )));
         }
         if h.raw_len != c.raw_len || h.row_count as usize != c.row_ids.len() {
-            return Err(bad("row count or raw length disagree with the record header".into()));
+            return Err(bad(
+                "row count or raw length disagree with the record header".into(),
+            ));
         }
         if self.chunk_offsets.len() >= spec::NO_CHUNK as usize {
             return Err(bad("too many chunks for one file (2^32 - 1)".into()));
@@ -326,12 +360,18 @@ impl FfzWriter {
                 return Err(FfzError::DuplicateRow {
                     path: self.path.clone(),
                     row: r,
-                    chunk: if chunk == spec::NO_CHUNK { self.chunk_offsets.len() as u64 } else { chunk as u64 },
+                    chunk: if chunk == spec::NO_CHUNK {
+                        self.chunk_offsets.len() as u64
+                    } else {
+                        chunk as u64
+                    },
                 });
             }
         }
         if let Some(s) = c.skipped.iter().find(|s| !seen.contains(s)) {
-            return Err(bad(format!("skipped row {s} is not among the chunk's rows")));
+            return Err(bad(format!(
+                "skipped row {s} is not among the chunk's rows"
+            )));
         }
         self.append_unchecked(&c, h.raw_len)
     }
@@ -339,7 +379,11 @@ impl FfzWriter {
     fn append_unchecked(&mut self, c: &EncodedChunk, raw_len: u64) -> Result<()> {
         if let Err(e) = self.file.write_all(&c.bytes) {
             self.poisoned = true;
-            return Err(FfzError::io(&self.path, format!("write chunk at byte {}", self.pos), e));
+            return Err(FfzError::io(
+                &self.path,
+                format!("write chunk at byte {}", self.pos),
+                e,
+            ));
         }
         let k = self.chunk_offsets.len() as u32;
         self.chunk_offsets.push(self.pos);
@@ -370,7 +414,11 @@ impl FfzWriter {
             return Err(FfzError::DuplicateRow {
                 path: self.path.clone(),
                 row: r,
-                chunk: if chunk == spec::NO_CHUNK { self.chunk_offsets.len() as u64 } else { chunk as u64 },
+                chunk: if chunk == spec::NO_CHUNK {
+                    self.chunk_offsets.len() as u64
+                } else {
+                    chunk as u64
+                },
             });
         }
         self.pending_bytes += chunk::raw_row_len(&row);
@@ -424,17 +472,22 @@ impl FfzWriter {
             crc = crc32c::crc32c_append(crc, b);
             out.write_all(b)
         };
-        let res = index::write_index(&self.chunk_offsets, &self.row_chunk, &self.presence, &mut sink)
-            .and_then(|len| {
-                let footer = spec::FooterV1 {
-                    index_offset,
-                    index_len: len,
-                    index_crc: crc,
-                };
-                out.write_all(&footer.encode())?;
-                out.flush()?;
-                Ok(len)
-            });
+        let res = index::write_index(
+            &self.chunk_offsets,
+            &self.row_chunk,
+            &self.presence,
+            &mut sink,
+        )
+        .and_then(|len| {
+            let footer = spec::FooterV1 {
+                index_offset,
+                index_len: len,
+                index_crc: crc,
+            };
+            out.write_all(&footer.encode())?;
+            out.flush()?;
+            Ok(len)
+        });
         drop(out);
         let index_len = match res {
             Ok(l) => l,
@@ -444,7 +497,9 @@ impl FfzWriter {
             }
         };
         if self.opts.fsync {
-            self.file.sync_all().map_err(|e| FfzError::io(&self.path, "fsync", e))?;
+            self.file
+                .sync_all()
+                .map_err(|e| FfzError::io(&self.path, "fsync", e))?;
         }
         self.pos = index_offset + index_len + spec::FOOTER_LEN as u64;
         self.finished = true;

@@ -43,7 +43,11 @@ pub fn patches(n: u32, seed: u64) -> PatchSet {
             o,
             o + DVec3::X * 0.1,
             o + DVec3::new(0.1, 0.1, 0.0),
-            if quad { o + DVec3::Y * 0.1 } else { DVec3::ZERO },
+            if quad {
+                o + DVec3::Y * 0.1
+            } else {
+                DVec3::ZERO
+            },
         ];
         ps.push(Patch {
             corners,
@@ -84,12 +88,22 @@ pub fn row(seed: u64, i: u32, n: u32, layout: Layout) -> Row {
     match layout {
         Layout::Dense => {
             let v = (0..n)
-                .map(|j| if empty || j == i || r.below(4) == 0 { 0.0 } else { r.f32() * 1e-2 })
+                .map(|j| {
+                    if empty || j == i || r.below(4) == 0 {
+                        0.0
+                    } else {
+                        r.f32() * 1e-2
+                    }
+                })
                 .collect();
             Row::dense(i, v)
         }
         Layout::TopK { k } => {
-            let want = if empty { 0 } else { r.below(k.min(n) as u64 + 1) as usize };
+            let want = if empty {
+                0
+            } else {
+                r.below(k.min(n) as u64 + 1) as usize
+            };
             let mut cols: Vec<u32> = Vec::with_capacity(want);
             // Random distinct columns: sample, then sort and dedupe.
             for _ in 0..want {
@@ -128,9 +142,10 @@ pub fn same(a: &Row, b: &Row) -> bool {
         && a.dropped.to_bits() == b.dropped.to_bits()
         && match (&a.values, &b.values) {
             (RowValues::Dense(x), RowValues::Dense(y)) => bits(x) == bits(y),
-            (RowValues::Sparse { cols: c1, vals: v1 }, RowValues::Sparse { cols: c2, vals: v2 }) => {
-                c1 == c2 && bits(v1) == bits(v2)
-            }
+            (
+                RowValues::Sparse { cols: c1, vals: v1 },
+                RowValues::Sparse { cols: c2, vals: v2 },
+            ) => c1 == c2 && bits(v1) == bits(v2),
             (RowValues::Skipped, RowValues::Skipped) => true,
             _ => false,
         }

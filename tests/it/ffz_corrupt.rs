@@ -6,7 +6,10 @@ use crate::ffz_common::*;
 use ffstream::ffz::{FfzError, FfzReader, FfzWriter, Layout, WriterOptions};
 use ffstream::rows::Row;
 
-fn small_file(dir: &std::path::Path, layout: Layout) -> (std::path::PathBuf, ffstream::ffz::FileMeta) {
+fn small_file(
+    dir: &std::path::Path,
+    layout: Layout,
+) -> (std::path::PathBuf, ffstream::ffz::FileMeta) {
     let n = 3;
     let path = dir.join("small.ffz");
     let m = meta(layout, patches(n, 9));
@@ -24,10 +27,17 @@ fn check_damaged(path: &std::path::Path, layout: Layout, what: &str) -> bool {
         Err(e) => {
             let msg = e.to_string();
             assert!(
-                matches!(e, FfzError::Header { .. } | FfzError::NotFfz { .. } | FfzError::Version { .. }),
+                matches!(
+                    e,
+                    FfzError::Header { .. } | FfzError::NotFfz { .. } | FfzError::Version { .. }
+                ),
                 "{what}: unexpected open error {msg}"
             );
-            assert!(msg.contains("small.ffz") && (msg.contains("byte") || msg.contains("magic") || msg.contains("version")), "{what}: {msg}");
+            assert!(
+                msg.contains("small.ffz")
+                    && (msg.contains("byte") || msg.contains("magic") || msg.contains("version")),
+                "{what}: {msg}"
+            );
             return true;
         }
         Ok(r) => r,
@@ -38,11 +48,20 @@ fn check_damaged(path: &std::path::Path, layout: Layout, what: &str) -> bool {
             Ok(None) => {}
             Err(e) => {
                 let msg = e.to_string();
-                assert!(msg.contains("chunk") && msg.contains("byte"), "{what}: {msg}");
+                assert!(
+                    msg.contains("chunk") && msg.contains("byte"),
+                    "{what}: {msg}"
+                );
             }
         }
     }
-    let _ = rd.scan(|r| assert!(same(r, &row(5, r.index, n, layout)), "{what}: scan row {} is wrong", r.index));
+    let _ = rd.scan(|r| {
+        assert!(
+            same(r, &row(5, r.index, n, layout)),
+            "{what}: scan row {} is wrong",
+            r.index
+        )
+    });
     let rep = rd.verify();
     for b in &rep.bad_chunks {
         assert!(!b.what.is_empty());
@@ -56,14 +75,21 @@ fn every_byte_flipped_is_detected() {
         let dir = tempfile::tempdir().unwrap();
         let (path, _) = small_file(dir.path(), layout);
         let good = std::fs::read(&path).unwrap();
-        assert!(!check_damaged(&path, layout, "intact"), "intact file reported damaged");
+        assert!(
+            !check_damaged(&path, layout, "intact"),
+            "intact file reported damaged"
+        );
         let bad = dir.path().join("small.ffz");
         for pos in 0..good.len() {
             let mut b = good.clone();
             b[pos] ^= 0xFF;
             std::fs::write(&bad, &b).unwrap();
             let noticed = check_damaged(&bad, layout, &format!("flip at {pos}"));
-            assert!(noticed, "{layout}: flipping byte {pos} of {} went unnoticed", good.len());
+            assert!(
+                noticed,
+                "{layout}: flipping byte {pos} of {} went unnoticed",
+                good.len()
+            );
         }
     }
 }
@@ -86,7 +112,10 @@ fn every_cut_is_detected_and_keeps_complete_chunks() {
         drop(rd);
         for cut in 0..good.len() {
             std::fs::write(&path, &good[..cut]).unwrap();
-            assert!(check_damaged(&path, layout, &format!("cut at {cut}")), "cut at {cut} unnoticed");
+            assert!(
+                check_damaged(&path, layout, &format!("cut at {cut}")),
+                "cut at {cut} unnoticed"
+            );
             if let Ok(rd) = FfzReader::open(&path) {
                 for &(end, r) in &ends {
                     let expect_present = end <= cut as u64;
@@ -127,8 +156,16 @@ fn resume_after_every_cut_completes_the_file() {
         }
         w.finish().unwrap();
         let rd = FfzReader::open(&path).unwrap();
-        assert!(rd.warnings().is_empty(), "cut at {cut}: {:?}", rd.warnings());
-        assert_eq!(check_against(&rd, &|i| row(5, i, 3, layout)), 3, "cut at {cut}");
+        assert!(
+            rd.warnings().is_empty(),
+            "cut at {cut}: {:?}",
+            rd.warnings()
+        );
+        assert_eq!(
+            check_against(&rd, &|i| row(5, i, 3, layout)),
+            3,
+            "cut at {cut}"
+        );
         assert!(rd.verify().ok(), "cut at {cut}");
     }
 }
@@ -154,13 +191,22 @@ fn verify_lists_every_bad_chunk() {
     let bad: Vec<u64> = rep.bad_chunks.iter().filter_map(|c| c.chunk).collect();
     assert_eq!(bad, vec![3, 17, 29]);
     for c in &rep.bad_chunks {
-        assert!(c.what.contains(&format!("chunk {}", c.chunk.unwrap())) && c.what.contains("checksum"), "{}", c.what);
+        assert!(
+            c.what.contains(&format!("chunk {}", c.chunk.unwrap())) && c.what.contains("checksum"),
+            "{}",
+            c.what
+        );
         assert_eq!(c.offset, offs[c.chunk.unwrap() as usize]);
     }
     // One row per chunk, written in order: chunk k holds row k.
     let expect = (0..n)
         .filter(|i| ![3, 17, 29].contains(i))
-        .filter(|&i| !matches!(row(8, i, n, Layout::Dense).values, ffstream::rows::RowValues::Skipped))
+        .filter(|&i| {
+            !matches!(
+                row(8, i, n, Layout::Dense).values,
+                ffstream::rows::RowValues::Skipped
+            )
+        })
         .count();
     assert_eq!(rep.rows_checked, expect as u64);
     let e = rd.scan(|_| {}).unwrap_err();

@@ -26,7 +26,10 @@ fn block(spec: &str, tag: &str) -> Vec<String> {
     let open = format!("```{tag}");
     let mut lines = spec.lines().skip_while(|l| l.trim() != open);
     assert!(lines.next().is_some(), "spec has no ```{tag} block");
-    lines.take_while(|l| l.trim() != "```").map(str::to_string).collect()
+    lines
+        .take_while(|l| l.trim() != "```")
+        .map(str::to_string)
+        .collect()
 }
 
 /// Bytes of a hex-dump block: `OFFSET | HEX BYTES | comment`, offsets continuous.
@@ -37,10 +40,13 @@ fn hex_bytes(lines: &[String]) -> Vec<u8> {
         if parts.len() < 2 {
             continue;
         }
-        let off = u64::from_str_radix(parts[0].trim(), 16).unwrap_or_else(|_| panic!("bad offset in {l:?}"));
+        let off = u64::from_str_radix(parts[0].trim(), 16)
+            .unwrap_or_else(|_| panic!("bad offset in {l:?}"));
         assert_eq!(off, out.len() as u64, "offset out of step at {l:?}");
         for b in parts[1].split_whitespace() {
-            out.push(u8::from_str_radix(b, 16).unwrap_or_else(|_| panic!("bad byte {b:?} in {l:?}")));
+            out.push(
+                u8::from_str_radix(b, 16).unwrap_or_else(|_| panic!("bad byte {b:?} in {l:?}")),
+            );
         }
     }
     out
@@ -92,8 +98,20 @@ fn quad(c: [[f64; 3]; 4], normal: [f64; 3], group: u32, rho: f32, e: f32) -> Pat
 
 /// The example scene: floor (ρ 0.5), an inert wall triangle (skipped row), a light.
 fn example(n3: bool) -> (FileMeta, Vec<Vec<Row>>) {
-    let floor = quad([[0., 0., 0.], [1., 0., 0.], [1., 1., 0.], [0., 1., 0.]], [0., 0., 1.], 0, 0.5, 0.0);
-    let light = quad([[0., 0., 1.], [0., 1., 1.], [1., 1., 1.], [1., 0., 1.]], [0., 0., -1.], 2, 0.0, 4.0);
+    let floor = quad(
+        [[0., 0., 0.], [1., 0., 0.], [1., 1., 0.], [0., 1., 0.]],
+        [0., 0., 1.],
+        0,
+        0.5,
+        0.0,
+    );
+    let light = quad(
+        [[0., 0., 1.], [0., 1., 1.], [1., 1., 1.], [1., 0., 1.]],
+        [0., 0., -1.],
+        2,
+        0.0,
+        4.0,
+    );
     let wall = Patch {
         corners: [[0., 0., 1.], [0., 0., 0.], [0., 1., 0.], [0., 0., 0.]].map(DVec3::from_array),
         n_corners: 3,
@@ -127,7 +145,10 @@ fn example(n3: bool) -> (FileMeta, Vec<Vec<Row>>) {
             patches: vec![floor, light],
             groups: vec!["floor".into(), "light".into()],
         };
-        let chunks = vec![vec![Row::dense(1, vec![0.5, 0.0]), Row::dense(0, vec![0.0, 0.5])]];
+        let chunks = vec![vec![
+            Row::dense(1, vec![0.5, 0.0]),
+            Row::dense(0, vec![0.0, 0.5]),
+        ]];
         (meta(Layout::Dense, patches), chunks)
     }
 }
@@ -160,15 +181,29 @@ fn golden_files_decode_to_the_spec_numbers() {
         let expect = spec_rows(&block(&spec, &format!("text golden-values:{name}")));
         assert_eq!(expect.len() as u32, rd.n(), "{name}: spec lists every row");
         for r in &expect {
-            assert_eq!(rd.row(r.index).unwrap().as_ref(), Some(r), "{name} row {}", r.index);
+            assert_eq!(
+                rd.row(r.index).unwrap().as_ref(),
+                Some(r),
+                "{name} row {}",
+                r.index
+            );
         }
         // Patch areas and group names the spec states.
         let areas: Vec<f64> = rd.meta().patches.patches.iter().map(|p| p.area).collect();
         let groups = rd.meta().patches.groups.join(",");
         let facts = block(&spec, &format!("text golden-facts:{name}")).join("\n");
-        assert!(facts.contains(&format!("areas {areas:?}")), "{name}: {facts}");
-        assert!(facts.contains(&format!("groups {groups}")), "{name}: {facts}");
-        assert!(facts.contains(&format!("layout {}", rd.layout())), "{name}: {facts}");
+        assert!(
+            facts.contains(&format!("areas {areas:?}")),
+            "{name}: {facts}"
+        );
+        assert!(
+            facts.contains(&format!("groups {groups}")),
+            "{name}: {facts}"
+        );
+        assert!(
+            facts.contains(&format!("layout {}", rd.layout())),
+            "{name}: {facts}"
+        );
     }
 }
 
@@ -186,7 +221,9 @@ fn golden_files_are_the_spec_hex_dumps() {
             let want = hex_bytes(&block(&spec, &tag));
             let (h, _) = rd.chunk_record(k).unwrap();
             let o = rd.chunk_offsets()[k as usize] as usize + spec::CHUNK_HEADER_LEN;
-            let raw = zstd::bulk::decompress(&file[o..o + h.compressed_len as usize], h.raw_len as usize).unwrap();
+            let raw =
+                zstd::bulk::decompress(&file[o..o + h.compressed_len as usize], h.raw_len as usize)
+                    .unwrap();
             assert_eq!(raw, want, "{tag}");
         }
     }
@@ -214,7 +251,8 @@ fn write_example(path: &Path, n3: bool) {
     };
     let mut w = FfzWriter::create(path, &m, opts).unwrap();
     for c in chunks {
-        w.append_chunk(encode_chunk(&c, m.layout, m.n(), 1).unwrap()).unwrap();
+        w.append_chunk(encode_chunk(&c, m.layout, m.n(), 1).unwrap())
+            .unwrap();
     }
     w.finish().unwrap();
 }
@@ -230,7 +268,13 @@ impl Dump {
         for (k, piece) in bytes.chunks(16).enumerate() {
             let hex: Vec<String> = piece.iter().map(|b| format!("{b:02x}")).collect();
             let note = if k == 0 { what } else { "  ..." };
-            writeln!(self.out, "{:06x} | {:<47} | {note}", self.pos, hex.join(" ")).unwrap();
+            writeln!(
+                self.out,
+                "{:06x} | {:<47} | {note}",
+                self.pos,
+                hex.join(" ")
+            )
+            .unwrap();
             self.pos += piece.len();
         }
     }
@@ -241,7 +285,10 @@ fn le32(b: &[u8]) -> u32 {
 }
 
 fn dump_payload(raw: &[u8], rows: u32, shuffled: bool) -> String {
-    let mut d = Dump { out: String::new(), pos: 0 };
+    let mut d = Dump {
+        out: String::new(),
+        pos: 0,
+    };
     let mut entries = Vec::new();
     for k in 0..rows as usize {
         let e = RowDirEntryV1::decode(&raw[24 * k..]).unwrap();
@@ -255,7 +302,10 @@ fn dump_payload(raw: &[u8], rows: u32, shuffled: bool) -> String {
         };
         d.field(&b[4..8], &format!("dir[{k}].flags = {} ({kind})", e.flags));
         d.field(&b[8..12], &format!("dir[{k}].nnz = {}", e.nnz));
-        d.field(&b[12..16], &format!("dir[{k}].dropped = {} (f32)", e.dropped));
+        d.field(
+            &b[12..16],
+            &format!("dir[{k}].dropped = {} (f32)", e.dropped),
+        );
         d.field(&b[16..24], &format!("dir[{k}].offset = {}", e.offset));
         entries.push(e);
     }
@@ -267,23 +317,42 @@ fn dump_payload(raw: &[u8], rows: u32, shuffled: bool) -> String {
             continue;
         }
         if e.flags & spec::ROW_FLAG_SPARSE != 0 {
-            d.field(&raw[at..at + 4 * m], &format!("row {}: {m} column deltas (u32{sh})", e.row));
-            d.field(&raw[at + 4 * m..at + 8 * m], &format!("row {}: {m} values (f32{sh})", e.row));
+            d.field(
+                &raw[at..at + 4 * m],
+                &format!("row {}: {m} column deltas (u32{sh})", e.row),
+            );
+            d.field(
+                &raw[at + 4 * m..at + 8 * m],
+                &format!("row {}: {m} values (f32{sh})", e.row),
+            );
         } else {
-            d.field(&raw[at..at + 4 * m], &format!("row {}: {m} values (f32{sh})", e.row));
+            d.field(
+                &raw[at..at + 4 * m],
+                &format!("row {}: {m} values (f32{sh})", e.row),
+            );
         }
     }
     d.out
 }
 
 fn dump_file(b: &[u8]) -> (String, Vec<String>) {
-    let mut d = Dump { out: String::new(), pos: 0 };
+    let mut d = Dump {
+        out: String::new(),
+        pos: 0,
+    };
     let h = HeaderV1::decode(b[..64].try_into().unwrap()).unwrap();
     d.field(&b[0..8], "§3.1 magic \\x89 F F Z \\r \\n \\x1a \\n");
     d.field(&b[8..12], "version = 1");
     d.field(&b[12..16], "flags = 0");
     d.field(&b[16..20], &format!("n = {}", h.n));
-    d.field(&b[20..24], &format!("layout = {} ({})", h.layout, if h.layout == 0 { "dense" } else { "top-k" }));
+    d.field(
+        &b[20..24],
+        &format!(
+            "layout = {} ({})",
+            h.layout,
+            if h.layout == 0 { "dense" } else { "top-k" }
+        ),
+    );
     d.field(&b[24..28], &format!("k = {}", h.k));
     d.field(&b[28..32], &format!("zstd_level = {}", h.zstd_level));
     d.field(&b[32..40], &format!("scene_hash = {:#018x}", h.scene_hash));
@@ -291,27 +360,49 @@ fn dump_file(b: &[u8]) -> (String, Vec<String>) {
     d.field(&b[48..52], &format!("method_len = {}", h.method_len));
     d.field(&b[52..56], &format!("params_len = {}", h.params_len));
     d.field(&b[56..60], &format!("created_len = {}", h.created_len));
-    d.field(&b[60..64], &format!("header_crc = {:#010x}", le32(&b[60..])));
+    d.field(
+        &b[60..64],
+        &format!("header_crc = {:#010x}", le32(&b[60..])),
+    );
     let mut p = 64;
-    for (len, what) in [(h.method_len, "method"), (h.params_len, "params"), (h.created_len, "created")] {
+    for (len, what) in [
+        (h.method_len, "method"),
+        (h.params_len, "params"),
+        (h.created_len, "created"),
+    ] {
         let s = &b[p..p + len as usize];
-        d.field(s, &format!("§3.2 {what} = \"{}\"", String::from_utf8_lossy(s)));
+        d.field(
+            s,
+            &format!("§3.2 {what} = \"{}\"", String::from_utf8_lossy(s)),
+        );
         p += len as usize;
     }
     for i in 0..h.n as usize {
         let r = PatchRecordV1::decode(&b[p..p + 168]).unwrap();
-        d.field(&b[p..p + 4], &format!("§4.1 patch {i}: n_corners = {}", r.n_corners));
+        d.field(
+            &b[p..p + 4],
+            &format!("§4.1 patch {i}: n_corners = {}", r.n_corners),
+        );
         d.field(&b[p + 4..p + 8], &format!("  group = {}", r.group));
         d.field(&b[p + 8..p + 12], &format!("  face = {}", r.face));
         d.field(&b[p + 12..p + 16], "  reserved = 0");
         for c in 0..4 {
             let o = p + 16 + 24 * c;
-            d.field(&b[o..o + 24], &format!("  corner {c} = {:?} (f64 x, y, z)", r.corners[c]));
+            d.field(
+                &b[o..o + 24],
+                &format!("  corner {c} = {:?} (f64 x, y, z)", r.corners[c]),
+            );
         }
         d.field(&b[p + 112..p + 136], &format!("  normal = {:?}", r.normal));
         d.field(&b[p + 136..p + 144], &format!("  area = {}", r.area));
-        d.field(&b[p + 144..p + 156], &format!("  rho = {:?} (f32 r, g, b)", r.rho));
-        d.field(&b[p + 156..p + 168], &format!("  emission = {:?}", r.emission));
+        d.field(
+            &b[p + 144..p + 156],
+            &format!("  rho = {:?} (f32 r, g, b)", r.rho),
+        );
+        d.field(
+            &b[p + 156..p + 168],
+            &format!("  emission = {:?}", r.emission),
+        );
         p += 168;
     }
     let ng = le32(&b[p..]);
@@ -320,10 +411,19 @@ fn dump_file(b: &[u8]) -> (String, Vec<String>) {
     for g in 0..ng {
         let len = le32(&b[p..]) as usize;
         d.field(&b[p..p + 4], &format!("  group {g} name length = {len}"));
-        d.field(&b[p + 4..p + 4 + len], &format!("  group {g} name = \"{}\"", String::from_utf8_lossy(&b[p + 4..p + 4 + len])));
+        d.field(
+            &b[p + 4..p + 4 + len],
+            &format!(
+                "  group {g} name = \"{}\"",
+                String::from_utf8_lossy(&b[p + 4..p + 4 + len])
+            ),
+        );
         p += 4 + len;
     }
-    d.field(&b[p..p + 4], &format!("§3.3 meta_crc = {:#010x}", le32(&b[p..])));
+    d.field(
+        &b[p..p + 4],
+        &format!("§3.3 meta_crc = {:#010x}", le32(&b[p..])),
+    );
     p += 4;
     let foot = b.len() - 32;
     let index_offset = u64::from_le_bytes(b[foot..foot + 8].try_into().unwrap()) as usize;
@@ -332,13 +432,31 @@ fn dump_file(b: &[u8]) -> (String, Vec<String>) {
     while p < index_offset {
         let c = ChunkHeaderV1::decode(&b[p..]).unwrap();
         d.field(&b[p..p + 4], &format!("§5.1 chunk {k}: magic \"FFZC\""));
-        d.field(&b[p + 4..p + 8], &format!("  flags = {} (SHUFFLED)", c.flags));
-        d.field(&b[p + 8..p + 16], &format!("  compressed_len = {}", c.compressed_len));
+        d.field(
+            &b[p + 4..p + 8],
+            &format!("  flags = {} (SHUFFLED)", c.flags),
+        );
+        d.field(
+            &b[p + 8..p + 16],
+            &format!("  compressed_len = {}", c.compressed_len),
+        );
         d.field(&b[p + 16..p + 24], &format!("  raw_len = {}", c.raw_len));
-        d.field(&b[p + 24..p + 28], &format!("  row_count = {}", c.row_count));
-        d.field(&b[p + 28..p + 32], &format!("  crc_compressed = {:#010x}", c.crc_compressed));
-        d.field(&b[p + 32..p + 36], &format!("  crc_raw = {:#010x}", c.crc_raw));
-        d.field(&b[p + 36..p + 40], &format!("  header_crc = {:#010x}", le32(&b[p + 36..])));
+        d.field(
+            &b[p + 24..p + 28],
+            &format!("  row_count = {}", c.row_count),
+        );
+        d.field(
+            &b[p + 28..p + 32],
+            &format!("  crc_compressed = {:#010x}", c.crc_compressed),
+        );
+        d.field(
+            &b[p + 32..p + 36],
+            &format!("  crc_raw = {:#010x}", c.crc_raw),
+        );
+        d.field(
+            &b[p + 36..p + 40],
+            &format!("  header_crc = {:#010x}", le32(&b[p + 36..])),
+        );
         let q = p + 40;
         let z = &b[q..q + c.compressed_len as usize];
         d.field(z, "  zstd frame (payload, decompressed below)");
@@ -362,15 +480,39 @@ fn dump_file(b: &[u8]) -> (String, Vec<String>) {
     for r in 0..nrows {
         let c = le32(&b[p..]) as i64;
         let s = le32(&b[p + 4..]);
-        let st = ["missing", "present", "skipped"].get(s as usize).copied().unwrap_or("?");
-        d.field(&b[p..p + 8], &format!("  row {r}: chunk {c}, state {s} ({st})"));
+        let st = ["missing", "present", "skipped"]
+            .get(s as usize)
+            .copied()
+            .unwrap_or("?");
+        d.field(
+            &b[p..p + 8],
+            &format!("  row {r}: chunk {c}, state {s} ({st})"),
+        );
         p += 8;
     }
     let f = &b[p..];
-    d.field(&f[0..8], &format!("§7 footer: index_offset = {}", u64::from_le_bytes(f[0..8].try_into().unwrap())));
-    d.field(&f[8..16], &format!("  index_len = {}", u64::from_le_bytes(f[8..16].try_into().unwrap())));
-    d.field(&f[16..20], &format!("  index_crc = {:#010x}", le32(&f[16..])));
-    d.field(&f[20..24], &format!("  footer_crc = {:#010x}", le32(&f[20..])));
+    d.field(
+        &f[0..8],
+        &format!(
+            "§7 footer: index_offset = {}",
+            u64::from_le_bytes(f[0..8].try_into().unwrap())
+        ),
+    );
+    d.field(
+        &f[8..16],
+        &format!(
+            "  index_len = {}",
+            u64::from_le_bytes(f[8..16].try_into().unwrap())
+        ),
+    );
+    d.field(
+        &f[16..20],
+        &format!("  index_crc = {:#010x}", le32(&f[16..])),
+    );
+    d.field(
+        &f[20..24],
+        &format!("  footer_crc = {:#010x}", le32(&f[20..])),
+    );
     d.field(&f[24..32], "  magic \"FFZ-END\\n\"");
     (d.out, payloads)
 }

@@ -23,7 +23,10 @@ fn child_writer() {
     let Ok(path) = std::env::var("FFZ_CHILD_PATH") else {
         return;
     };
-    let pause: u64 = std::env::var("FFZ_CHILD_PAUSE_MS").ok().and_then(|s| s.parse().ok()).unwrap_or(0);
+    let pause: u64 = std::env::var("FFZ_CHILD_PAUSE_MS")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(0);
     let m = meta(LAYOUT, patches(N, SEED));
     let mut ids: Vec<u32> = (0..N).collect();
     Rng(SEED).shuffle(&mut ids);
@@ -39,7 +42,14 @@ fn child_writer() {
             println!("FFZ-ERROR {e}");
             return;
         }
-        println!("FFZ-DONE {}", batch.iter().map(|i| i.to_string()).collect::<Vec<_>>().join(" "));
+        println!(
+            "FFZ-DONE {}",
+            batch
+                .iter()
+                .map(|i| i.to_string())
+                .collect::<Vec<_>>()
+                .join(" ")
+        );
         std::thread::sleep(std::time::Duration::from_millis(pause));
     }
     w.finish().unwrap();
@@ -48,11 +58,17 @@ fn child_writer() {
 
 fn child(path: &std::path::Path, pause_ms: u64) -> Command {
     let mut c = Command::new(std::env::current_exe().unwrap());
-    c.args(["ffz_kill::child_writer", "--exact", "--ignored", "--nocapture", "--test-threads=1"])
-        .env("FFZ_CHILD_PATH", path)
-        .env("FFZ_CHILD_PAUSE_MS", pause_ms.to_string())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::null());
+    c.args([
+        "ffz_kill::child_writer",
+        "--exact",
+        "--ignored",
+        "--nocapture",
+        "--test-threads=1",
+    ])
+    .env("FFZ_CHILD_PATH", path)
+    .env("FFZ_CHILD_PAUSE_MS", pause_ms.to_string())
+    .stdout(Stdio::piped())
+    .stderr(Stdio::null());
     c
 }
 
@@ -81,19 +97,36 @@ fn kill_mid_stream_then_resume() {
                 break;
             }
         }
-        assert!(!line.starts_with("FFZ-FINISHED"), "child finished before the kill");
+        assert!(
+            !line.starts_with("FFZ-FINISHED"),
+            "child finished before the kill"
+        );
     }
     ch.wait().unwrap();
 
     let rd = FfzReader::open(&path).unwrap();
-    assert!(!rd.warnings().is_empty(), "an unfinished file must come with a warning");
-    assert!(rd.warnings()[0].contains("recovered"), "{:?}", rd.warnings());
+    assert!(
+        !rd.warnings().is_empty(),
+        "an unfinished file must come with a warning"
+    );
+    assert!(
+        rd.warnings()[0].contains("recovered"),
+        "{:?}",
+        rd.warnings()
+    );
     // Every reported chunk is back; rows the reader holds are exact.
     for &i in &reported {
-        assert_ne!(rd.presence().get(i), ffstream::ffz::RowState::Missing, "row {i} lost");
+        assert_ne!(
+            rd.presence().get(i),
+            ffstream::ffz::RowState::Missing,
+            "row {i} lost"
+        );
     }
     let held = check_against(&rd, &|i| row(SEED, i, N, LAYOUT));
-    assert!(held >= reported.len() as u64 && held < N as u64, "held {held}");
+    assert!(
+        held >= reported.len() as u64 && held < N as u64,
+        "held {held}"
+    );
     assert_eq!(rd.presence().missing_count(), N as u64 - held);
     drop(rd);
 
@@ -137,12 +170,23 @@ fn full_disk_error_names_the_path_and_keeps_chunks() {
     let Some(err_line) = err_line else {
         panic!("the writer did not report a write error:\n{stdout}");
     };
-    assert!(err_line.contains("full.ffz") && err_line.contains("write chunk"), "{err_line}");
-    let reported: Vec<u32> = stdout.lines().filter(|l| l.starts_with("FFZ-DONE")).flat_map(done_rows).collect();
+    assert!(
+        err_line.contains("full.ffz") && err_line.contains("write chunk"),
+        "{err_line}"
+    );
+    let reported: Vec<u32> = stdout
+        .lines()
+        .filter(|l| l.starts_with("FFZ-DONE"))
+        .flat_map(done_rows)
+        .collect();
     assert!(!reported.is_empty());
     let rd = FfzReader::open(&path).unwrap();
     for &i in &reported {
-        assert_ne!(rd.presence().get(i), ffstream::ffz::RowState::Missing, "row {i} lost");
+        assert_ne!(
+            rd.presence().get(i),
+            ffstream::ffz::RowState::Missing,
+            "row {i} lost"
+        );
     }
     check_against(&rd, &|i| row(SEED, i, N, LAYOUT));
 }

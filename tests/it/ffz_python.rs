@@ -22,12 +22,19 @@ fn python_ready() -> Result<(), String> {
     if out.status.success() {
         Ok(())
     } else {
-        Err(format!("python3 lacks numpy/scipy/zstandard: {}", String::from_utf8_lossy(&out.stderr).trim()))
+        Err(format!(
+            "python3 lacks numpy/scipy/zstandard: {}",
+            String::from_utf8_lossy(&out.stderr).trim()
+        ))
     }
 }
 
 fn read_vec<T: Copy>(path: &Path, conv: fn(&[u8]) -> T, size: usize) -> Vec<T> {
-    std::fs::read(path).unwrap().chunks_exact(size).map(conv).collect()
+    std::fs::read(path)
+        .unwrap()
+        .chunks_exact(size)
+        .map(conv)
+        .collect()
 }
 
 fn check_file(path: &Path, dump: &Path) {
@@ -38,13 +45,37 @@ fn check_file(path: &Path, dump: &Path) {
         .arg(dump)
         .output()
         .unwrap();
-    assert!(out.status.success(), "ffz.py failed: {}", String::from_utf8_lossy(&out.stderr));
-    let indptr = read_vec(&dump.join("indptr.i64"), |b| i64::from_le_bytes(b.try_into().unwrap()), 8);
-    let indices = read_vec(&dump.join("indices.u32"), |b| u32::from_le_bytes(b.try_into().unwrap()), 4);
-    let data = read_vec(&dump.join("data.f32"), |b| u32::from_le_bytes(b.try_into().unwrap()), 4);
-    let dropped = read_vec(&dump.join("dropped.f32"), |b| u32::from_le_bytes(b.try_into().unwrap()), 4);
+    assert!(
+        out.status.success(),
+        "ffz.py failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let indptr = read_vec(
+        &dump.join("indptr.i64"),
+        |b| i64::from_le_bytes(b.try_into().unwrap()),
+        8,
+    );
+    let indices = read_vec(
+        &dump.join("indices.u32"),
+        |b| u32::from_le_bytes(b.try_into().unwrap()),
+        4,
+    );
+    let data = read_vec(
+        &dump.join("data.f32"),
+        |b| u32::from_le_bytes(b.try_into().unwrap()),
+        4,
+    );
+    let dropped = read_vec(
+        &dump.join("dropped.f32"),
+        |b| u32::from_le_bytes(b.try_into().unwrap()),
+        4,
+    );
     let presence = std::fs::read(dump.join("presence.u8")).unwrap();
-    let area = read_vec(&dump.join("area.f64"), |b| u64::from_le_bytes(b.try_into().unwrap()), 8);
+    let area = read_vec(
+        &dump.join("area.f64"),
+        |b| u64::from_le_bytes(b.try_into().unwrap()),
+        8,
+    );
 
     let rd = FfzReader::open(path).unwrap();
     let n = rd.n() as usize;
@@ -53,7 +84,8 @@ fn check_file(path: &Path, dump: &Path) {
         assert_eq!(area[i], p.area.to_bits(), "area {i}");
     }
     let mut rows: Vec<Option<Row>> = vec![None; n];
-    rd.scan(|r| rows[r.index as usize] = Some(r.clone())).unwrap();
+    rd.scan(|r| rows[r.index as usize] = Some(r.clone()))
+        .unwrap();
     for i in 0..n {
         let state = match rd.presence().get(i as u32) {
             RowState::Missing => 0,
@@ -69,7 +101,11 @@ fn check_file(path: &Path, dump: &Path) {
                 assert_eq!(dropped[i], r.dropped.to_bits(), "dropped of row {i}");
             }
         }
-        let got: Vec<(u32, u32)> = indices[a..b].iter().copied().zip(data[a..b].iter().copied()).collect();
+        let got: Vec<(u32, u32)> = indices[a..b]
+            .iter()
+            .copied()
+            .zip(data[a..b].iter().copied())
+            .collect();
         assert_eq!(got, want, "row {i}");
     }
 }
@@ -81,7 +117,10 @@ fn python_reader_agrees_with_rust() {
         return;
     }
     let dir = tempfile::tempdir().unwrap();
-    for (name, n, layout) in [("dense.ffz", 150u32, Layout::Dense), ("topk.ffz", 700, Layout::TopK { k: 12 })] {
+    for (name, n, layout) in [
+        ("dense.ffz", 150u32, Layout::Dense),
+        ("topk.ffz", 700, Layout::TopK { k: 12 }),
+    ] {
         let path = dir.path().join(name);
         let m = meta(layout, patches(n, 21));
         let mut ids: Vec<u32> = (0..n).collect();
@@ -105,7 +144,16 @@ fn python_reader_agrees_with_rust() {
             continue;
         }
         let out = Command::new("python3")
-            .args(["-m", "pytest", "-q", "-p", "no:cacheprovider", "test_ffz.py", "-k", "rust_export"])
+            .args([
+                "-m",
+                "pytest",
+                "-q",
+                "-p",
+                "no:cacheprovider",
+                "test_ffz.py",
+                "-k",
+                "rust_export",
+            ])
             .current_dir(formats_dir())
             .env("FFZ_FILE", &path)
             .env("FFZ_MTX", &mtx)
@@ -113,6 +161,9 @@ fn python_reader_agrees_with_rust() {
             .output()
             .unwrap();
         let text = String::from_utf8_lossy(&out.stdout);
-        assert!(out.status.success() && text.contains("1 passed"), "pytest export check failed:\n{text}");
+        assert!(
+            out.status.success() && text.contains("1 passed"),
+            "pytest export check failed:\n{text}"
+        );
     }
 }

@@ -2,7 +2,9 @@
 //! read back bitwise equal, by random access and by scan.
 
 use crate::ffz_common::*;
-use ffstream::ffz::{encode_chunk, FfzError, FfzReader, FfzWriter, Layout, RowState, WriterOptions};
+use ffstream::ffz::{
+    encode_chunk, FfzError, FfzReader, FfzWriter, Layout, RowState, WriterOptions,
+};
 use ffstream::rows::{Row, RowValues};
 
 fn round_trip(n: u32, layout: Layout, seed: u64, chunk_bytes: usize) -> FfzReader {
@@ -18,7 +20,9 @@ fn round_trip(n: u32, layout: Layout, seed: u64, chunk_bytes: usize) -> FfzReade
     assert_eq!(rd.meta(), &m, "meta block round trip");
     let held = check_against(&rd, &|i| row(seed, i, n, layout));
     assert_eq!(held, n as u64);
-    let skipped = (0..n).filter(|&i| matches!(row(seed, i, n, layout).values, RowValues::Skipped)).count();
+    let skipped = (0..n)
+        .filter(|&i| matches!(row(seed, i, n, layout).values, RowValues::Skipped))
+        .count();
     assert_eq!(rd.presence().skipped_count(), skipped as u64);
     assert!(rd.presence().is_complete());
     let rep = rd.verify();
@@ -58,12 +62,18 @@ fn empty_rows_and_n_one() {
     let rows = vec![
         Row {
             index: 2,
-            values: RowValues::Sparse { cols: vec![], vals: vec![] },
+            values: RowValues::Sparse {
+                cols: vec![],
+                vals: vec![],
+            },
             dropped: 0.0,
         },
         Row {
             index: 0,
-            values: RowValues::Sparse { cols: vec![3], vals: vec![0.5] },
+            values: RowValues::Sparse {
+                cols: vec![3],
+                vals: vec![0.5],
+            },
             dropped: 0.25,
         },
     ];
@@ -75,7 +85,10 @@ fn empty_rows_and_n_one() {
     assert_eq!(rd.presence().missing(), vec![1, 3]);
     // true row sum = stored + dropped (spec §5.6)
     assert_eq!(rd.row(0).unwrap().unwrap().true_sum(), 0.75);
-    assert!(matches!(rd.row(4), Err(FfzError::RowOutOfRange { row: 4, .. })));
+    assert!(matches!(
+        rd.row(4),
+        Err(FfzError::RowOutOfRange { row: 4, .. })
+    ));
     let rep = rd.verify();
     assert_eq!(rep.rows_missing, 2);
     assert!(!rep.ok(), "missing rows must fail verify");
@@ -90,15 +103,31 @@ fn duplicate_rows_are_refused_with_a_clear_error() {
     let c = encode_chunk(&[Row::dense(1, vec![0.0, 0.0, 0.5])], Layout::Dense, 3, 1).unwrap();
     w.append_chunk(c.clone()).unwrap();
     let e = w.append_chunk(c).unwrap_err();
-    assert!(matches!(e, FfzError::DuplicateRow { row: 1, chunk: 0, .. }), "{e}");
-    assert!(e.to_string().contains("row 1") && e.to_string().contains("d.ffz"), "{e}");
+    assert!(
+        matches!(
+            e,
+            FfzError::DuplicateRow {
+                row: 1,
+                chunk: 0,
+                ..
+            }
+        ),
+        "{e}"
+    );
+    assert!(
+        e.to_string().contains("row 1") && e.to_string().contains("d.ffz"),
+        "{e}"
+    );
     let e = w.push_row(Row::dense(1, vec![0.0; 3])).unwrap_err();
     assert!(matches!(e, FfzError::DuplicateRow { row: 1, .. }), "{e}");
     w.push_row(Row::dense(2, vec![0.0; 3])).unwrap();
     let e = w.push_row(Row::dense(2, vec![0.0; 3])).unwrap_err();
     assert!(matches!(e, FfzError::DuplicateRow { row: 2, .. }), "{e}");
     let c = encode_chunk(&[Row::skipped(2)], Layout::Dense, 3, 1).unwrap();
-    assert!(matches!(w.append_chunk(c), Err(FfzError::DuplicateRow { row: 2, .. })));
+    assert!(matches!(
+        w.append_chunk(c),
+        Err(FfzError::DuplicateRow { row: 2, .. })
+    ));
     let st = w.finish().unwrap();
     assert_eq!((st.rows, st.chunks), (2, 2));
     let rd = FfzReader::open(&p).unwrap();
@@ -114,11 +143,17 @@ fn append_chunk_checks_the_record() {
     let good = encode_chunk(&[Row::dense(0, vec![0.0, 0.5])], Layout::Dense, 2, 1).unwrap();
     let mut torn = good.clone();
     torn.bytes.pop();
-    assert!(matches!(w.append_chunk(torn), Err(FfzError::BadEncodedChunk { .. })));
+    assert!(matches!(
+        w.append_chunk(torn),
+        Err(FfzError::BadEncodedChunk { .. })
+    ));
     let mut flipped = good.clone();
     let last = flipped.bytes.len() - 1;
     flipped.bytes[last] ^= 1;
-    assert!(matches!(w.append_chunk(flipped), Err(FfzError::BadEncodedChunk { .. })));
+    assert!(matches!(
+        w.append_chunk(flipped),
+        Err(FfzError::BadEncodedChunk { .. })
+    ));
     let mut lying = good.clone();
     lying.row_ids = vec![1];
     lying.skipped = vec![0];
@@ -135,17 +170,23 @@ fn resume_refuses_another_problem() {
     write(&p, &m, &[row(1, 0, 5, Layout::Dense)], 1 << 20);
     let mut other = m.clone();
     other.scene_hash ^= 1;
-    let e = FfzWriter::resume(&p, &other, WriterOptions::default()).err().unwrap();
+    let e = FfzWriter::resume(&p, &other, WriterOptions::default())
+        .err()
+        .unwrap();
     assert!(matches!(e, FfzError::ResumeMismatch { .. }), "{e}");
     assert!(e.to_string().contains("scene hash"), "{e}");
     let mut other = m.clone();
     other.layout = Layout::TopK { k: 2 };
-    let e = FfzWriter::resume(&p, &other, WriterOptions::default()).err().unwrap();
+    let e = FfzWriter::resume(&p, &other, WriterOptions::default())
+        .err()
+        .unwrap();
     assert!(e.to_string().contains("layout"), "{e}");
     // Same claimed scene hash but a different n.
     let mut other = meta(Layout::Dense, patches(6, 4));
     other.scene_hash = m.scene_hash;
-    let e = FfzWriter::resume(&p, &other, WriterOptions::default()).err().unwrap();
+    let e = FfzWriter::resume(&p, &other, WriterOptions::default())
+        .err()
+        .unwrap();
     assert!(e.to_string().contains("n = 5"), "{e}");
     // The same problem resumes: the finished file's rows are kept, the rest added.
     let (mut w, pres) = FfzWriter::resume(&p, &m, WriterOptions::default()).unwrap();

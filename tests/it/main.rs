@@ -2,8 +2,9 @@
 //! file). Each module holds the tests of one capability.
 
 mod ffz_common;
-mod ffz_roundtrip;
 mod ffz_corrupt;
-mod ffz_kill;
 mod ffz_golden;
+mod ffz_kill;
 mod ffz_python;
+mod ffz_roundtrip;
+mod ffz_tools;
