@@ -402,10 +402,10 @@ impl DecodedChunk {
     /// chunk and offset).
     pub fn row(&self, e: &RowDirEntryV1, n: u32) -> std::result::Result<Row, String> {
         let shuffle = self.header.flags & spec::CHUNK_FLAG_SHUFFLED != 0;
-        let start = e.offset as usize;
-        let data = self
-            .raw
-            .get(start..start + e.data_len() as usize)
+        let data = usize::try_from(e.offset)
+            .ok()
+            .and_then(|start| Some(start..start.checked_add(usize::try_from(e.data_len()).ok()?)?))
+            .and_then(|r| self.raw.get(r))
             .ok_or_else(|| format!("row {}: data out of bounds", e.row))?;
         let values = if e.flags & spec::ROW_FLAG_SKIPPED != 0 {
             RowValues::Skipped
@@ -455,8 +455,9 @@ pub fn decode_record(
     layout: Layout,
 ) -> std::result::Result<DecodedChunk, ChunkFault> {
     let here = |w: String| (0u64, w);
-    let payload = rec
-        .get(spec::CHUNK_HEADER_LEN..spec::CHUNK_HEADER_LEN + h.compressed_len as usize)
+    let payload = usize::try_from(h.compressed_len)
+        .ok()
+        .and_then(|len| rec.get(spec::CHUNK_HEADER_LEN..spec::CHUNK_HEADER_LEN.checked_add(len)?))
         .ok_or_else(|| here("chunk cut short".into()))?;
     let dir_len = h.row_count as u64 * spec::ROW_DIR_ENTRY_LEN as u64;
     // Bound the allocation by what the header can honestly claim (spec §5.2).

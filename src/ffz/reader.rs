@@ -276,7 +276,13 @@ impl FfzReader {
     /// # Errors
     /// `Chunk` naming the chunk and its offset.
     pub fn chunk_record(&self, k: u32) -> Result<(spec::ChunkHeaderV1, u64)> {
-        let start = self.chunk_offsets[k as usize];
+        let Some(&start) = self.chunk_offsets.get(k as usize) else {
+            return Err(self.chunk_err(
+                k,
+                0,
+                format!("no such chunk (the file has {})", self.chunk_offsets.len()),
+            ));
+        };
         let end = self
             .chunk_offsets
             .get(k as usize + 1)
@@ -298,7 +304,7 @@ impl FfzReader {
     /// `Chunk` naming the chunk and its offset when any check fails.
     pub fn decode_chunk(&self, k: u32) -> Result<DecodedChunk> {
         let (h, _) = self.chunk_record(k)?;
-        let start = self.chunk_offsets[k as usize] as usize;
+        let start = self.chunk_offsets[k as usize] as usize; // exists: chunk_record checked k
         chunk::decode_record(h, &self.map[start..], self.header.n, self.meta.layout)
             .map_err(|(rel, w)| self.chunk_err(k, rel, w))
     }

@@ -516,3 +516,87 @@ impl Drop for FfzWriter {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::ffz::FfzReader;
+    use crate::patch::{Patch, PatchSet};
+
+    fn meta(n: u32) -> FileMeta {
+        let p = Patch {
+            corners: [
+                glam::DVec3::ZERO,
+                glam::DVec3::X,
+                glam::DVec3::Y,
+                glam::DVec3::ZERO,
+            ],
+            n_corners: 3,
+            normal: glam::DVec3::Z,
+            area: 0.5,
+            group: 0,
+            face: 0,
+            rho: [0.5; 3],
+            emission: [0.0; 3],
+        };
+        let patches = PatchSet {
+            patches: vec![p; n as usize],
+            groups: vec!["g".into()],
+        };
+        FileMeta {
+            layout: Layout::Dense,
+            method: "point".into(),
+            params: String::new(),
+            scene_hash: patches.content_hash(),
+            created: String::new(),
+            patches,
+        }
+    }
+
+    #[test]
+    fn dropped_writer_keeps_buffered_rows_for_resume() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("d.ffz");
+        let m = meta(3);
+        let opts = WriterOptions {
+            fsync: false,
+            ..Default::default()
+        };
+        let mut w = FfzWriter::create(&path, &m, opts).unwrap();
+        w.push_row(Row::dense(1, vec![0.25, 0.0, 0.5])).unwrap();
+        assert_eq!(
+            w.stats().chunks,
+            0,
+            "1 MiB chunks: the row is still buffered"
+        );
+        drop(w); // an error path: no finish
+        let r = FfzReader::open(&path).unwrap();
+        assert!(!r.is_indexed());
+        assert_eq!(r.row(1).unwrap(), Some(Row::dense(1, vec![0.25, 0.0, 0.5])));
+        assert_eq!(r.presence().missing(), vec![0, 2]);
+        drop(r);
+        let (w, presence) = FfzWriter::resume(&path, &m, opts).unwrap();
+        assert_eq!(presence.missing(), vec![0, 2]);
+        let st = w.finish().unwrap();
+        assert_eq!((st.rows, st.chunks), (1, 1));
+        assert_eq!(st.bytes_on_disk, std::fs::metadata(&path).unwrap().len());
+    }
+
+    #[test]
+    fn io_error_names_the_path() {
+        // /dev/full accepts the open and fails every write with ENOSPC.
+        let path = Path::new("/dev/full");
+        if !path.exists() {
+            println!("skipped: no /dev/full on this system");
+            return;
+        }
+        let e = FfzWriter::create(path, &meta(2), WriterOptions::default())
+            .err()
+            .unwrap();
+        let msg = e.to_string();
+        assert!(
+            msg.contains("/dev/full") && msg.contains("write header"),
+            "{msg}"
+        );
+    }
+}
