@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 use std::sync::Arc;
 
-use anyhow::{bail, Context};
+use anyhow::bail;
 use clap::Args;
 
 use ffstream::ffz::{FileMeta, Layout, WriterOptions};
@@ -59,9 +59,10 @@ pub struct ComputeOptions {
     #[arg(long, default_value_t = 0, value_name = "N")]
     pub seed: u64,
     /// Which rows: all, or needed (skip rows of patches that neither reflect nor emit:
-    /// a gathering solve never reads them; the file marks them skipped).
-    #[arg(long, default_value = "all", value_name = "ROWS")]
-    pub rows: String,
+    /// a gathering solve never reads them; the file marks them skipped). Default: all
+    /// for `compute`, needed for `run`.
+    #[arg(long, value_name = "ROWS")]
+    pub rows: Option<String>,
     /// Complete a partial file (after a crash or kill): compute only the missing rows.
     #[arg(long)]
     pub resume: bool,
@@ -87,16 +88,10 @@ pub struct ComputeOptions {
     pub quiet: bool,
 }
 
-/// Load a scene: an OBJ path or builtin:NAME[:PARAM].
+/// Load a scene: an OBJ path, or builtin:NAME[:PARAM] (or a bare built-in name when no
+/// file of that name exists).
 pub fn load_scene(spec: &str) -> anyhow::Result<Scene> {
-    if let Some(rest) = spec.strip_prefix("builtin:") {
-        let (name, param) = match rest.split_once(':') {
-            Some((n, p)) => (n, Some(p.parse::<f64>().with_context(|| format!("builtin scene parameter '{p}' is not a number"))?)),
-            None => (rest, None),
-        };
-        return Ok(scene::builtin(name, param)?);
-    }
-    Ok(scene::load_obj(std::path::Path::new(spec))?)
+    Ok(scene::open_scene(spec)?)
 }
 
 /// Everything built from the scene: patches and the engine. `announce` prints what was
@@ -164,7 +159,7 @@ pub fn build_job(input: &SceneInput, output: PathBuf, o: &ComputeOptions, announ
         engine: Arc::new(engine),
         resume: o.resume,
         schedule: o.schedule.parse::<Schedule>().map_err(anyhow::Error::msg)?,
-        rows: o.rows.parse::<RowSelection>().map_err(anyhow::Error::msg)?,
+        rows: o.rows.as_deref().unwrap_or("all").parse::<RowSelection>().map_err(anyhow::Error::msg)?,
         threads,
         writer: WriterOptions { zstd_level: o.zstd_level, chunk_bytes: o.chunk_kib * 1024, fsync: !o.no_fsync },
         flush_seconds: o.flush_seconds,

@@ -1,1 +1,41 @@
-//! (being written)
+//! The `.ffz` file format: a self-describing, chunked, zstd-compressed store of the
+//! form-factor matrix, written append-only while rows arrive in any order and read
+//! through a memory map. The specification is `formats/ffz-v1.md`; every on-disk
+//! structure here names its section there, and the spec wins where they disagree.
+//!
+//! | file | holds |
+//! |---|---|
+//! | `spec.rs` | on-disk structures (`HeaderV1`, `ChunkHeaderV1`, ...), magics, CRC-32C |
+//! | `meta.rs` | [`Layout`], [`FileMeta`], the meta block (header + patch table) |
+//! | `chunk.rs` | [`encode_chunk`] (runs on workers) and chunk decoding |
+//! | `index.rs` | the row → chunk index and the footer |
+//! | `writer.rs` | [`FfzWriter`]: create, resume, append, finish |
+//! | `recover.rs` | the recovery scan for files without a usable index |
+//! | `reader.rs` | [`FfzReader`]: open, random row access, sequential scan |
+//! | `verify.rs` | [`FfzReader::verify`] and [`compare`] |
+//! | `tools.rs` | `info`, `verify`, `export` for the command line |
+//! | `presence.rs` | [`RowPresence`]: which rows a file holds |
+
+mod chunk;
+mod error;
+mod index;
+mod meta;
+mod presence;
+mod reader;
+mod recover;
+pub mod spec;
+pub mod tools;
+mod verify;
+mod writer;
+
+pub use chunk::{
+    encode_chunk, encode_chunk_with, raw_row_len, ChunkEncoding, DecodedChunk, EncodedChunk,
+    SHUFFLE_DEFAULT,
+};
+pub use error::FfzError;
+pub use meta::{FileMeta, Layout};
+pub use presence::{RowPresence, RowState};
+pub use reader::FfzReader;
+pub use recover::BadRegion;
+pub use verify::{compare, BadChunk, CompareReport, VerifyOptions, VerifyReport};
+pub use writer::{FfzWriter, WriterOptions, WriterStats};

@@ -209,7 +209,7 @@ pub fn prepare(job: &crate::service::ComputeJob, min_batch: usize) -> Result<(Ff
     let mut skipped = Vec::new();
     let mut present = 0u64;
     for i in 0..n {
-        match presence.as_ref().map_or(RowState::Missing, |p| p.state(i)) {
+        match presence.as_ref().map_or(RowState::Missing, |p| p.get(i)) {
             RowState::Present | RowState::Skipped => present += 1,
             RowState::Missing => {
                 if job.rows == RowSelection::Needed && job.patches.patches[i as usize].is_inert() {

@@ -1,6 +1,13 @@
 //! All integration tests in one binary (faster to build and run than one binary per
 //! file). Each module holds the tests of one capability.
 mod common;
+mod ffz_common;
+mod ffz_corrupt;
+mod ffz_golden;
+mod ffz_kill;
+mod ffz_python;
+mod ffz_roundtrip;
+mod ffz_tools;
 mod mpi;
 mod render;
 mod scene;

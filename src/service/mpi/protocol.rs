@@ -8,7 +8,7 @@
 //! |---|---|---|
 //! | `REQUEST` | worker → 0 | `u32` worker rank |
 //! | `ASSIGN` | 0 → worker | `u32` count, then `count` × `u32` row ids (count 0 = no more work) |
-//! | `CHUNK` | worker → 0 | chunk record bytes (formats/ffz-v1.md), then `count` × `u32` row ids, `u64` raw length, `u32` count |
+//! | `CHUNK` | worker → 0 | chunk record bytes (formats/ffz-v1.md), then `rows` × `u32` row ids, `skipped` × `u32` skipped row ids, `u64` raw length, `u32` rows, `u32` skipped |
 //! | `FAILED` | worker → 0 | `i64` row (−1: none), UTF-8 message |
 //! | `DONE` | worker → 0 | `u64` rows, `f64` busy seconds, `u32` threads, `u64` peak RSS |
 //! | `SETUP` | worker → 0 | UTF-8 message: why this rank could not set up |
@@ -48,33 +48,34 @@ pub fn decode_assign(v: &[u32]) -> Result<Vec<u32>, ServiceError> {
     }
 }
 
-/// Chunk bytes followed by the trailer (row ids, raw length, count).
+/// Chunk bytes followed by the trailer (row ids, skipped ids, raw length, counts).
 pub fn encode_chunk_message(chunk: EncodedChunk) -> Vec<u8> {
     let mut v = chunk.bytes;
-    v.reserve(4 * chunk.row_ids.len() + 12);
-    for r in &chunk.row_ids {
+    v.reserve(4 * (chunk.row_ids.len() + chunk.skipped.len()) + 16);
+    for r in chunk.row_ids.iter().chain(&chunk.skipped) {
         v.extend_from_slice(&r.to_le_bytes());
     }
     v.extend_from_slice(&chunk.raw_len.to_le_bytes());
     v.extend_from_slice(&(chunk.row_ids.len() as u32).to_le_bytes());
+    v.extend_from_slice(&(chunk.skipped.len() as u32).to_le_bytes());
     v
 }
 
 /// Inverse of [`encode_chunk_message`]; reuses the buffer for the chunk bytes.
 pub fn decode_chunk_message(mut v: Vec<u8>, rank: i32) -> Result<EncodedChunk, ServiceError> {
+    let bad = || malformed("CHUNK", rank);
     let len = v.len();
-    if len < 12 {
-        return Err(malformed("CHUNK", rank));
+    if len < 16 {
+        return Err(bad());
     }
-    let count = u32::from_le_bytes(v[len - 4..].try_into().map_err(|_| malformed("CHUNK", rank))?) as usize;
-    let raw_len = u64::from_le_bytes(v[len - 12..len - 4].try_into().map_err(|_| malformed("CHUNK", rank))?);
-    let ids_start = (len - 12).checked_sub(4 * count).ok_or_else(|| malformed("CHUNK", rank))?;
-    let row_ids = v[ids_start..len - 12]
-        .chunks_exact(4)
-        .map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
-        .collect();
+    let u32_at = |o: usize| u32::from_le_bytes([v[o], v[o + 1], v[o + 2], v[o + 3]]);
+    let (rows, skipped) = (u32_at(len - 8) as usize, u32_at(len - 4) as usize);
+    let raw_len = u64::from(u32_at(len - 16)) | (u64::from(u32_at(len - 12)) << 32);
+    let ids_bytes = rows.checked_add(skipped).and_then(|c| c.checked_mul(4)).ok_or_else(bad)?;
+    let ids_start = (len - 16).checked_sub(ids_bytes).ok_or_else(bad)?;
+    let ids: Vec<u32> = v[ids_start..len - 16].chunks_exact(4).map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect();
     v.truncate(ids_start);
-    Ok(EncodedChunk { row_ids, bytes: v, raw_len })
+    Ok(EncodedChunk { row_ids: ids[..rows].to_vec(), skipped: ids[rows..].to_vec(), bytes: v, raw_len })
 }
 
 pub fn encode_failed(row: i64, message: &str) -> Vec<u8> {
@@ -120,20 +121,22 @@ mod tests {
 
     #[test]
     fn chunk_message_round_trip_keeps_bytes_and_ids() {
-        let chunk = EncodedChunk { row_ids: vec![7, 70_000, 3], bytes: vec![1, 2, 3, 4, 5], raw_len: 1234 };
+        let chunk = EncodedChunk { row_ids: vec![7, 70_000, 3], skipped: vec![9], bytes: vec![1, 2, 3, 4, 5], raw_len: 1 << 40 | 1234 };
         let back = decode_chunk_message(encode_chunk_message(chunk.clone()), 1).unwrap();
         assert_eq!(back.row_ids, chunk.row_ids);
+        assert_eq!(back.skipped, chunk.skipped);
         assert_eq!(back.bytes, chunk.bytes);
-        assert_eq!(back.raw_len, 1234);
+        assert_eq!(back.raw_len, 1 << 40 | 1234);
     }
 
     #[test]
     fn truncated_chunk_message_is_an_error_not_a_panic() {
-        let msg = encode_chunk_message(EncodedChunk { row_ids: vec![1, 2], bytes: vec![9; 3], raw_len: 5 });
+        let msg = encode_chunk_message(EncodedChunk { row_ids: vec![1, 2], skipped: vec![], bytes: vec![9; 3], raw_len: 5 });
         for cut in 0..msg.len() {
             let _ = decode_chunk_message(msg[cut..].to_vec(), 2);
         }
         assert!(decode_chunk_message(vec![0; 5], 2).is_err());
+        assert!(decode_chunk_message(vec![0xff; 40], 2).is_err());
     }
 
     #[test]

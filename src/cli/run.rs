@@ -1,0 +1,58 @@
+//! `ffstream run`: the main job. Compute (embedded, or under mpirun) + solve + render
+//! with good defaults, everything in one directory.
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use clap::Args;
+
+use super::compute::{execute, ComputeOptions, Outcome};
+use super::render::{render_to, ViewOptions};
+use super::solve::{solve_file, SolveOptions};
+use super::SceneInput;
+
+#[derive(Args, Debug)]
+pub struct RunArgs {
+    #[command(flatten)]
+    pub input: SceneInput,
+    /// Output directory (default: out/SCENE_NAME). It receives form_factors.ffz,
+    /// radiosity.csv, lit.ply, image.png and wireframe.png.
+    #[arg(short, long, value_name = "DIR")]
+    pub output: Option<PathBuf>,
+    #[command(flatten)]
+    pub compute: ComputeOptions,
+    /// Solver: gauss-seidel, jacobi or shooting (see `ffstream solve --help`).
+    #[arg(long, default_value = "gauss-seidel", value_name = "SOLVER")]
+    pub solver: String,
+    #[command(flatten)]
+    pub solve: SolveOptions,
+    #[command(flatten)]
+    pub view: ViewOptions,
+}
+
+pub fn run(mut a: RunArgs) -> anyhow::Result<ExitCode> {
+    let dir = a.output.clone().unwrap_or_else(|| super::default_run_dir(&a.input.scene));
+    std::fs::create_dir_all(&dir).map_err(|e| anyhow::anyhow!("cannot create {}: {e}", dir.display()))?;
+    let ffz = dir.join("form_factors.ffz");
+    // A gathering solve never reads rows of patches that neither reflect nor emit.
+    a.compute.rows.get_or_insert_with(|| "needed".to_string());
+    let report = match execute(&a.input, ffz.clone(), &a.compute)? {
+        Outcome::Master(r) => r,
+        Outcome::Worker => return Ok(ExitCode::SUCCESS),
+    };
+    eprintln!("{}", report.summary());
+    eprintln!("ffstream: wrote {}", ffz.display());
+    if a.solve.ply.is_none() {
+        a.solve.ply = Some(dir.join("lit.ply"));
+    }
+    let csv = dir.join("radiosity.csv");
+    let (solution, patches) = solve_file(&ffz, &csv, &a.solver, &a.solve)?;
+    let radiosity = solution.radiosity_f32(0);
+    let image = dir.join("image.png");
+    render_to(&patches, &radiosity, &image, &a.view, a.view.wireframe)?;
+    if !a.view.wireframe {
+        render_to(&patches, &radiosity, &dir.join("wireframe.png"), &a.view, true)?;
+    }
+    println!("picture: {}", image.display());
+    Ok(ExitCode::SUCCESS)
+}

@@ -1,0 +1,133 @@
+//! `ffstream solve`: radiosity from an .ffz file, out of core.
+
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+
+use anyhow::{bail, Context};
+use clap::Args;
+
+use ffstream::ffz::FfzReader;
+use ffstream::patch::PatchSet;
+use ffstream::scene::Scene;
+use ffstream::solve::{self, SolveConfig, SolveMethod, Solution};
+
+#[derive(Args, Debug, Clone)]
+pub struct SolveArgs {
+    /// The .ffz file.
+    pub file: PathBuf,
+    /// Radiosity CSV to write (header patch,group,area,B_r,B_g,B_b,E_*,rho_*,H_*). With
+    /// several emission cases: one file per case, named NAME_case{k}.csv.
+    #[arg(short, long, value_name = "radiosity.csv")]
+    pub output: PathBuf,
+    /// Solver: gauss-seidel (default: full sweeps in file order), jacobi (full sweeps,
+    /// rows in file order), shooting (progressive refinement, random row access).
+    #[arg(long, default_value = "gauss-seidel", value_name = "SOLVER")]
+    pub method: String,
+    #[command(flatten)]
+    pub opts: SolveOptions,
+}
+
+/// Settings of the solve (shared with `run`, where the solver is chosen with --solver).
+#[derive(Args, Debug, Clone)]
+pub struct SolveOptions {
+    /// Stop when the relative residual (shooting: unshot / emitted power) is below this.
+    #[arg(long, default_value_t = 1e-6, value_name = "E")]
+    pub tolerance: f64,
+    /// Most sweeps (shooting: shots / n).
+    #[arg(long, default_value_t = 10_000, value_name = "N")]
+    pub max_iterations: usize,
+    /// Take reflectance and emission from this scene instead of the file's patch table
+    /// (the scene must be the one the file was computed from).
+    #[arg(long = "scene", value_name = "SCENE.obj")]
+    pub materials_from: Option<String>,
+    /// Solve several emission cases in one pass per sweep: CSV with header
+    /// case,group,e_r,e_g,e_b (per-group exitance; unlisted groups emit nothing).
+    #[arg(long, value_name = "CASES.csv")]
+    pub emission: Option<PathBuf>,
+    /// Also write the lit mesh as PLY with per-vertex colours (MeshLab, Blender).
+    #[arg(long, value_name = "lit.ply")]
+    pub ply: Option<PathBuf>,
+    /// Top-k files: use the kept entries as stored, without scaling them to restore the
+    /// dropped mass (default: scale, so no light is lost).
+    #[arg(long)]
+    pub no_renormalize: bool,
+}
+
+/// Reflectance and emission of the file's patches taken from `scene` instead: each patch
+/// keeps the index of the face it was cut from, which must exist in `scene`, carry the
+/// same group name and contain the patch.
+fn materials_from_scene(patches: &PatchSet, scene: &Scene, spec: &str) -> anyhow::Result<(Vec<[f32; 3]>, Vec<[f32; 3]>)> {
+    let (lo, hi) = scene.bounds();
+    let tol = 1e-6 * (hi - lo).length().max(f64::MIN_POSITIVE);
+    let mut rho = Vec::with_capacity(patches.len());
+    let mut emission = Vec::with_capacity(patches.len());
+    for (i, p) in patches.patches.iter().enumerate() {
+        let mismatch = |why: String| anyhow::anyhow!("{spec} is not the scene this file was computed from: patch {i}: {why}");
+        let face = scene.faces.get(p.face as usize).ok_or_else(|| mismatch(format!("face {} does not exist", p.face)))?;
+        let group = &scene.groups[face.group as usize];
+        if group != patches.group_name(i) {
+            return Err(mismatch(format!("face {} is in group '{group}', the file says '{}'", p.face, patches.group_name(i))));
+        }
+        let n = face.normal();
+        let c = p.centroid();
+        if (c - face.corners[0]).dot(n).abs() > tol || n.dot(p.normal) < 1.0 - 1e-9 {
+            return Err(mismatch(format!("it does not lie on face {} (line {})", p.face, face.line)));
+        }
+        let m = &scene.materials[face.material as usize];
+        rho.push(m.rho);
+        emission.push(m.emission);
+    }
+    Ok((rho, emission))
+}
+
+/// Solve `file` and write the outputs; returns the solution and the patches.
+pub fn solve_file(file: &Path, output: &Path, method: &str, o: &SolveOptions) -> anyhow::Result<(Solution, PatchSet)> {
+    let reader = FfzReader::open(file)?;
+    for w in reader.warnings() {
+        eprintln!("ffstream: warning: {w}");
+    }
+    let patches = reader.meta().patches.clone();
+    let (rho, own_emission) = match &o.materials_from {
+        Some(spec) => materials_from_scene(&patches, &super::compute::load_scene(spec)?, spec)?,
+        None => (solve::scene_reflectance(&patches), solve::scene_emission(&patches)),
+    };
+    let cases = match &o.emission {
+        Some(path) => solve::read_emission_cases(path, &patches)?,
+        None => vec![own_emission],
+    };
+    let emits = |c: &Vec<[f32; 3]>| c.iter().any(|e| e.iter().any(|&x| x > 0.0));
+    if !cases.iter().any(emits) {
+        bail!(
+            "{}: nothing emits light (every Ke is 0){}: the radiosity would be zero everywhere",
+            file.display(),
+            if o.emission.is_some() { " in the emission cases" } else { "" }
+        );
+    }
+    let cfg = SolveConfig {
+        method: method.parse::<SolveMethod>()?,
+        tolerance: o.tolerance,
+        max_iterations: o.max_iterations,
+        renormalize_top_k: !o.no_renormalize,
+    };
+    let solution = solve::solve(&reader, &cases, &rho, &cfg).with_context(|| format!("solving {}", file.display()))?;
+    eprint!("{}", solution.summary());
+    let k = solution.cases();
+    for case in 0..k {
+        let path = solve::case_path(output, case, k);
+        solve::write_csv(&path, &patches, &solution, case)?;
+        let table = solve::group_table(&patches, &solution, case)?;
+        println!("{}per-group area-averaged radiosity{}:", if k > 1 { "\n" } else { "" }, if k > 1 { format!(" (case {case})") } else { String::new() });
+        print!("{}", solve::format_group_table(&table));
+        eprintln!("ffstream: wrote {}", path.display());
+    }
+    if let Some(ply) = &o.ply {
+        solve::write_ply(ply, &patches, &solution.b[0])?;
+        eprintln!("ffstream: wrote {}", ply.display());
+    }
+    Ok((solution, patches))
+}
+
+pub fn run(a: SolveArgs) -> anyhow::Result<ExitCode> {
+    solve_file(&a.file, &a.output, &a.method, &a.opts)?;
+    Ok(ExitCode::SUCCESS)
+}

@@ -1,0 +1,652 @@
+//! The chunk codec (spec §5): a batch of rows becomes one self-delimiting record,
+//! `ChunkHeaderV1` + zstd payload, and back.
+//!
+//! Encoding is a free function so that compute workers compress their own rows and the
+//! I/O master only appends finished records (DESIGN §4: rank 0 bounded by the disk,
+//! not by its CPU). Decoding checks both checksums before a number leaves this module.
+
+use super::error::{FfzError, Result};
+use super::meta::Layout;
+use super::spec::{self, ChunkHeaderV1, RowDirEntryV1};
+use crate::rows::{Row, RowValues};
+
+/// Whether the writer byte-shuffles float and column arrays (spec §5.5). The spec
+/// records the measurement behind this choice.
+pub const SHUFFLE_DEFAULT: bool = true;
+
+/// A finished chunk record, ready to be appended to a file by
+/// [`FfzWriter::append_chunk`](super::FfzWriter::append_chunk).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct EncodedChunk {
+    /// Row ids in the order of the chunk's row directory.
+    pub row_ids: Vec<u32>,
+    /// The subset of `row_ids` stored as skipped (ascending).
+    pub skipped: Vec<u32>,
+    /// The complete on-disk record: chunk header (40 bytes) + compressed payload.
+    pub bytes: Vec<u8>,
+    /// Length of the decompressed payload (row directory + row data).
+    pub raw_len: u64,
+}
+
+impl EncodedChunk {
+    /// One byte buffer holding the whole chunk, for sending between processes:
+    /// `n_rows u32, n_skipped u32, row_ids u32[n_rows], skipped u32[n_skipped], record`.
+    /// (`raw_len` is inside the record's header.) Not part of the file format.
+    pub fn to_wire(&self) -> Vec<u8> {
+        let mut out = Vec::with_capacity(
+            8 + 4 * (self.row_ids.len() + self.skipped.len()) + self.bytes.len(),
+        );
+        out.extend_from_slice(&(self.row_ids.len() as u32).to_le_bytes());
+        out.extend_from_slice(&(self.skipped.len() as u32).to_le_bytes());
+        for r in self.row_ids.iter().chain(&self.skipped) {
+            out.extend_from_slice(&r.to_le_bytes());
+        }
+        out.extend_from_slice(&self.bytes);
+        out
+    }
+
+    /// Inverse of [`EncodedChunk::to_wire`].
+    ///
+    /// # Errors
+    /// `BadEncodedChunk` (with an empty path) when the buffer is cut short or its
+    /// record header is corrupt.
+    pub fn from_wire(buf: &[u8]) -> Result<Self> {
+        let bad = |what: String| FfzError::BadEncodedChunk {
+            path: Default::default(),
+            what,
+        };
+        let mut r = spec::Le::new(buf);
+        let n_rows = r.u32().ok_or_else(|| bad("wire buffer cut short".into()))? as usize;
+        let n_skipped = r.u32().ok_or_else(|| bad("wire buffer cut short".into()))? as usize;
+        let mut ids = Vec::with_capacity(n_rows.min(buf.len() / 4));
+        for _ in 0..n_rows + n_skipped {
+            ids.push(
+                r.u32()
+                    .ok_or_else(|| bad("wire buffer cut short in the row ids".into()))?,
+            );
+        }
+        let skipped = ids.split_off(n_rows);
+        let bytes = buf[r.pos()..].to_vec();
+        let header = ChunkHeaderV1::decode(&bytes).map_err(|(_, w)| bad(w))?;
+        Ok(EncodedChunk {
+            row_ids: ids,
+            skipped,
+            bytes,
+            raw_len: header.raw_len,
+        })
+    }
+}
+
+/// Knobs of the chunk encoder.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ChunkEncoding {
+    pub zstd_level: i32,
+    /// Byte-shuffle float and column arrays (spec §5.5).
+    pub shuffle: bool,
+}
+
+/// Encode rows into one chunk record (spec §5) with the default shuffle setting.
+/// Rows may come in any order; each row id may appear once.
+///
+/// # Errors
+/// `InvalidRow` when a row does not fit the layout (dense row in a top-k file or the
+/// other way round, wrong length, columns not strictly ascending or ≥ n, negative or
+/// non-finite dropped mass, row id ≥ n or repeated); `Compress` when zstd fails.
+pub fn encode_chunk(
+    rows: &[Row],
+    meta_layout: Layout,
+    n: u32,
+    zstd_level: i32,
+) -> Result<EncodedChunk> {
+    encode_chunk_with(
+        rows,
+        meta_layout,
+        n,
+        ChunkEncoding {
+            zstd_level,
+            shuffle: SHUFFLE_DEFAULT,
+        },
+    )
+}
+
+/// [`encode_chunk`] with every knob exposed (benchmarks compare shuffle on and off).
+///
+/// # Errors
+/// As [`encode_chunk`].
+pub fn encode_chunk_with(
+    rows: &[Row],
+    layout: Layout,
+    n: u32,
+    enc: ChunkEncoding,
+) -> Result<EncodedChunk> {
+    let raw = encode_raw(rows, layout, n, enc.shuffle)?;
+    let payload = zstd::bulk::compress(&raw.bytes, enc.zstd_level).map_err(FfzError::Compress)?;
+    let header = ChunkHeaderV1 {
+        flags: if enc.shuffle {
+            spec::CHUNK_FLAG_SHUFFLED
+        } else {
+            0
+        },
+        compressed_len: payload.len() as u64,
+        raw_len: raw.bytes.len() as u64,
+        row_count: rows.len() as u32,
+        crc_compressed: spec::crc(&payload),
+        crc_raw: spec::crc(&raw.bytes),
+    };
+    let mut bytes = Vec::with_capacity(spec::CHUNK_HEADER_LEN + payload.len());
+    bytes.extend_from_slice(&header.encode());
+    bytes.extend_from_slice(&payload);
+    Ok(EncodedChunk {
+        row_ids: raw.row_ids,
+        skipped: raw.skipped,
+        bytes,
+        raw_len: header.raw_len,
+    })
+}
+
+/// The decompressed payload of a chunk and the rows it names.
+pub(crate) struct RawPayload {
+    pub bytes: Vec<u8>,
+    pub row_ids: Vec<u32>,
+    pub skipped: Vec<u32>,
+}
+
+/// Raw size a row adds to a chunk (directory entry + data, spec §5.3, §5.4).
+pub fn raw_row_len(row: &Row) -> usize {
+    spec::ROW_DIR_ENTRY_LEN
+        + match &row.values {
+            RowValues::Dense(v) => 4 * v.len(),
+            RowValues::Sparse { cols, .. } => 8 * cols.len(),
+            RowValues::Skipped => 0,
+        }
+}
+
+pub(crate) fn check_row(row: &Row, layout: Layout, n: u32) -> Result<()> {
+    let bad = |what: String| {
+        Err(FfzError::InvalidRow {
+            row: row.index,
+            what,
+        })
+    };
+    if row.index >= n {
+        return bad(format!("row id ≥ n = {n}"));
+    }
+    if !(row.dropped.is_finite() && row.dropped >= 0.0) {
+        return bad(format!(
+            "dropped mass {} is not a finite number ≥ 0",
+            row.dropped
+        ));
+    }
+    match (&row.values, layout) {
+        (RowValues::Skipped, _) if row.dropped.to_bits() != 0 => {
+            bad("skipped row with dropped mass ≠ 0".into())
+        }
+        (RowValues::Skipped, _) => Ok(()),
+        (RowValues::Dense(v), Layout::Dense) if v.len() == n as usize => Ok(()),
+        (RowValues::Dense(v), Layout::Dense) => {
+            bad(format!("dense row has {} values, n = {n}", v.len()))
+        }
+        (RowValues::Sparse { cols, vals }, Layout::TopK { k }) => {
+            if cols.len() != vals.len() {
+                return bad(format!("{} columns but {} values", cols.len(), vals.len()));
+            }
+            if cols.len() > k.min(n) as usize {
+                return bad(format!(
+                    "{} entries, more than min(k = {k}, n = {n})",
+                    cols.len()
+                ));
+            }
+            if let Some(w) = cols.windows(2).position(|w| w[0] >= w[1]) {
+                return bad(format!("columns not strictly ascending at entry {}", w + 1));
+            }
+            match cols.last() {
+                Some(&c) if c >= n => bad(format!("column {c} ≥ n = {n}")),
+                _ => Ok(()),
+            }
+        }
+        (RowValues::Dense(_), Layout::TopK { .. }) => bad("dense row in a top-k file".into()),
+        (RowValues::Sparse { .. }, Layout::Dense) => bad("sparse row in a dense file".into()),
+    }
+}
+
+/// Write `words` as 4-byte little-endian values, byte-shuffled when asked (spec §5.5:
+/// all first bytes, then all second bytes, ...).
+fn put_words<I: ExactSizeIterator<Item = u32>>(out: &mut Vec<u8>, words: I, shuffle: bool) {
+    if !shuffle {
+        for w in words {
+            out.extend_from_slice(&w.to_le_bytes());
+        }
+        return;
+    }
+    let m = words.len();
+    let start = out.len();
+    out.resize(start + 4 * m, 0);
+    let dst = &mut out[start..];
+    for (k, w) in words.enumerate() {
+        let b = w.to_le_bytes();
+        dst[k] = b[0];
+        dst[m + k] = b[1];
+        dst[2 * m + k] = b[2];
+        dst[3 * m + k] = b[3];
+    }
+}
+
+/// Inverse of [`put_words`]: `src` holds exactly `4 m` bytes.
+fn get_words(src: &[u8], shuffle: bool) -> Vec<u32> {
+    let m = src.len() / 4;
+    if !shuffle {
+        return src
+            .chunks_exact(4)
+            .map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+            .collect();
+    }
+    let (p0, rest) = src.split_at(m);
+    let (p1, rest) = rest.split_at(m);
+    let (p2, p3) = rest.split_at(m);
+    (0..m)
+        .map(|k| u32::from_le_bytes([p0[k], p1[k], p2[k], p3[k]]))
+        .collect()
+}
+
+/// Build the decompressed payload: row directory then row data (spec §5.2 to §5.5).
+pub(crate) fn encode_raw(
+    rows: &[Row],
+    layout: Layout,
+    n: u32,
+    shuffle: bool,
+) -> Result<RawPayload> {
+    if u32::try_from(rows.len()).is_err() {
+        return Err(FfzError::InvalidRow {
+            row: 0,
+            what: "more than 2^32 rows in one chunk".into(),
+        });
+    }
+    let mut ids: Vec<u32> = rows.iter().map(|r| r.index).collect();
+    ids.sort_unstable();
+    if let Some(w) = ids.windows(2).find(|w| w[0] == w[1]) {
+        return Err(FfzError::InvalidRow {
+            row: w[0],
+            what: "appears twice in one chunk".into(),
+        });
+    }
+    let mut total = spec::ROW_DIR_ENTRY_LEN * rows.len();
+    for r in rows {
+        check_row(r, layout, n)?;
+        total += raw_row_len(r) - spec::ROW_DIR_ENTRY_LEN;
+    }
+    let mut out = Vec::with_capacity(total);
+    let mut offset = (spec::ROW_DIR_ENTRY_LEN * rows.len()) as u64;
+    let mut skipped = Vec::new();
+    for r in rows {
+        let (flags, nnz) = match &r.values {
+            RowValues::Dense(v) => (0, v.len() as u32),
+            RowValues::Sparse { cols, .. } => (spec::ROW_FLAG_SPARSE, cols.len() as u32),
+            RowValues::Skipped => {
+                skipped.push(r.index);
+                (spec::ROW_FLAG_SKIPPED, 0)
+            }
+        };
+        let e = RowDirEntryV1 {
+            row: r.index,
+            flags,
+            nnz,
+            dropped: r.dropped,
+            offset,
+        };
+        offset += e.data_len();
+        e.encode_into(&mut out);
+    }
+    for r in rows {
+        match &r.values {
+            RowValues::Dense(v) => put_words(&mut out, v.iter().map(|x| x.to_bits()), shuffle),
+            RowValues::Sparse { cols, vals } => {
+                // Columns delta-encoded (spec §5.4): first absolute, then differences ≥ 1.
+                let deltas = cols.iter().scan(0u32, |prev, &c| {
+                    let d = c - *prev;
+                    *prev = c;
+                    Some(d)
+                });
+                put_words(&mut out, ExactLen(deltas, cols.len()), shuffle);
+                put_words(&mut out, vals.iter().map(|x| x.to_bits()), shuffle);
+            }
+            RowValues::Skipped => {}
+        }
+    }
+    debug_assert_eq!(out.len(), total);
+    skipped.sort_unstable();
+    Ok(RawPayload {
+        bytes: out,
+        row_ids: rows.iter().map(|r| r.index).collect(),
+        skipped,
+    })
+}
+
+/// An iterator with a known length (`Scan` does not report one).
+struct ExactLen<I>(I, usize);
+impl<I: Iterator<Item = u32>> Iterator for ExactLen<I> {
+    type Item = u32;
+    fn next(&mut self) -> Option<u32> {
+        let x = self.0.next()?;
+        self.1 -= 1;
+        Some(x)
+    }
+    fn size_hint(&self) -> (usize, Option<usize>) {
+        (self.1, Some(self.1))
+    }
+}
+impl<I: Iterator<Item = u32>> ExactSizeIterator for ExactLen<I> {}
+
+/// Where a chunk failed: byte offset relative to the chunk start (or, for payload
+/// faults, of the chunk start) and the reason.
+pub type ChunkFault = (u64, String);
+
+/// Check a chunk record that starts at `rec[0]` (which may run on past the chunk):
+/// header, length, checksum of the compressed payload. Returns the header and the
+/// record length (header + payload). Cheap: no decompression.
+pub fn check_record(rec: &[u8]) -> std::result::Result<(ChunkHeaderV1, u64), ChunkFault> {
+    let h = ChunkHeaderV1::decode(rec)?;
+    let total = (spec::CHUNK_HEADER_LEN as u64)
+        .checked_add(h.compressed_len)
+        .ok_or((8, "compressed length overflows".to_string()))?;
+    if (rec.len() as u64) < total {
+        return Err((
+            rec.len() as u64,
+            format!(
+                "chunk cut short: needs {total} bytes, only {} remain in the file",
+                rec.len()
+            ),
+        ));
+    }
+    let payload = &rec[spec::CHUNK_HEADER_LEN..total as usize];
+    let c = spec::crc(payload);
+    if c != h.crc_compressed {
+        return Err((
+            spec::CHUNK_HEADER_LEN as u64,
+            format!(
+                "compressed payload checksum mismatch (stored {:#010x}, computed {c:#010x})",
+                h.crc_compressed
+            ),
+        ));
+    }
+    Ok((h, total))
+}
+
+/// A decompressed, checked chunk.
+#[derive(Debug)]
+pub struct DecodedChunk {
+    pub header: ChunkHeaderV1,
+    raw: Vec<u8>,
+    entries: Vec<RowDirEntryV1>,
+    /// (row id, entry number), sorted by row id, for lookups.
+    by_row: Vec<(u32, u32)>,
+}
+
+impl DecodedChunk {
+    /// Directory entries in stored order.
+    pub fn entries(&self) -> &[RowDirEntryV1] {
+        &self.entries
+    }
+
+    /// Decompressed payload length.
+    pub fn raw_len(&self) -> usize {
+        self.raw.len()
+    }
+
+    /// The directory entry of row `row`, if this chunk holds it.
+    pub fn find(&self, row: u32) -> Option<&RowDirEntryV1> {
+        let k = self.by_row.binary_search_by_key(&row, |&(r, _)| r).ok()?;
+        self.entries.get(self.by_row[k].1 as usize)
+    }
+
+    /// Materialize one row. `Err` names the row and what is wrong (the caller adds the
+    /// chunk and offset).
+    pub fn row(&self, e: &RowDirEntryV1, n: u32) -> std::result::Result<Row, String> {
+        let shuffle = self.header.flags & spec::CHUNK_FLAG_SHUFFLED != 0;
+        let data = usize::try_from(e.offset)
+            .ok()
+            .and_then(|start| Some(start..start.checked_add(usize::try_from(e.data_len()).ok()?)?))
+            .and_then(|r| self.raw.get(r))
+            .ok_or_else(|| format!("row {}: data out of bounds", e.row))?;
+        let values = if e.flags & spec::ROW_FLAG_SKIPPED != 0 {
+            RowValues::Skipped
+        } else if e.flags & spec::ROW_FLAG_SPARSE != 0 {
+            let (dc, dv) = data.split_at(data.len() / 2);
+            let deltas = get_words(dc, shuffle);
+            let mut cols = Vec::with_capacity(deltas.len());
+            let mut c: u32 = 0;
+            for (k, d) in deltas.into_iter().enumerate() {
+                if k > 0 && d == 0 {
+                    return Err(format!("row {}: column delta 0 at entry {k}", e.row));
+                }
+                c = c
+                    .checked_add(d)
+                    .filter(|&c| c < n)
+                    .ok_or_else(|| format!("row {}: column at entry {k} is ≥ n = {n}", e.row))?;
+                cols.push(c);
+            }
+            let vals = get_words(dv, shuffle)
+                .into_iter()
+                .map(f32::from_bits)
+                .collect();
+            RowValues::Sparse { cols, vals }
+        } else {
+            RowValues::Dense(
+                get_words(data, shuffle)
+                    .into_iter()
+                    .map(f32::from_bits)
+                    .collect(),
+            )
+        };
+        Ok(Row {
+            index: e.row,
+            values,
+            dropped: e.dropped,
+        })
+    }
+}
+
+/// Decompress and check the payload of a record that [`check_record`] accepted
+/// (spec §5.2 to §5.4): length and checksum of the raw bytes, then every directory
+/// entry against n, the layout and the canonical packing.
+pub fn decode_record(
+    h: ChunkHeaderV1,
+    rec: &[u8],
+    n: u32,
+    layout: Layout,
+) -> std::result::Result<DecodedChunk, ChunkFault> {
+    let here = |w: String| (0u64, w);
+    let payload = usize::try_from(h.compressed_len)
+        .ok()
+        .and_then(|len| rec.get(spec::CHUNK_HEADER_LEN..spec::CHUNK_HEADER_LEN.checked_add(len)?))
+        .ok_or_else(|| here("chunk cut short".into()))?;
+    let dir_len = h.row_count as u64 * spec::ROW_DIR_ENTRY_LEN as u64;
+    // Bound the allocation by what the header can honestly claim (spec §5.2).
+    let max_raw =
+        (h.row_count as u64).saturating_mul(spec::ROW_DIR_ENTRY_LEN as u64 + 8 * n as u64);
+    if h.raw_len < dir_len || h.raw_len > max_raw || h.row_count > n {
+        return Err((
+            16,
+            format!(
+                "raw length {} impossible for {} rows of n = {n}",
+                h.raw_len, h.row_count
+            ),
+        ));
+    }
+    let raw = zstd::bulk::decompress(payload, h.raw_len as usize)
+        .map_err(|e| here(format!("zstd payload does not decompress: {e}")))?;
+    if raw.len() as u64 != h.raw_len {
+        return Err(here(format!(
+            "payload decompresses to {} bytes, header says {}",
+            raw.len(),
+            h.raw_len
+        )));
+    }
+    let c = spec::crc(&raw);
+    if c != h.crc_raw {
+        return Err(here(format!(
+            "decompressed payload checksum mismatch (stored {:#010x}, computed {c:#010x})",
+            h.crc_raw
+        )));
+    }
+    let sparse = layout.is_sparse();
+    let mut entries = Vec::with_capacity(h.row_count as usize);
+    let mut next = dir_len;
+    for (k, b) in raw[..dir_len as usize]
+        .chunks_exact(spec::ROW_DIR_ENTRY_LEN)
+        .enumerate()
+    {
+        let e = RowDirEntryV1::decode(b)
+            .ok_or_else(|| here(format!("directory entry {k} cut short")))?;
+        let skipped = e.flags & spec::ROW_FLAG_SKIPPED != 0;
+        let bad = |w: &str| here(format!("directory entry {k} (row {}): {w}", e.row));
+        if e.row >= n {
+            return Err(bad(&format!("row id ≥ n = {n}")));
+        }
+        if e.flags & !(spec::ROW_FLAG_SKIPPED | spec::ROW_FLAG_SPARSE) != 0 {
+            return Err(bad(&format!("unknown row flags {:#x}", e.flags)));
+        }
+        if skipped
+            && (e.nnz != 0 || e.flags & spec::ROW_FLAG_SPARSE != 0 || e.dropped.to_bits() != 0)
+        {
+            return Err(bad("skipped row with data or dropped mass"));
+        }
+        if !skipped && (e.flags & spec::ROW_FLAG_SPARSE != 0) != sparse {
+            return Err(bad("row kind does not match the file layout"));
+        }
+        if !skipped && !sparse && e.nnz != n {
+            return Err(bad(&format!("dense row with {} values, n = {n}", e.nnz)));
+        }
+        if let Layout::TopK { k } = layout {
+            if e.nnz > k.min(n) {
+                return Err(bad(&format!(
+                    "{} entries, more than min(k = {k}, n = {n})",
+                    e.nnz
+                )));
+            }
+        }
+        if e.offset != next {
+            return Err(bad(&format!("data offset {} (expected {next})", e.offset)));
+        }
+        next += e.data_len();
+        entries.push(e);
+    }
+    if next != h.raw_len {
+        return Err(here(format!(
+            "row data ends at {next}, payload is {} bytes",
+            h.raw_len
+        )));
+    }
+    let mut by_row: Vec<(u32, u32)> = entries
+        .iter()
+        .enumerate()
+        .map(|(k, e)| (e.row, k as u32))
+        .collect();
+    by_row.sort_unstable();
+    if let Some(w) = by_row.windows(2).find(|w| w[0].0 == w[1].0) {
+        return Err(here(format!(
+            "row {} appears twice in the directory",
+            w[0].0
+        )));
+    }
+    Ok(DecodedChunk {
+        header: h,
+        raw,
+        entries,
+        by_row,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn shuffle_round_trips() {
+        let w: Vec<u32> = (0..37).map(|i| i * 0x0102_0304 + 7).collect();
+        for shuffle in [false, true] {
+            let mut out = Vec::new();
+            put_words(&mut out, w.iter().copied(), shuffle);
+            assert_eq!(get_words(&out, shuffle), w);
+        }
+        let mut out = Vec::new();
+        put_words(&mut out, [0x0403_0201u32, 0x0807_0605].into_iter(), true);
+        assert_eq!(out, [1, 5, 2, 6, 3, 7, 4, 8]);
+    }
+
+    #[test]
+    fn chunk_round_trips_every_row_kind() {
+        let n = 5;
+        let rows = vec![
+            Row {
+                index: 3,
+                values: RowValues::Sparse {
+                    cols: vec![0, 2, 4],
+                    vals: vec![0.5, 0.25, 1e-30],
+                },
+                dropped: 0.125,
+            },
+            Row::skipped(1),
+            Row {
+                index: 0,
+                values: RowValues::Sparse {
+                    cols: vec![],
+                    vals: vec![],
+                },
+                dropped: 0.0,
+            },
+        ];
+        let layout = Layout::TopK { k: 3 };
+        let c = encode_chunk(&rows, layout, n, 3).unwrap();
+        assert_eq!(c.row_ids, vec![3, 1, 0]);
+        assert_eq!(c.skipped, vec![1]);
+        let (h, len) = check_record(&c.bytes).unwrap();
+        assert_eq!(len as usize, c.bytes.len());
+        let d = decode_record(h, &c.bytes, n, layout).unwrap();
+        let back: Vec<Row> = d.entries().iter().map(|e| d.row(e, n).unwrap()).collect();
+        assert_eq!(back, rows);
+        assert_eq!(EncodedChunk::from_wire(&c.to_wire()).unwrap(), c);
+    }
+
+    #[test]
+    fn encoder_rejects_rows_that_do_not_fit() {
+        let dense = Layout::Dense;
+        let topk = Layout::TopK { k: 2 };
+        let sparse = |cols: Vec<u32>| Row {
+            index: 0,
+            values: RowValues::Sparse {
+                vals: vec![1.0; cols.len()],
+                cols,
+            },
+            dropped: 0.0,
+        };
+        let cases: Vec<(Row, Layout)> = vec![
+            (Row::dense(0, vec![1.0; 3]), dense),
+            (Row::dense(9, vec![1.0; 4]), dense),
+            (Row::dense(0, vec![1.0; 4]), topk),
+            (sparse(vec![1]), dense),
+            (sparse(vec![2, 1]), topk),
+            (sparse(vec![1, 1]), topk),
+            (sparse(vec![4]), topk),
+            (sparse(vec![0, 1, 2]), topk),
+            (
+                Row {
+                    dropped: f32::NAN,
+                    ..Row::skipped(0)
+                },
+                dense,
+            ),
+        ];
+        for (row, layout) in cases {
+            let e = encode_chunk(std::slice::from_ref(&row), layout, 4, 1);
+            assert!(
+                matches!(e, Err(FfzError::InvalidRow { .. })),
+                "{row:?} accepted"
+            );
+        }
+        let twice = [Row::skipped(1), Row::skipped(1)];
+        assert!(matches!(
+            encode_chunk(&twice, dense, 4, 1),
+            Err(FfzError::InvalidRow { row: 1, .. })
+        ));
+    }
+}

@@ -1,0 +1,119 @@
+//! Recovery scan (spec §8): walk the chunk area from the end of the meta block, keep
+//! every chunk whose header and both checksums hold, and step over anything else by
+//! searching for the next chunk magic. Used when the footer or the index is missing
+//! or bad (a killed writer, a cut file) and by `resume`.
+
+use super::chunk::{self, DecodedChunk};
+use super::meta::Layout;
+use super::spec;
+
+/// A chunk the scan accepted.
+#[derive(Debug)]
+pub struct ScannedChunk {
+    pub offset: u64,
+    /// Record length (header + payload).
+    pub len: u64,
+    pub decoded: DecodedChunk,
+}
+
+/// A byte range the scan could not use, with the first reason it saw.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct BadRegion {
+    pub start: u64,
+    pub end: u64,
+    pub reason: String,
+}
+
+/// What a scan found.
+#[derive(Debug, Default)]
+pub struct ScanOutcome {
+    pub chunks: Vec<ScannedChunk>,
+    pub bad: Vec<BadRegion>,
+    /// End of the run of good chunks that starts at the meta block: what `resume`
+    /// keeps (the rest is truncated).
+    pub prefix_end: u64,
+    /// Number of chunks in that run.
+    pub prefix_chunks: usize,
+}
+
+/// Try to read one chunk at `file[pos..]`.
+fn try_chunk(rest: &[u8], n: u32, layout: Layout) -> Result<(DecodedChunk, u64), (u64, String)> {
+    let (h, len) = chunk::check_record(rest)?;
+    let d = chunk::decode_record(h, rest, n, layout)?;
+    Ok((d, len))
+}
+
+/// Scan `file[start..end]` for chunks. With `stop_at_first_bad`, stop at the first
+/// position that does not hold a good chunk (what `resume` needs); otherwise search on
+/// for the next chunk magic (what a reader recovering a damaged file needs).
+pub fn scan_chunks(
+    file: &[u8],
+    start: u64,
+    end: u64,
+    n: u32,
+    layout: Layout,
+    stop_at_first_bad: bool,
+) -> ScanOutcome {
+    let end = end.min(file.len() as u64);
+    let mut out = ScanOutcome {
+        prefix_end: start,
+        ..Default::default()
+    };
+    let mut pos = start;
+    let mut in_prefix = true;
+    let mut open_bad: Option<BadRegion> = None;
+    while pos < end {
+        match try_chunk(&file[pos as usize..end as usize], n, layout) {
+            Ok((decoded, len)) => {
+                if let Some(mut b) = open_bad.take() {
+                    b.end = pos;
+                    out.bad.push(b);
+                }
+                out.chunks.push(ScannedChunk {
+                    offset: pos,
+                    len,
+                    decoded,
+                });
+                pos += len;
+                if in_prefix {
+                    out.prefix_end = pos;
+                    out.prefix_chunks = out.chunks.len();
+                }
+            }
+            Err((rel, why)) => {
+                in_prefix = false;
+                if open_bad.is_none() {
+                    let what = if file[pos as usize..].starts_with(&spec::INDEX_MAGIC) {
+                        "an index (ignored by the scan)".to_string()
+                    } else {
+                        format!("{why} (at byte {})", pos + rel)
+                    };
+                    open_bad = Some(BadRegion {
+                        start: pos,
+                        end,
+                        reason: what,
+                    });
+                }
+                if stop_at_first_bad {
+                    break;
+                }
+                match find_magic(&file[(pos + 1) as usize..end as usize]) {
+                    Some(k) => pos = pos + 1 + k as u64,
+                    None => break,
+                }
+            }
+        }
+    }
+    if let Some(mut b) = open_bad {
+        // Nothing good followed: the region runs to the end of the scanned area.
+        b.end = end;
+        out.bad.push(b);
+    }
+    out
+}
+
+/// Position of the next chunk magic in `hay`.
+fn find_magic(hay: &[u8]) -> Option<usize> {
+    hay.windows(spec::CHUNK_MAGIC.len())
+        .position(|w| w == spec::CHUNK_MAGIC)
+}

@@ -1,0 +1,316 @@
+//! Library side of `ffstream info`, `verify` and `export` (the CLI wires its flags to
+//! these functions; output formats are DESIGN §6).
+
+use std::io::{BufWriter, Write};
+use std::path::Path;
+
+use super::error::{FfzError, Result};
+use super::reader::FfzReader;
+use super::spec;
+use super::verify::{compare, VerifyOptions};
+
+fn out_err(path: &Path) -> impl Fn(std::io::Error) -> FfzError + '_ {
+    move |e| FfzError::io(path, "write report", e)
+}
+
+/// Print what a file holds: header, layout, n, rows present/skipped/missing, chunks,
+/// bytes on disk against raw bytes, compression ratio, and any recovery warnings.
+///
+/// # Errors
+/// Opening errors of [`FfzReader::open`]; `Io` when `out` fails.
+pub fn info(path: &Path, out: &mut dyn Write) -> Result<()> {
+    let r = FfzReader::open(path)?;
+    let m = r.meta();
+    let h = r.header();
+    let p = r.presence();
+    let mut raw = 0u64;
+    let mut compressed = 0u64;
+    let mut unreadable = 0u64;
+    for k in 0..r.chunk_count() as u32 {
+        match r.chunk_header(k) {
+            Some(c) => {
+                raw += c.raw_len;
+                compressed += spec::CHUNK_HEADER_LEN as u64 + c.compressed_len;
+            }
+            None => unreadable += 1,
+        }
+    }
+    let n = r.n() as u64;
+    let e = out_err(path);
+    writeln!(out, "file:          {}", path.display()).map_err(&e)?;
+    writeln!(out, "format:        ffz version {}", spec::VERSION).map_err(&e)?;
+    writeln!(
+        out,
+        "n:             {n} patches in {} groups",
+        m.patches.groups.len()
+    )
+    .map_err(&e)?;
+    writeln!(out, "layout:        {}", m.layout).map_err(&e)?;
+    writeln!(out, "method:        {}", m.method).map_err(&e)?;
+    writeln!(out, "params:        {}", m.params).map_err(&e)?;
+    writeln!(out, "scene hash:    {:#018x}", m.scene_hash).map_err(&e)?;
+    writeln!(out, "created:       {}", m.created).map_err(&e)?;
+    writeln!(out, "zstd level:    {}", h.zstd_level).map_err(&e)?;
+    writeln!(
+        out,
+        "rows:          {} present, {} skipped, {} missing (of {n})",
+        p.present_count(),
+        p.skipped_count(),
+        p.missing_count()
+    )
+    .map_err(&e)?;
+    writeln!(
+        out,
+        "chunks:        {}{}",
+        r.chunk_count(),
+        if unreadable > 0 {
+            format!(" ({unreadable} with unreadable headers)")
+        } else {
+            String::new()
+        }
+    )
+    .map_err(&e)?;
+    writeln!(
+        out,
+        "bytes on disk: {} (meta block {}, chunks {}, index and footer {})",
+        r.file_len(),
+        h.meta_len,
+        compressed,
+        r.file_len() - r.chunk_area_end()
+    )
+    .map_err(&e)?;
+    writeln!(
+        out,
+        "raw row bytes: {raw} (dense f32 matrix would be {})",
+        n * n * 4
+    )
+    .map_err(&e)?;
+    let ratio = if compressed > 0 {
+        raw as f64 / compressed as f64
+    } else {
+        0.0
+    };
+    writeln!(
+        out,
+        "compression:   {ratio:.3} (raw row bytes / chunk bytes)"
+    )
+    .map_err(&e)?;
+    writeln!(
+        out,
+        "index:         {}",
+        if r.is_indexed() {
+            "ok"
+        } else {
+            "missing or bad: rows recovered by scanning"
+        }
+    )
+    .map_err(&e)?;
+    for w in r.warnings() {
+        writeln!(out, "warning: {w}").map_err(&e)?;
+    }
+    Ok(())
+}
+
+/// Check a file (every chunk, index, row sums, reciprocity) and, with `against`,
+/// compare it row by row with another file. Prints a report; returns `false` when
+/// something failed (bad chunks, unusable index, missing rows, negative or non-finite
+/// entries, or rows that differ from `against`).
+///
+/// # Errors
+/// Opening errors of either file; `Io` when `out` fails.
+pub fn verify(path: &Path, against: Option<&Path>, out: &mut dyn Write) -> Result<bool> {
+    let r = FfzReader::open(path)?;
+    let rep = r.verify();
+    let e = out_err(path);
+    writeln!(out, "file:        {}", path.display()).map_err(&e)?;
+    for w in &rep.open_warnings {
+        writeln!(out, "FAIL: {w}").map_err(&e)?;
+    }
+    writeln!(
+        out,
+        "chunks:      {} checked, {} bad",
+        rep.chunks_checked,
+        rep.bad_chunks.len()
+    )
+    .map_err(&e)?;
+    for b in &rep.bad_chunks {
+        match b.chunk {
+            Some(k) => writeln!(out, "FAIL: chunk {k} at byte {}: {}", b.offset, b.what),
+            None => writeln!(out, "FAIL: {}", b.what),
+        }
+        .map_err(&e)?;
+    }
+    writeln!(
+        out,
+        "rows:        {} present, {} skipped, {} missing; {} checked",
+        rep.rows_present, rep.rows_skipped, rep.rows_missing, rep.rows_checked
+    )
+    .map_err(&e)?;
+    if rep.rows_missing > 0 {
+        writeln!(
+            out,
+            "FAIL: {} rows missing (finish them with compute --resume)",
+            rep.rows_missing
+        )
+        .map_err(&e)?;
+    }
+    if rep.negative_entries > 0 || rep.non_finite_entries > 0 {
+        writeln!(
+            out,
+            "FAIL: {} negative and {} non-finite entries",
+            rep.negative_entries, rep.non_finite_entries
+        )
+        .map_err(&e)?;
+    }
+    writeln!(
+        out,
+        "row sums:    min {:.7} max {:.7} mean {:.7} (stored + dropped; max dropped {:.3e})",
+        rep.row_sum_min, rep.row_sum_max, rep.row_sum_mean, rep.dropped_max
+    )
+    .map_err(&e)?;
+    if let Some(rc) = &rep.reciprocity {
+        let worst = rc
+            .worst
+            .map(|(i, j)| format!(" at ({i}, {j})"))
+            .unwrap_or_default();
+        writeln!(
+            out,
+            "reciprocity: max |A_i F_ij - A_j F_ji| / max(A_i F_ij, A_j F_ji) = {:.3e}{worst}, mean {:.3e}, over {} stored pairs ({} passes)",
+            rc.max_rel_error, rc.mean_rel_error, rc.pairs, rc.passes
+        )
+        .map_err(&e)?;
+    }
+    let mut ok = rep.ok();
+    if let Some(other) = against {
+        let b = FfzReader::open(other)?;
+        let c = compare(&r, &b, VerifyOptions::default())?;
+        writeln!(out, "against:     {}", other.display()).map_err(&e)?;
+        for d in &c.meta_differences {
+            writeln!(out, "  header differs: {d}").map_err(&e)?;
+        }
+        writeln!(
+            out,
+            "  rows compared {}: {} identical, {} differ (max abs diff {:.3e}{}); only in this file {} {:?}, only in the other {} {:?}",
+            c.rows_compared,
+            c.identical_rows,
+            c.differing_rows,
+            c.max_abs_diff,
+            c.worst_row.map(|r| format!(" in row {r}")).unwrap_or_default(),
+            c.only_in_a,
+            c.first_only_in_a,
+            c.only_in_b,
+            c.first_only_in_b
+        )
+        .map_err(&e)?;
+        for x in &c.errors {
+            writeln!(out, "FAIL: {x}").map_err(&e)?;
+        }
+        if !c.identical() {
+            writeln!(out, "FAIL: the files differ").map_err(&e)?;
+            ok = false;
+        }
+    }
+    writeln!(out, "{}", if ok { "OK" } else { "FAILED" }).map_err(&e)?;
+    Ok(ok)
+}
+
+/// Quote a CSV field when it needs it (RFC 4180).
+fn csv_field(s: &str) -> String {
+    if s.contains([',', '"', '\n', '\r']) {
+        format!("\"{}\"", s.replace('"', "\"\""))
+    } else {
+        s.to_string()
+    }
+}
+
+/// Export the matrix as Matrix Market (`coordinate real general`, 1-based `i j F_ij`,
+/// rows in file order; dense rows give their non-zero entries, top-k rows every stored
+/// entry) and/or the patch table as CSV (0-based patch ids). Streams: two passes over
+/// the chunks (count, then write), never the whole matrix in memory.
+///
+/// # Errors
+/// Opening errors; `Chunk` when a chunk is corrupt; `Io` naming the output file.
+pub fn export(path: &Path, matrix: Option<&Path>, patches_csv: Option<&Path>) -> Result<()> {
+    let r = FfzReader::open(path)?;
+    if let Some(mtx) = matrix {
+        let mut nnz = 0u64;
+        r.scan(|row| row.for_each_nonzero(|_, _| nnz += 1))?;
+        let f = std::fs::File::create(mtx).map_err(|e| FfzError::io(mtx, "create", e))?;
+        let mut w = BufWriter::with_capacity(1 << 20, f);
+        let e = |err| FfzError::io(mtx, "write", err);
+        let m = r.meta();
+        let p = r.presence();
+        writeln!(w, "%%MatrixMarket matrix coordinate real general").map_err(e)?;
+        writeln!(
+            w,
+            "% ffstream form factors from {}: layout {}, method {}, params {}, scene hash {:#018x}",
+            path.display(),
+            m.layout,
+            m.method,
+            m.params,
+            m.scene_hash
+        )
+        .map_err(e)?;
+        writeln!(
+            w,
+            "% entry i j = F_ij (1-based); rows missing {} and skipped {} have no entries; top-k dropped mass not included",
+            p.missing_count(),
+            p.skipped_count()
+        )
+        .map_err(e)?;
+        writeln!(w, "{} {} {nnz}", r.n(), r.n()).map_err(e)?;
+        let mut werr = None;
+        r.scan(|row| {
+            if werr.is_some() {
+                return;
+            }
+            let i = row.index as u64 + 1;
+            row.for_each_nonzero(|j, x| {
+                if werr.is_none() {
+                    if let Err(err) = writeln!(w, "{i} {} {x:e}", j as u64 + 1) {
+                        werr = Some(err);
+                    }
+                }
+            });
+        })?;
+        if let Some(err) = werr {
+            return Err(e(err));
+        }
+        w.flush().map_err(e)?;
+    }
+    if let Some(csv) = patches_csv {
+        let f = std::fs::File::create(csv).map_err(|e| FfzError::io(csv, "create", e))?;
+        let mut w = BufWriter::new(f);
+        let e = |err| FfzError::io(csv, "write", err);
+        writeln!(
+            w,
+            "patch,group,area,cx,cy,cz,nx,ny,nz,rho_r,rho_g,rho_b,e_r,e_g,e_b"
+        )
+        .map_err(e)?;
+        let ps = &r.meta().patches;
+        for (i, p) in ps.patches.iter().enumerate() {
+            let c = p.centroid();
+            writeln!(
+                w,
+                "{i},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
+                csv_field(ps.groups.get(p.group as usize).map_or("", |s| s.as_str())),
+                p.area,
+                c.x,
+                c.y,
+                c.z,
+                p.normal.x,
+                p.normal.y,
+                p.normal.z,
+                p.rho[0],
+                p.rho[1],
+                p.rho[2],
+                p.emission[0],
+                p.emission[1],
+                p.emission[2]
+            )
+            .map_err(e)?;
+        }
+        w.flush().map_err(e)?;
+    }
+    Ok(())
+}

@@ -1,0 +1,608 @@
+//! Whole-file checks (spec §10): every chunk's checksums and structure (all bad chunks
+//! are listed, not just the first), index consistency, row sums, reciprocity, and the
+//! row-by-row comparison of two files.
+//!
+//! Everything here is out of core. Memory is bounded by [`VerifyOptions::block_bytes`]:
+//! reciprocity and comparison hold one block of rows at a time (rows per block =
+//! `block_bytes / row bound`, the row bound being 4n bytes for a dense file and 8k for
+//! top-k, known from the header). Cost: `verify` decompresses the file once for the
+//! checks, then B + 1 more times for reciprocity, B = ceil(n / rows per block); `compare`
+//! decompresses each file B times. A dense file of 2 GB with the default 256 MiB budget
+//! gives B = 8.
+
+use super::error::Result;
+use super::meta::Layout;
+use super::presence::RowState;
+use super::reader::FfzReader;
+use super::spec;
+use crate::rows::{Row, RowValues};
+
+/// Options of [`FfzReader::verify_with`] and [`compare`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct VerifyOptions {
+    /// Memory for one block of rows held during reciprocity and comparison passes.
+    pub block_bytes: usize,
+    /// Compute the reciprocity error (costs B + 1 more passes over the file).
+    pub reciprocity: bool,
+}
+
+impl Default for VerifyOptions {
+    fn default() -> Self {
+        VerifyOptions {
+            block_bytes: 256 << 20,
+            reciprocity: true,
+        }
+    }
+}
+
+/// A chunk (or an unreadable region found by a recovery scan) that failed a check.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct BadChunk {
+    /// Chunk number, `None` for a region a recovery scan could not read as a chunk.
+    pub chunk: Option<u64>,
+    /// Byte offset of the chunk (or region) in the file.
+    pub offset: u64,
+    pub what: String,
+}
+
+/// Reciprocity over stored pairs: max over i < j of
+/// |A_i F_ij − A_j F_ji| / max(A_i F_ij, A_j F_ji), for pairs where both entries are
+/// stored (always in a dense file; both kept by top-k in a sparse one) and not both 0.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Reciprocity {
+    pub pairs: u64,
+    pub max_rel_error: f64,
+    pub mean_rel_error: f64,
+    /// (i, j) of the worst pair.
+    pub worst: Option<(u32, u32)>,
+    /// Passes over the file it took.
+    pub passes: u32,
+}
+
+/// What [`FfzReader::verify`] found.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct VerifyReport {
+    pub n: u32,
+    pub chunks_checked: u64,
+    pub bad_chunks: Vec<BadChunk>,
+    /// Warnings from opening (footer/index unusable, recovery scan).
+    pub open_warnings: Vec<String>,
+    pub rows_present: u64,
+    pub rows_skipped: u64,
+    pub rows_missing: u64,
+    /// Rows decoded and checked (present rows in good chunks).
+    pub rows_checked: u64,
+    /// True row sums (stored + dropped) over checked rows: min, max, mean.
+    pub row_sum_min: f64,
+    pub row_sum_max: f64,
+    pub row_sum_mean: f64,
+    /// Largest dropped mass of a row (top-k).
+    pub dropped_max: f64,
+    pub negative_entries: u64,
+    pub non_finite_entries: u64,
+    pub reciprocity: Option<Reciprocity>,
+}
+
+impl VerifyReport {
+    /// True when nothing is wrong: every chunk good, index usable, no row missing, no
+    /// negative or non-finite entry. (Row sums and reciprocity are reported, not judged.)
+    pub fn ok(&self) -> bool {
+        self.bad_chunks.is_empty()
+            && self.open_warnings.is_empty()
+            && self.rows_missing == 0
+            && self.negative_entries == 0
+            && self.non_finite_entries == 0
+    }
+}
+
+/// A block of rows held in memory: its row range and the rows (None: not in the file).
+type Block = ((u32, u32), Vec<Option<Row>>);
+
+/// Largest bytes a row of this file can take in memory (for block sizing).
+fn row_bound(n: u32, layout: Layout) -> usize {
+    64 + match layout {
+        Layout::Dense => 4 * n as usize,
+        Layout::TopK { k } => 8 * k.min(n) as usize,
+    }
+}
+
+/// Row ranges of at most `block_bytes` of rows each.
+fn blocks(n: u32, layout: Layout, block_bytes: usize) -> Vec<(u32, u32)> {
+    let per = (block_bytes / row_bound(n, layout)).clamp(1, u32::MAX as usize) as u32;
+    let mut out = Vec::new();
+    let mut b0 = 0u32;
+    while b0 < n {
+        let b1 = b0.saturating_add(per).min(n);
+        out.push((b0, b1));
+        b0 = b1;
+    }
+    out
+}
+
+/// Stored value F_ij of a held row, `None` when a sparse row does not store column j.
+fn stored(row: &Row, j: u32) -> Option<f32> {
+    match &row.values {
+        RowValues::Dense(v) => v.get(j as usize).copied(),
+        RowValues::Sparse { cols, vals } => cols.binary_search(&j).ok().map(|k| vals[k]),
+        RowValues::Skipped => None,
+    }
+}
+
+/// Visit the stored entries (j, F_ij) of `row` with j in `lo..hi`, zeros included.
+fn for_stored_in(row: &Row, lo: u32, hi: u32, mut f: impl FnMut(u32, f32)) {
+    match &row.values {
+        RowValues::Dense(v) => {
+            for j in lo..hi.min(v.len() as u32) {
+                f(j, v[j as usize]);
+            }
+        }
+        RowValues::Sparse { cols, vals } => {
+            let s = cols.partition_point(|&c| c < lo);
+            for (&c, &x) in cols[s..].iter().zip(&vals[s..]) {
+                if c >= hi {
+                    break;
+                }
+                f(c, x);
+            }
+        }
+        RowValues::Skipped => {}
+    }
+}
+
+impl FfzReader {
+    /// [`FfzReader::verify_with`] with default options.
+    pub fn verify(&self) -> VerifyReport {
+        self.verify_with(VerifyOptions::default())
+    }
+
+    /// Check every chunk (listing all bad ones), the index against the chunks, row
+    /// sums, entry signs, and (optionally) reciprocity. Never fails: every fault ends up
+    /// in the report.
+    pub fn verify_with(&self, opts: VerifyOptions) -> VerifyReport {
+        let n = self.n();
+        let p = self.presence();
+        let mut rep = VerifyReport {
+            n,
+            open_warnings: self.warnings().to_vec(),
+            rows_present: p.present_count(),
+            rows_skipped: p.skipped_count(),
+            rows_missing: p.missing_count(),
+            row_sum_min: f64::INFINITY,
+            row_sum_max: f64::NEG_INFINITY,
+            ..Default::default()
+        };
+        for b in self.bad_regions() {
+            rep.bad_chunks.push(BadChunk {
+                chunk: None,
+                offset: b.start,
+                what: format!(
+                    "bytes {}..{} are not a readable chunk: {}",
+                    b.start, b.end, b.reason
+                ),
+            });
+        }
+        let mut seen = vec![false; n as usize];
+        let mut good = vec![false; self.chunk_count()];
+        let mut sum_total = 0.0;
+        let offsets = self.chunk_offsets().to_vec();
+        self.for_each_chunk(|k, res| {
+            rep.chunks_checked += 1;
+            let offset = offsets[k as usize];
+            let bad = |what: String| BadChunk {
+                chunk: Some(k as u64),
+                offset,
+                what,
+            };
+            let d = match res {
+                Ok(d) => d,
+                Err(e) => {
+                    rep.bad_chunks.push(bad(e.to_string()));
+                    return;
+                }
+            };
+            // In an indexed file, chunks tile the area between meta block and index.
+            if self.is_indexed() {
+                let end = offsets
+                    .get(k as usize + 1)
+                    .copied()
+                    .unwrap_or(self.chunk_area_end());
+                let len = spec::CHUNK_HEADER_LEN as u64 + d.header.compressed_len;
+                if offset + len != end {
+                    rep.bad_chunks.push(bad(format!(
+                        "chunk ends at byte {} but the next record starts at {end}",
+                        offset + len
+                    )));
+                }
+            }
+            let mut chunk_ok = true;
+            for e in d.entries() {
+                if !self.owns(k, e.row) {
+                    if self.is_indexed() {
+                        rep.bad_chunks.push(bad(format!(
+                            "holds row {} which the index places elsewhere",
+                            e.row
+                        )));
+                        chunk_ok = false;
+                    }
+                    continue;
+                }
+                seen[e.row as usize] = true;
+                let skipped = e.flags & spec::ROW_FLAG_SKIPPED != 0;
+                if skipped != (p.get(e.row) == RowState::Skipped) {
+                    rep.bad_chunks.push(bad(format!(
+                        "row {}: skipped flag disagrees with the index",
+                        e.row
+                    )));
+                    chunk_ok = false;
+                }
+                if skipped {
+                    continue;
+                }
+                let row = match d.row(e, n) {
+                    Ok(r) => r,
+                    Err(w) => {
+                        rep.bad_chunks.push(bad(w));
+                        chunk_ok = false;
+                        continue;
+                    }
+                };
+                let mut s = row.dropped as f64;
+                row.for_each_nonzero(|_, x| {
+                    if !x.is_finite() {
+                        rep.non_finite_entries += 1;
+                    } else if x < 0.0 {
+                        rep.negative_entries += 1;
+                    }
+                    s += x as f64;
+                });
+                rep.rows_checked += 1;
+                rep.dropped_max = rep.dropped_max.max(row.dropped as f64);
+                rep.row_sum_min = rep.row_sum_min.min(s);
+                rep.row_sum_max = rep.row_sum_max.max(s);
+                sum_total += s;
+            }
+            good[k as usize] = chunk_ok;
+        });
+        for i in 0..n {
+            if let (false, Some(k)) = (seen[i as usize], self.chunk_of(i)) {
+                if good[k as usize] {
+                    rep.bad_chunks.push(BadChunk {
+                        chunk: Some(k as u64),
+                        offset: offsets[k as usize],
+                        what: format!(
+                            "the index places row {i} here but the chunk does not hold it"
+                        ),
+                    });
+                }
+            }
+        }
+        if rep.rows_checked > 0 {
+            rep.row_sum_mean = sum_total / rep.rows_checked as f64;
+        } else {
+            rep.row_sum_min = 0.0;
+            rep.row_sum_max = 0.0;
+        }
+        if opts.reciprocity {
+            rep.reciprocity = Some(self.reciprocity(&good, opts.block_bytes));
+        }
+        rep
+    }
+
+    /// Visit the rows of good chunks in file order (rows of bad chunks are left out:
+    /// `verify` has reported them).
+    fn scan_good(&self, good: &[bool], mut f: impl FnMut(Row)) {
+        let n = self.n();
+        self.for_each_chunk(|k, res| {
+            let Ok(d) = res else { return };
+            if !good[k as usize] {
+                return;
+            }
+            for e in d.entries() {
+                if self.owns(k, e.row) && e.flags & spec::ROW_FLAG_SKIPPED == 0 {
+                    if let Ok(r) = d.row(e, n) {
+                        f(r);
+                    }
+                }
+            }
+        });
+    }
+
+    /// Reciprocity error by row blocks: pass t compares every row j against the block
+    /// held from pass t − 1 and collects block t (B + 1 passes).
+    fn reciprocity(&self, good: &[bool], block_bytes: usize) -> Reciprocity {
+        let n = self.n();
+        let areas: Vec<f64> = self.meta().patches.patches.iter().map(|p| p.area).collect();
+        let blocks = blocks(n, self.layout(), block_bytes);
+        let mut rec = Reciprocity::default();
+        let mut sum_rel = 0.0;
+        let mut held: Option<Block> = None;
+        for t in 0..=blocks.len() {
+            let next = blocks.get(t).copied();
+            let mut collecting: Option<Block> =
+                next.map(|(b0, b1)| ((b0, b1), vec![None; (b1 - b0) as usize]));
+            rec.passes += 1;
+            self.scan_good(good, |row| {
+                let j = row.index;
+                if let Some(((b0, b1), rows)) = &held {
+                    // Pairs (i, j) with i < j and i in the held block.
+                    for_stored_in(&row, *b0, (*b1).min(j), |i, f_ji| {
+                        let Some(ri) = &rows[(i - b0) as usize] else {
+                            return;
+                        };
+                        let Some(f_ij) = stored(ri, j) else { return };
+                        let a = areas[i as usize] * f_ij as f64;
+                        let b = areas[j as usize] * f_ji as f64;
+                        let m = a.abs().max(b.abs());
+                        if m == 0.0 || !m.is_finite() {
+                            return;
+                        }
+                        let rel = (a - b).abs() / m;
+                        rec.pairs += 1;
+                        sum_rel += rel;
+                        if rel > rec.max_rel_error || rec.worst.is_none() {
+                            rec.max_rel_error = rel;
+                            rec.worst = Some((i, j));
+                        }
+                    });
+                }
+                if let Some(((b0, b1), rows)) = &mut collecting {
+                    if (*b0..*b1).contains(&j) {
+                        rows[(j - *b0) as usize] = Some(row);
+                    }
+                }
+            });
+            held = collecting;
+        }
+        if rec.pairs > 0 {
+            rec.mean_rel_error = sum_rel / rec.pairs as f64;
+        }
+        rec
+    }
+}
+
+/// Row-by-row comparison of two files (`verify --against`).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct CompareReport {
+    pub n_a: u32,
+    pub n_b: u32,
+    /// Header fields that differ (scene hash, layout, method, params).
+    pub meta_differences: Vec<String>,
+    /// Rows held (present or skipped) by both files.
+    pub rows_compared: u64,
+    /// Of those, bitwise equal (values, columns, dropped mass, skipped state).
+    pub identical_rows: u64,
+    pub differing_rows: u64,
+    /// Largest |F_ij(a) − F_ij(b)| over rows present in both (absent entries count as 0),
+    /// and |dropped(a) − dropped(b)|.
+    pub max_abs_diff: f64,
+    pub worst_row: Option<u32>,
+    pub only_in_a: u64,
+    pub only_in_b: u64,
+    /// The first few row ids only in a / only in b.
+    pub first_only_in_a: Vec<u32>,
+    pub first_only_in_b: Vec<u32>,
+    /// Chunk errors met while comparing (those rows count as differing).
+    pub errors: Vec<String>,
+}
+
+impl CompareReport {
+    /// True when both files hold exactly the same rows with bitwise equal contents.
+    pub fn identical(&self) -> bool {
+        self.n_a == self.n_b
+            && self.differing_rows == 0
+            && self.only_in_a == 0
+            && self.only_in_b == 0
+            && self.errors.is_empty()
+            && self
+                .meta_differences
+                .iter()
+                .all(|d| !d.starts_with("scene hash") && !d.starts_with("layout"))
+    }
+}
+
+/// max |a_j − b_j| over the union of stored columns (absent = 0); ∞ for NaN mismatches.
+fn max_abs_diff(a: &Row, b: &Row, n: u32) -> f64 {
+    let d = |x: f32, y: f32| -> f64 {
+        if x.to_bits() == y.to_bits() {
+            0.0
+        } else {
+            let v = (x as f64 - y as f64).abs();
+            if v.is_nan() {
+                f64::INFINITY
+            } else {
+                v
+            }
+        }
+    };
+    let mut m = d(a.dropped, b.dropped);
+    match (&a.values, &b.values) {
+        (RowValues::Sparse { cols: ca, vals: va }, RowValues::Sparse { cols: cb, vals: vb }) => {
+            let (mut p, mut q) = (0, 0);
+            while p < ca.len() || q < cb.len() {
+                let (x, y) = match (ca.get(p), cb.get(q)) {
+                    (Some(&i), Some(&j)) if i == j => {
+                        p += 1;
+                        q += 1;
+                        (va[p - 1], vb[q - 1])
+                    }
+                    (Some(&i), Some(&j)) if i < j => {
+                        p += 1;
+                        (va[p - 1], 0.0)
+                    }
+                    (Some(_), None) => {
+                        p += 1;
+                        (va[p - 1], 0.0)
+                    }
+                    _ => {
+                        q += 1;
+                        (0.0, vb[q - 1])
+                    }
+                };
+                m = m.max(d(x, y));
+            }
+        }
+        _ => {
+            let (x, y) = (a.to_dense(n as usize), b.to_dense(n as usize));
+            for (&x, &y) in x.iter().zip(&y) {
+                m = m.max(d(x, y));
+            }
+        }
+    }
+    m
+}
+
+/// Compare two files row by row, a block of rows of `b` in memory at a time.
+///
+/// # Errors
+/// None in practice: chunk faults are listed in the report. (`Result` leaves room for
+/// I/O on future back ends.)
+pub fn compare(a: &FfzReader, b: &FfzReader, opts: VerifyOptions) -> Result<CompareReport> {
+    let mut rep = CompareReport {
+        n_a: a.n(),
+        n_b: b.n(),
+        ..Default::default()
+    };
+    let (ma, mb) = (a.meta(), b.meta());
+    if ma.scene_hash != mb.scene_hash {
+        rep.meta_differences.push(format!(
+            "scene hash {:#018x} vs {:#018x}",
+            ma.scene_hash, mb.scene_hash
+        ));
+    }
+    if ma.layout != mb.layout {
+        rep.meta_differences
+            .push(format!("layout {} vs {}", ma.layout, mb.layout));
+    }
+    if ma.method != mb.method {
+        rep.meta_differences
+            .push(format!("method '{}' vs '{}'", ma.method, mb.method));
+    }
+    if ma.params != mb.params {
+        rep.meta_differences
+            .push(format!("params '{}' vs '{}'", ma.params, mb.params));
+    }
+    let n = a.n().min(b.n());
+    let (pa, pb) = (a.presence(), b.presence());
+    for i in 0..a.n().max(b.n()) {
+        let ha = pa.get(i) != RowState::Missing;
+        let hb = pb.get(i) != RowState::Missing;
+        if ha && !hb {
+            rep.only_in_a += 1;
+            if rep.first_only_in_a.len() < 10 {
+                rep.first_only_in_a.push(i);
+            }
+        } else if hb && !ha {
+            rep.only_in_b += 1;
+            if rep.first_only_in_b.len() < 10 {
+                rep.first_only_in_b.push(i);
+            }
+        }
+    }
+    if a.n() != b.n() {
+        return Ok(rep);
+    }
+    let bound = row_bound(n, ma.layout).max(row_bound(n, mb.layout));
+    let per = (opts.block_bytes / bound).max(1);
+    let mut b0 = 0u32;
+    while b0 < n {
+        let b1 = (b0 as usize + per).min(n as usize) as u32;
+        let mut held: Vec<Option<Row>> = vec![None; (b1 - b0) as usize];
+        collect_rows(b, b0, b1, &mut held, &mut rep.errors);
+        let mut done = vec![false; (b1 - b0) as usize];
+        a.for_each_chunk(|k, res| {
+            let d = match res {
+                Ok(d) => d,
+                Err(e) => {
+                    if b0 == 0 {
+                        rep.errors.push(format!("a: {e}"));
+                    }
+                    return;
+                }
+            };
+            for e in d.entries() {
+                if !(b0..b1).contains(&e.row) || !a.owns(k, e.row) {
+                    continue;
+                }
+                let slot = (e.row - b0) as usize;
+                let Some(rb) = &held[slot] else { continue };
+                done[slot] = true;
+                rep.rows_compared += 1;
+                let ra = match d.row(e, n) {
+                    Ok(r) => r,
+                    Err(w) => {
+                        rep.errors.push(format!("a: row {}: {w}", e.row));
+                        rep.differing_rows += 1;
+                        continue;
+                    }
+                };
+                if bitwise_eq(&ra, rb) {
+                    rep.identical_rows += 1;
+                } else {
+                    rep.differing_rows += 1;
+                    let m = max_abs_diff(&ra, rb, n);
+                    if m > rep.max_abs_diff || rep.worst_row.is_none() {
+                        rep.max_abs_diff = rep.max_abs_diff.max(m);
+                        rep.worst_row = Some(e.row);
+                    }
+                }
+            }
+        });
+        // Rows both files claim but one could not deliver (a corrupt chunk).
+        for (slot, &d) in done.iter().enumerate() {
+            let i = b0 + slot as u32;
+            let both = pa.get(i) != RowState::Missing && pb.get(i) != RowState::Missing;
+            if both && !d {
+                rep.rows_compared += 1;
+                rep.differing_rows += 1;
+            }
+        }
+        b0 = b1;
+    }
+    Ok(rep)
+}
+
+/// Rows `b0..b1` of `r` into `held` (one pass over the file).
+fn collect_rows(
+    r: &FfzReader,
+    b0: u32,
+    b1: u32,
+    held: &mut [Option<Row>],
+    errors: &mut Vec<String>,
+) {
+    let n = r.n();
+    r.for_each_chunk(|k, res| {
+        let d = match res {
+            Ok(d) => d,
+            Err(e) => {
+                if b0 == 0 {
+                    errors.push(format!("b: {e}"));
+                }
+                return;
+            }
+        };
+        for e in d.entries() {
+            if (b0..b1).contains(&e.row) && r.owns(k, e.row) {
+                // A row that does not decode stays `None` and counts as differing.
+                if let Ok(row) = d.row(e, n) {
+                    held[(e.row - b0) as usize] = Some(row);
+                }
+            }
+        }
+    });
+}
+
+/// Equality of bit patterns (so NaN = NaN and 0.0 ≠ −0.0), which `PartialEq` on f32 is not.
+fn bitwise_eq(a: &Row, b: &Row) -> bool {
+    let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+    a.index == b.index
+        && a.dropped.to_bits() == b.dropped.to_bits()
+        && match (&a.values, &b.values) {
+            (RowValues::Dense(x), RowValues::Dense(y)) => bits(x) == bits(y),
+            (
+                RowValues::Sparse { cols: c1, vals: v1 },
+                RowValues::Sparse { cols: c2, vals: v2 },
+            ) => c1 == c2 && bits(v1) == bits(v2),
+            (RowValues::Skipped, RowValues::Skipped) => true,
+            _ => false,
+        }
+}

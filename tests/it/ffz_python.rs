@@ -1,0 +1,169 @@
+//! The Python reader (`formats/ffz.py`) against the Rust reader on real random files
+//! written with rows in shuffled order: the CSR matrix, dropped mass, presence and
+//! patch areas must agree bit for bit. Then, when pytest is installed, the Python test
+//! `test_matches_rust_export` checks `tools::export` output against the Python reader.
+//! Skipped, with the reason printed, only when python3 or its packages are absent.
+
+use crate::ffz_common::*;
+use ffstream::ffz::{tools, FfzReader, Layout, RowState};
+use ffstream::rows::Row;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn formats_dir() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("formats")
+}
+
+fn python_ready() -> Result<(), String> {
+    let out = Command::new("python3")
+        .args(["-c", "import numpy, scipy.sparse, zstandard"])
+        .output()
+        .map_err(|e| format!("python3 not runnable: {e}"))?;
+    if out.status.success() {
+        Ok(())
+    } else {
+        Err(format!(
+            "python3 lacks numpy/scipy/zstandard: {}",
+            String::from_utf8_lossy(&out.stderr).trim()
+        ))
+    }
+}
+
+fn read_vec<T: Copy>(path: &Path, conv: fn(&[u8]) -> T, size: usize) -> Vec<T> {
+    std::fs::read(path)
+        .unwrap()
+        .chunks_exact(size)
+        .map(conv)
+        .collect()
+}
+
+fn check_file(path: &Path, dump: &Path) {
+    let out = Command::new("python3")
+        .arg(formats_dir().join("ffz.py"))
+        .arg(path)
+        .arg("--dump")
+        .arg(dump)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "ffz.py failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let indptr = read_vec(
+        &dump.join("indptr.i64"),
+        |b| i64::from_le_bytes(b.try_into().unwrap()),
+        8,
+    );
+    let indices = read_vec(
+        &dump.join("indices.u32"),
+        |b| u32::from_le_bytes(b.try_into().unwrap()),
+        4,
+    );
+    let data = read_vec(
+        &dump.join("data.f32"),
+        |b| u32::from_le_bytes(b.try_into().unwrap()),
+        4,
+    );
+    let dropped = read_vec(
+        &dump.join("dropped.f32"),
+        |b| u32::from_le_bytes(b.try_into().unwrap()),
+        4,
+    );
+    let presence = std::fs::read(dump.join("presence.u8")).unwrap();
+    let area = read_vec(
+        &dump.join("area.f64"),
+        |b| u64::from_le_bytes(b.try_into().unwrap()),
+        8,
+    );
+
+    let rd = FfzReader::open(path).unwrap();
+    let n = rd.n() as usize;
+    assert_eq!(indptr.len(), n + 1);
+    for (i, p) in rd.meta().patches.patches.iter().enumerate() {
+        assert_eq!(area[i], p.area.to_bits(), "area {i}");
+    }
+    let mut rows: Vec<Option<Row>> = vec![None; n];
+    rd.scan(|r| rows[r.index as usize] = Some(r.clone()))
+        .unwrap();
+    for i in 0..n {
+        let state = match rd.presence().get(i as u32) {
+            RowState::Missing => 0,
+            RowState::Present => 1,
+            RowState::Skipped => 2,
+        };
+        assert_eq!(presence[i], state, "presence of row {i}");
+        let (a, b) = (indptr[i] as usize, indptr[i + 1] as usize);
+        let mut want = Vec::new();
+        if let Some(r) = &rows[i] {
+            r.for_each_nonzero(|j, x| want.push((j, x.to_bits())));
+            if state == 1 {
+                assert_eq!(dropped[i], r.dropped.to_bits(), "dropped of row {i}");
+            }
+        }
+        let got: Vec<(u32, u32)> = indices[a..b]
+            .iter()
+            .copied()
+            .zip(data[a..b].iter().copied())
+            .collect();
+        assert_eq!(got, want, "row {i}");
+    }
+}
+
+#[test]
+fn python_reader_agrees_with_rust() {
+    if let Err(why) = python_ready() {
+        println!("skipped: {why}");
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    for (name, n, layout) in [
+        ("dense.ffz", 150u32, Layout::Dense),
+        ("topk.ffz", 700, Layout::TopK { k: 12 }),
+    ] {
+        let path = dir.path().join(name);
+        let m = meta(layout, patches(n, 21));
+        let mut ids: Vec<u32> = (0..n).collect();
+        Rng(99).shuffle(&mut ids);
+        ids.truncate(n as usize - 7); // a few rows missing too
+        let rows: Vec<Row> = ids.iter().map(|&i| row(13, i, n, layout)).collect();
+        write(&path, &m, &rows, 8 << 10);
+        check_file(&path, &dir.path().join(format!("{name}.dump")));
+
+        // The export, checked by the Python test when pytest is there.
+        let mtx = dir.path().join(format!("{name}.mtx"));
+        let csv = dir.path().join(format!("{name}.csv"));
+        tools::export(&path, Some(&mtx), Some(&csv)).unwrap();
+        let have_pytest = Command::new("python3")
+            .args(["-c", "import pytest"])
+            .status()
+            .map(|s| s.success())
+            .unwrap_or(false);
+        if !have_pytest {
+            println!("export cross-check skipped: pytest not installed");
+            continue;
+        }
+        let out = Command::new("python3")
+            .args([
+                "-m",
+                "pytest",
+                "-q",
+                "-p",
+                "no:cacheprovider",
+                "test_ffz.py",
+                "-k",
+                "rust_export",
+            ])
+            .current_dir(formats_dir())
+            .env("FFZ_FILE", &path)
+            .env("FFZ_MTX", &mtx)
+            .env("FFZ_CSV", &csv)
+            .output()
+            .unwrap();
+        let text = String::from_utf8_lossy(&out.stdout);
+        assert!(
+            out.status.success() && text.contains("1 passed"),
+            "pytest export check failed:\n{text}"
+        );
+    }
+}
