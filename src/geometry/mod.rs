@@ -1,1 +1,4 @@
-//! (being written)
+//! Geometry: subdivision of scene faces into patches (`subdivide`, scene helper) and
+//! the bounding volume hierarchy used for visibility ([`bvh`]).
+
+pub mod bvh;
