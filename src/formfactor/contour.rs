@@ -63,7 +63,10 @@ pub struct ContourParams {
 
 impl Default for ContourParams {
     fn default() -> Self {
-        ContourParams { max_order: 8, tol: 1e-9 }
+        ContourParams {
+            max_order: 8,
+            tol: 1e-9,
+        }
     }
 }
 
@@ -88,7 +91,12 @@ pub fn area_form_factor(a: &Polygon, b: &Polygon, gauss: &GaussTable, p: Contour
     let eb = EdgeSet::from_polygon(b);
     let ca = a.vertex_mean();
     let cb = b.vertex_mean();
-    let size = ea.edges().iter().chain(eb.edges()).map(|e| e.len).fold(0.0, f64::max);
+    let size = ea
+        .edges()
+        .iter()
+        .chain(eb.edges())
+        .map(|e| e.len)
+        .fold(0.0, f64::max);
     let r_ref = (ca - cb).length().max(size);
     area_form_factor_edges(&ea, &eb, r_ref, gauss, p)
 }
@@ -103,7 +111,7 @@ pub fn area_form_factor_edges(
     gauss: &GaussTable,
     p: ContourParams,
 ) -> f64 {
-    if !(r_ref > 0.0) {
+    if r_ref.is_nan() || r_ref <= 0.0 {
         return 0.0;
     }
     let inv = 1.0 / r_ref;
@@ -241,7 +249,7 @@ fn general_pair(a: &Edge, b: &Edge, inv: f64, gauss: &GaussTable, p: ContourPara
 #[inline]
 fn panel_order(dist: f64, len: f64, tol: f64) -> usize {
     let q = 2.0 * dist / len;
-    if !(q > 0.0) {
+    if q.is_nan() || q <= 0.0 {
         return usize::MAX;
     }
     let rho = q + (q * q + 1.0).sqrt();
@@ -277,7 +285,11 @@ fn segment_closest(p0: DVec3, p1: DVec3, q0: DVec3, q1: DVec3) -> (f64, f64) {
         } else {
             let b = d1.dot(d2);
             let denom = a * e - b * b;
-            let mut s_ = if denom > 0.0 { ((b * f - c * e) / denom).clamp(0.0, 1.0) } else { 0.0 };
+            let mut s_ = if denom > 0.0 {
+                ((b * f - c * e) / denom).clamp(0.0, 1.0)
+            } else {
+                0.0
+            };
             let mut t_ = (b * s_ + f) / e;
             if t_ < 0.0 {
                 t_ = 0.0;
@@ -323,7 +335,11 @@ mod tests {
 
     fn edge(p: DVec3, q: DVec3) -> Edge {
         let d = q - p;
-        Edge { start: p, dir: d / d.length(), len: d.length() }
+        Edge {
+            start: p,
+            dir: d / d.length(),
+            len: d.length(),
+        }
     }
 
     #[test]
@@ -347,7 +363,10 @@ mod tests {
     fn general_pair_matches_quadrature() {
         let a = edge(dvec3(0.0, 0.0, 0.0), dvec3(1.0, 0.0, 0.0));
         let b = edge(dvec3(0.2, 0.5, 0.3), dvec3(1.1, 1.4, -0.2));
-        let p = ContourParams { max_order: 8, tol: 1e-13 };
+        let p = ContourParams {
+            max_order: 8,
+            tol: 1e-13,
+        };
         let v = general_pair(&a, &b, 1.0, gauss_table(), p);
         let num = brute(&a, &b);
         assert!((v - num).abs() < 1e-10, "{v} vs {num}");
@@ -360,7 +379,10 @@ mod tests {
         // (the log singularity is integrable and brute() converges).
         let a = edge(dvec3(0.0, 0.0, 0.0), dvec3(1.0, 0.0, 0.0));
         let b = edge(dvec3(0.0, 0.0, 0.0), dvec3(0.6, 0.8, 0.0));
-        let p = ContourParams { max_order: 8, tol: 1e-12 };
+        let p = ContourParams {
+            max_order: 8,
+            tol: 1e-12,
+        };
         let v = general_pair(&a, &b, 1.0, gauss_table(), p);
         let num = brute(&a, &b);
         assert!((v - num).abs() < 1e-7, "{v} vs {num}");

@@ -145,7 +145,10 @@ impl PatchGeom {
 
     /// A usable patch: positive finite area and a unit normal.
     fn is_valid(&self) -> bool {
-        self.area > 0.0 && self.area.is_finite() && (self.normal.length() - 1.0).abs() < 1e-6 && self.poly.n >= 3
+        self.area > 0.0
+            && self.area.is_finite()
+            && (self.normal.length() - 1.0).abs() < 1e-6
+            && self.poly.n >= 3
     }
 }
 
@@ -176,7 +179,11 @@ impl RowEngine {
                 hi = hi.max(*c);
             }
         }
-        let diag = if geom.is_empty() { 1.0 } else { (hi - lo).length() };
+        let diag = if geom.is_empty() {
+            1.0
+        } else {
+            (hi - lo).length()
+        };
         let params = cfg.contour_params();
         RowEngine {
             patches,
@@ -209,7 +216,11 @@ impl RowEngine {
 
     /// The parameters that determine the numbers, for the file header.
     pub fn describe(&self) -> String {
-        format!("{} occluder_triangles={}", self.cfg.describe(), self.occluders.len())
+        format!(
+            "{} occluder_triangles={}",
+            self.cfg.describe(),
+            self.occluders.len()
+        )
     }
 
     /// Row i: dense, or the k largest entries when `top_k` is set. Values are
@@ -218,7 +229,11 @@ impl RowEngine {
     /// # Panics
     /// If `i` is not a patch index (a caller bug, not an input error).
     pub fn compute_row(&self, i: u32, scratch: &mut Scratch) -> Row {
-        assert!((i as usize) < self.n(), "row {i} out of range (n = {})", self.n());
+        assert!(
+            (i as usize) < self.n(),
+            "row {i} out of range (n = {})",
+            self.n()
+        );
         let mut values = std::mem::take(&mut scratch.values);
         self.row_values(i, scratch, &mut values);
         let row = match self.cfg.top_k {
@@ -288,18 +303,40 @@ impl RowEngine {
         // Clip only when part of a polygon is behind the other's plane.
         let clip_i = i_lo < -self.tol;
         let clip_j = j_lo < -self.tol;
-        let pi = if clip_i { gi.poly.clip_front(gj.normal, gj.offset, self.tol) } else { gi.poly };
-        let pj = if clip_j { gj.poly.clip_front(gi.normal, gi.offset, self.tol) } else { gj.poly };
-        let ei = if clip_i { EdgeSet::from_polygon(&pi) } else { gi.edges };
-        let ej = if clip_j { EdgeSet::from_polygon(&pj) } else { gj.edges };
-        let r_ref = (gi.centroid - gj.centroid).length().max(gi.size).max(gj.size);
+        let pi = if clip_i {
+            gi.poly.clip_front(gj.normal, gj.offset, self.tol)
+        } else {
+            gi.poly
+        };
+        let pj = if clip_j {
+            gj.poly.clip_front(gi.normal, gi.offset, self.tol)
+        } else {
+            gj.poly
+        };
+        let ei = if clip_i {
+            EdgeSet::from_polygon(&pi)
+        } else {
+            gi.edges
+        };
+        let ej = if clip_j {
+            EdgeSet::from_polygon(&pj)
+        } else {
+            gj.edges
+        };
+        let r_ref = (gi.centroid - gj.centroid)
+            .length()
+            .max(gi.size)
+            .max(gj.size);
         let af = area_form_factor_edges(&ei, &ej, r_ref, self.gauss, self.params);
         let f = af / gi.area;
-        if !(f > 0.0) {
+        if f.is_nan() || f <= 0.0 {
             return 0.0;
         }
         let (ni, nj) = (gi.normal, gj.normal);
-        if !self.occluders.any_between(pi.verts(), ni, pj.verts(), nj, (gi.face, gj.face)) {
+        if !self
+            .occluders
+            .any_between(pi.verts(), ni, pj.verts(), nj, (gi.face, gj.face))
+        {
             scratch.counters.pairs_unoccludable += 1;
             scratch.counters.rays_skipped += self.cfg.samples as u64;
             return f;
@@ -333,8 +370,18 @@ mod tests {
     fn facing_pair() -> PatchSet {
         PatchSet {
             patches: vec![
-                square(dvec3(0.0, 0.0, 0.0), dvec3(1.0, 0.0, 0.0), dvec3(0.0, 1.0, 0.0), 0),
-                square(dvec3(0.0, 0.0, 1.0), dvec3(0.0, 1.0, 0.0), dvec3(1.0, 0.0, 0.0), 1),
+                square(
+                    dvec3(0.0, 0.0, 0.0),
+                    dvec3(1.0, 0.0, 0.0),
+                    dvec3(0.0, 1.0, 0.0),
+                    0,
+                ),
+                square(
+                    dvec3(0.0, 0.0, 1.0),
+                    dvec3(0.0, 1.0, 0.0),
+                    dvec3(1.0, 0.0, 0.0),
+                    1,
+                ),
             ],
             groups: vec!["g".into()],
         }
@@ -342,7 +389,11 @@ mod tests {
 
     #[test]
     fn contour_single_pair_matches_howell() {
-        let e = RowEngine::new(Arc::new(facing_pair()), Arc::new(Occluders::empty()), FormFactorConfig::accurate());
+        let e = RowEngine::new(
+            Arc::new(facing_pair()),
+            Arc::new(Occluders::empty()),
+            FormFactorConfig::accurate(),
+        );
         let mut s = Scratch::new();
         let f = e.pair_value(0, 1, &mut s);
         assert!((f - 0.19982489570).abs() < 1e-10, "{f}");
@@ -356,8 +407,17 @@ mod tests {
     fn facing_away_costs_nothing() {
         let mut ps = facing_pair();
         // Turn the upper square around: it now faces up, away from the lower one.
-        ps.patches[1] = square(dvec3(0.0, 0.0, 1.0), dvec3(1.0, 0.0, 0.0), dvec3(0.0, 1.0, 0.0), 1);
-        let e = RowEngine::new(Arc::new(ps), Arc::new(Occluders::empty()), FormFactorConfig::accurate());
+        ps.patches[1] = square(
+            dvec3(0.0, 0.0, 1.0),
+            dvec3(1.0, 0.0, 0.0),
+            dvec3(0.0, 1.0, 0.0),
+            1,
+        );
+        let e = RowEngine::new(
+            Arc::new(ps),
+            Arc::new(Occluders::empty()),
+            FormFactorConfig::accurate(),
+        );
         let mut s = Scratch::new();
         assert_eq!(e.pair_value(0, 1, &mut s), 0.0);
         assert_eq!(s.counters().pairs_facing_away, 1);

@@ -152,7 +152,11 @@ impl FormFactorConfig {
 
     /// Every preset, with its name (tests run all of them).
     pub fn presets() -> [(&'static str, FormFactorConfig); 3] {
-        [("fast", Self::fast()), ("accurate", Self::accurate()), ("reference", Self::reference())]
+        [
+            ("fast", Self::fast()),
+            ("accurate", Self::accurate()),
+            ("reference", Self::reference()),
+        ]
     }
 
     /// A preset by name.
@@ -201,7 +205,11 @@ impl FormFactorConfig {
             return bad("first_batch must be at least 1".into());
         }
         if !(1..=quadrature::MAX_ORDER as u32).contains(&self.quad_order) {
-            return bad(format!("quad_order {} outside 1..={}", self.quad_order, quadrature::MAX_ORDER));
+            return bad(format!(
+                "quad_order {} outside 1..={}",
+                self.quad_order,
+                quadrature::MAX_ORDER
+            ));
         }
         if !(self.quad_tol > 0.0 && self.quad_tol <= 0.1) {
             return bad(format!("quad_tol {} outside (0, 0.1]", self.quad_tol));
@@ -232,7 +240,10 @@ impl FormFactorConfig {
     }
 
     pub(crate) fn contour_params(&self) -> contour::ContourParams {
-        contour::ContourParams { max_order: self.quad_order as usize, tol: self.quad_tol }
+        contour::ContourParams {
+            max_order: self.quad_order as usize,
+            tol: self.quad_tol,
+        }
     }
 }
 
@@ -252,7 +263,10 @@ mod tests {
             assert_eq!(m.to_string().parse::<Method>(), Ok(m));
         }
         assert_eq!("Contour".parse::<Method>(), Ok(Method::Contour));
-        assert!(matches!("ray".parse::<Method>(), Err(FormFactorError::UnknownMethod(_))));
+        assert!(matches!(
+            "ray".parse::<Method>(),
+            Err(FormFactorError::UnknownMethod(_))
+        ));
     }
 
     #[test]
@@ -262,17 +276,32 @@ mod tests {
             assert_eq!(FormFactorConfig::preset(name), Ok(cfg));
         }
         assert!(FormFactorConfig::preset("slow").is_err());
-        assert!(FormFactorConfig::default().with_samples(0).validate().is_err());
-        let mut c = FormFactorConfig::default();
-        c.quad_order = 99;
+        assert!(FormFactorConfig::default()
+            .with_samples(0)
+            .validate()
+            .is_err());
+        let c = FormFactorConfig {
+            quad_order: 99,
+            ..Default::default()
+        };
         assert!(c.validate().is_err());
-        assert!(FormFactorConfig::default().with_top_k(Some(0)).validate().is_err());
+        assert!(FormFactorConfig::default()
+            .with_top_k(Some(0))
+            .validate()
+            .is_err());
     }
 
     #[test]
     fn describe_names_every_parameter() {
         let d = FormFactorConfig::accurate().with_top_k(Some(12)).describe();
-        for key in ["method=contour", "samples=16", "seed=0", "top_k=12", "quad_order=8", "quad_tol="] {
+        for key in [
+            "method=contour",
+            "samples=16",
+            "seed=0",
+            "top_k=12",
+            "quad_order=8",
+            "quad_tol=",
+        ] {
             assert!(d.contains(key), "{d}");
         }
     }

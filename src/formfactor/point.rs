@@ -13,7 +13,12 @@ use crate::geometry::bvh::Occluders;
 
 /// F_ij by the centroid kernel (0 when either patch faces away from the other's
 /// centroid).
-pub(crate) fn pair(gi: &PatchGeom, gj: &PatchGeom, occ: &Occluders, counters: &mut Counters) -> f64 {
+pub(crate) fn pair(
+    gi: &PatchGeom,
+    gj: &PatchGeom,
+    occ: &Occluders,
+    counters: &mut Counters,
+) -> f64 {
     let d = gj.centroid - gi.centroid;
     let r2 = d.length_squared();
     let ci = gi.normal.dot(d);
@@ -25,7 +30,13 @@ pub(crate) fn pair(gi: &PatchGeom, gj: &PatchGeom, occ: &Occluders, counters: &m
     counters.pairs_evaluated += 1;
     // cosθ_i cosθ_j / r² = (n_i·d)(−n_j·d) / r⁴
     let f = (ci * cj / (r2 * r2) * gj.area / std::f64::consts::PI).min(1.0);
-    if !occ.any_between(gi.poly.verts(), gi.normal, gj.poly.verts(), gj.normal, (gi.face, gj.face)) {
+    if !occ.any_between(
+        gi.poly.verts(),
+        gi.normal,
+        gj.poly.verts(),
+        gj.normal,
+        (gi.face, gj.face),
+    ) {
         counters.pairs_unoccludable += 1;
         counters.rays_skipped += 1;
         return f;

@@ -60,7 +60,10 @@ impl Polygon {
     /// polygon touching the plane along an edge is kept whole and not split into
     /// slivers.
     pub fn clip_front(&self, normal: DVec3, offset: f64, tol: f64) -> Polygon {
-        let mut out = Polygon { v: [DVec3::ZERO; MAX_VERTS], n: 0 };
+        let mut out = Polygon {
+            v: [DVec3::ZERO; MAX_VERTS],
+            n: 0,
+        };
         if self.n == 0 {
             return out;
         }
@@ -127,15 +130,26 @@ pub struct EdgeSet {
 
 impl EdgeSet {
     pub fn from_polygon(p: &Polygon) -> Self {
-        let blank = Edge { start: DVec3::ZERO, dir: DVec3::ZERO, len: 0.0 };
-        let mut out = EdgeSet { e: [blank; MAX_VERTS], n: 0 };
+        let blank = Edge {
+            start: DVec3::ZERO,
+            dir: DVec3::ZERO,
+            len: 0.0,
+        };
+        let mut out = EdgeSet {
+            e: [blank; MAX_VERTS],
+            n: 0,
+        };
         for k in 0..p.n {
             let a = p.v[k];
             let b = p.v[(k + 1) % p.n];
             let d = b - a;
             let len = d.length();
             if len > 0.0 {
-                out.e[out.n] = Edge { start: a, dir: d / len, len };
+                out.e[out.n] = Edge {
+                    start: a,
+                    dir: d / len,
+                    len,
+                };
                 out.n += 1;
             }
         }

@@ -121,7 +121,11 @@ mod tests {
             for deg in 0..(2 * n) {
                 let q: f64 = t.rule(n).iter().map(|&(x, w)| w * x.powi(deg as i32)).sum();
                 // ∫_{-1}^{1} x^d dx = 2/(d+1) for even d, 0 for odd d.
-                let exact = if deg % 2 == 0 { 2.0 / (deg as f64 + 1.0) } else { 0.0 };
+                let exact = if deg % 2 == 0 {
+                    2.0 / (deg as f64 + 1.0)
+                } else {
+                    0.0
+                };
                 assert!((q - exact).abs() < 1e-13, "n={n} deg={deg} q={q}");
             }
         }

@@ -40,7 +40,7 @@ impl SplitMix64 {
     /// small n used here and the result is deterministic either way).
     #[inline]
     pub fn below(&mut self, n: u32) -> u32 {
-        ((self.next_u64() >> 32) * n as u64 >> 32) as u32
+        (((self.next_u64() >> 32) * n as u64) >> 32) as u32
     }
 }
 
@@ -57,7 +57,10 @@ pub fn mix64(mut z: u64) -> u64 {
 #[inline]
 pub fn pair_seed(seed: u64, i: u32, j: u32, stream: u64) -> u64 {
     let ij = ((i as u64) << 32) | j as u64;
-    mix64(mix64(mix64(seed ^ 0x5851_F42D_4C95_7F2D) ^ ij) ^ stream.wrapping_mul(0x9E37_79B9_7F4A_7C15))
+    mix64(
+        mix64(mix64(seed ^ 0x5851_F42D_4C95_7F2D) ^ ij)
+            ^ stream.wrapping_mul(0x9E37_79B9_7F4A_7C15),
+    )
 }
 
 /// Fills `out` with a random permutation of 0..out.len() (Fisher–Yates).
@@ -103,7 +106,12 @@ pub fn latin_pairs(rng: &mut SplitMix64, s: usize, perms: &mut Vec<u32>, out: &m
 pub enum PatchMap {
     /// Area-preserving square-to-triangle map x = (1 − √u) a + √u (1 − v) b + √u v c
     /// (Shirley & Chiu 1997 style); J = area everywhere.
-    Triangle { a: DVec3, b: DVec3, c: DVec3, area: f64 },
+    Triangle {
+        a: DVec3,
+        b: DVec3,
+        c: DVec3,
+        area: f64,
+    },
     /// Bilinear map of a planar convex quad; J varies unless it is a parallelogram.
     Quad { p: [DVec3; 4] },
 }
@@ -111,9 +119,16 @@ pub enum PatchMap {
 impl PatchMap {
     pub fn new(corners: &[DVec3], area: f64) -> Self {
         if corners.len() == 3 {
-            PatchMap::Triangle { a: corners[0], b: corners[1], c: corners[2], area }
+            PatchMap::Triangle {
+                a: corners[0],
+                b: corners[1],
+                c: corners[2],
+                area,
+            }
         } else {
-            PatchMap::Quad { p: [corners[0], corners[1], corners[2], corners[3]] }
+            PatchMap::Quad {
+                p: [corners[0], corners[1], corners[2], corners[3]],
+            }
         }
     }
 
@@ -181,9 +196,21 @@ mod tests {
     #[test]
     fn maps_integrate_area() {
         // Midpoint rule on a fine grid: ∫∫ J du dv = area.
-        let tri = PatchMap::new(&[dvec3(0.0, 0.0, 0.0), dvec3(2.0, 0.0, 0.0), dvec3(0.0, 1.0, 1.0)], 2f64.sqrt());
+        let tri = PatchMap::new(
+            &[
+                dvec3(0.0, 0.0, 0.0),
+                dvec3(2.0, 0.0, 0.0),
+                dvec3(0.0, 1.0, 1.0),
+            ],
+            2f64.sqrt(),
+        );
         let quad = PatchMap::new(
-            &[dvec3(0.0, 0.0, 0.0), dvec3(2.0, 0.0, 0.0), dvec3(1.5, 1.0, 0.0), dvec3(0.0, 2.0, 0.0)],
+            &[
+                dvec3(0.0, 0.0, 0.0),
+                dvec3(2.0, 0.0, 0.0),
+                dvec3(1.5, 1.0, 0.0),
+                dvec3(0.0, 2.0, 0.0),
+            ],
             0.0,
         );
         // Quad area by the shoelace formula: ½|Σ x_k y_{k+1} − x_{k+1} y_k| = 2.5.
@@ -203,7 +230,14 @@ mod tests {
 
     #[test]
     fn triangle_map_stays_inside() {
-        let m = PatchMap::new(&[dvec3(0.0, 0.0, 0.0), dvec3(1.0, 0.0, 0.0), dvec3(0.0, 1.0, 0.0)], 0.5);
+        let m = PatchMap::new(
+            &[
+                dvec3(0.0, 0.0, 0.0),
+                dvec3(1.0, 0.0, 0.0),
+                dvec3(0.0, 1.0, 0.0),
+            ],
+            0.5,
+        );
         let mut rng = SplitMix64::new(3);
         for _ in 0..1000 {
             let (p, _) = m.eval(rng.next_f64(), rng.next_f64());

@@ -22,7 +22,9 @@ pub fn top_k_row(index: u32, values: &[f64], k: usize, order: &mut Vec<u32>) -> 
     let mut dropped = 0.0f64;
     if order.len() > k {
         let by_value_desc = |a: &u32, b: &u32| -> Ordering {
-            values[*b as usize].total_cmp(&values[*a as usize]).then(a.cmp(b))
+            values[*b as usize]
+                .total_cmp(&values[*a as usize])
+                .then(a.cmp(b))
         };
         if k > 0 {
             order.select_nth_unstable_by(k - 1, by_value_desc);
@@ -35,7 +37,11 @@ pub fn top_k_row(index: u32, values: &[f64], k: usize, order: &mut Vec<u32>) -> 
     order.sort_unstable();
     let cols = order.clone();
     let vals = cols.iter().map(|&j| values[j as usize] as f32).collect();
-    Row { index, values: RowValues::Sparse { cols, vals }, dropped: dropped as f32 }
+    Row {
+        index,
+        values: RowValues::Sparse { cols, vals },
+        dropped: dropped as f32,
+    }
 }
 
 #[cfg(test)]
@@ -48,7 +54,13 @@ mod tests {
         let mut order = Vec::new();
         let r = top_k_row(4, &v, 2, &mut order);
         // 0.3 at columns 2 and 4 are the two largest.
-        assert_eq!(r.values, RowValues::Sparse { cols: vec![2, 4], vals: vec![0.3, 0.3] });
+        assert_eq!(
+            r.values,
+            RowValues::Sparse {
+                cols: vec![2, 4],
+                vals: vec![0.3, 0.3]
+            }
+        );
         assert!((r.dropped as f64 - 0.35).abs() < 1e-7);
         let total: f64 = v.iter().sum();
         assert!((r.true_sum() - total).abs() < 1e-6);
@@ -58,14 +70,26 @@ mod tests {
     fn ties_break_by_column() {
         let v = [0.2, 0.2, 0.2, 0.2];
         let r = top_k_row(0, &v, 3, &mut Vec::new());
-        assert_eq!(r.values, RowValues::Sparse { cols: vec![0, 1, 2], vals: vec![0.2; 3] });
+        assert_eq!(
+            r.values,
+            RowValues::Sparse {
+                cols: vec![0, 1, 2],
+                vals: vec![0.2; 3]
+            }
+        );
     }
 
     #[test]
     fn short_rows_keep_all_positive() {
         let v = [0.0, 0.5, 0.0];
         let r = top_k_row(0, &v, 3, &mut Vec::new());
-        assert_eq!(r.values, RowValues::Sparse { cols: vec![1], vals: vec![0.5] });
+        assert_eq!(
+            r.values,
+            RowValues::Sparse {
+                cols: vec![1],
+                vals: vec![0.5]
+            }
+        );
         assert_eq!(r.dropped, 0.0);
     }
 }

@@ -95,7 +95,18 @@ pub(crate) fn fraction(
     run_batch(i, j, gi, gj, occ, cfg, first, STREAM_FIRST, scratch, &mut b);
     let agree = !(b.any_free && b.any_blocked);
     if !(agree && b.weight > 0.0) && total > first {
-        run_batch(i, j, gi, gj, occ, cfg, total - first, STREAM_SECOND, scratch, &mut b);
+        run_batch(
+            i,
+            j,
+            gi,
+            gj,
+            occ,
+            cfg,
+            total - first,
+            STREAM_SECOND,
+            scratch,
+            &mut b,
+        );
     }
     let cast = scratch.counters.rays_cast - cast_before;
     scratch.counters.rays_skipped += (total as u64).saturating_sub(cast);

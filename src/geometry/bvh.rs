@@ -65,7 +65,7 @@ impl OccluderTriangle {
         let e2 = v[2] - v[0];
         let n = e1.cross(e2);
         let len = n.length();
-        if !(len > 0.0) || !len.is_finite() {
+        if !len.is_finite() || len <= 0.0 {
             return None;
         }
         Some(OccluderTriangle {
@@ -127,8 +127,10 @@ impl Occluders {
     /// Builds the hierarchy over `(scene face, triangle)` pairs. Degenerate (zero
     /// area) or non-finite triangles are dropped: they cannot block anything.
     pub fn new(tris: Vec<(u32, [DVec3; 3])>) -> Self {
-        let finite: Vec<(u32, [DVec3; 3])> =
-            tris.into_iter().filter(|(_, t)| t.iter().all(|p| p.is_finite())).collect();
+        let finite: Vec<(u32, [DVec3; 3])> = tris
+            .into_iter()
+            .filter(|(_, t)| t.iter().all(|p| p.is_finite()))
+            .collect();
         let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
         for (_, t) in &finite {
             for p in t {
@@ -137,7 +139,7 @@ impl Occluders {
             }
         }
         let diag = (hi - lo).length();
-        if finite.is_empty() || !(diag > 0.0) || !diag.is_finite() {
+        if finite.is_empty() || !diag.is_finite() || diag <= 0.0 {
             return Occluders::empty();
         }
         let center = 0.5 * (lo + hi);
@@ -145,7 +147,14 @@ impl Occluders {
         let norm: Vec<OccluderTriangle> = finite
             .iter()
             .filter_map(|(f, t)| {
-                OccluderTriangle::new(*f, [(t[0] - center) * inv_scale, (t[1] - center) * inv_scale, (t[2] - center) * inv_scale])
+                OccluderTriangle::new(
+                    *f,
+                    [
+                        (t[0] - center) * inv_scale,
+                        (t[1] - center) * inv_scale,
+                        (t[2] - center) * inv_scale,
+                    ],
+                )
             })
             .collect();
         if norm.is_empty() {
@@ -155,17 +164,41 @@ impl Occluders {
             .iter()
             .map(|t| {
                 let [a, b, c] = t.vertices();
-                Triangle { v0: a.as_vec3a(), v1: b.as_vec3a(), v2: c.as_vec3a() }
+                Triangle {
+                    v0: a.as_vec3a(),
+                    v1: b.as_vec3a(),
+                    v2: c.as_vec3a(),
+                }
             })
             .collect();
-        let bvh = build_cwbvh_from_tris(&f32_tris, BvhBuildParams::medium_build(), &mut Duration::default());
-        let ordered: Vec<OccluderTriangle> = bvh.primitive_indices.iter().map(|&k| norm[k as usize]).collect();
-        Occluders { bvh: Some(bvh), tris: ordered, center, scale: diag, inv_scale }
+        let bvh = build_cwbvh_from_tris(
+            &f32_tris,
+            BvhBuildParams::medium_build(),
+            &mut Duration::default(),
+        );
+        let ordered: Vec<OccluderTriangle> = bvh
+            .primitive_indices
+            .iter()
+            .map(|&k| norm[k as usize])
+            .collect();
+        Occluders {
+            bvh: Some(bvh),
+            tris: ordered,
+            center,
+            scale: diag,
+            inv_scale,
+        }
     }
 
     /// No occluders at all: nothing is ever occluded.
     pub fn empty() -> Self {
-        Occluders { bvh: None, tris: Vec::new(), center: DVec3::ZERO, scale: 1.0, inv_scale: 1.0 }
+        Occluders {
+            bvh: None,
+            tris: Vec::new(),
+            center: DVec3::ZERO,
+            scale: 1.0,
+            inv_scale: 1.0,
+        }
     }
 
     /// Number of triangles in the hierarchy.
@@ -197,7 +230,7 @@ impl Occluders {
         let t = self.to_norm(to);
         let d = t - f;
         let len = d.length();
-        if !(len > 2.0 * RAY_EPSILON) {
+        if len.is_nan() || len <= 2.0 * RAY_EPSILON {
             return false;
         }
         let dir = d / len;
@@ -228,12 +261,18 @@ impl Occluders {
         let mut node;
         let mut stopped = false;
         'walk: {
-            obvhs::traverse!(bvh, node, state, node.intersect_aabb(&aabb, state.oct_inv4), {
-                if visit(state.primitive_id as usize) {
-                    stopped = true;
-                    break 'walk;
+            obvhs::traverse!(
+                bvh,
+                node,
+                state,
+                node.intersect_aabb(&aabb, state.oct_inv4),
+                {
+                    if visit(state.primitive_id as usize) {
+                        stopped = true;
+                        break 'walk;
+                    }
                 }
-            });
+            );
         }
         stopped
     }
@@ -252,7 +291,14 @@ impl Occluders {
     ///    them never cross it), or
     /// 3. it lies entirely behind the plane of `a` or of `b` (every segment between the
     ///    polygons stays in front of both planes).
-    pub fn any_between(&self, a: &[DVec3], na: DVec3, b: &[DVec3], nb: DVec3, ignore: (u32, u32)) -> bool {
+    pub fn any_between(
+        &self,
+        a: &[DVec3],
+        na: DVec3,
+        b: &[DVec3],
+        nb: DVec3,
+        ignore: (u32, u32),
+    ) -> bool {
         if self.bvh.is_none() || a.is_empty() || b.is_empty() {
             return false;
         }
@@ -347,8 +393,24 @@ mod tests {
             ],
         );
         // Two faces far away so that the scene box is larger than the blocker.
-        t.extend(quad(8, [dvec3(0.0, 0.0, 0.0) * s, dvec3(1.0, 0.0, 0.0) * s, dvec3(1.0, 1.0, 0.0) * s, dvec3(0.0, 1.0, 0.0) * s]));
-        t.extend(quad(9, [dvec3(0.0, 0.0, 1.0) * s, dvec3(0.0, 1.0, 1.0) * s, dvec3(1.0, 1.0, 1.0) * s, dvec3(1.0, 0.0, 1.0) * s]));
+        t.extend(quad(
+            8,
+            [
+                dvec3(0.0, 0.0, 0.0) * s,
+                dvec3(1.0, 0.0, 0.0) * s,
+                dvec3(1.0, 1.0, 0.0) * s,
+                dvec3(0.0, 1.0, 0.0) * s,
+            ],
+        ));
+        t.extend(quad(
+            9,
+            [
+                dvec3(0.0, 0.0, 1.0) * s,
+                dvec3(0.0, 1.0, 1.0) * s,
+                dvec3(1.0, 1.0, 1.0) * s,
+                dvec3(1.0, 0.0, 1.0) * s,
+            ],
+        ));
         let o = Occluders::new(t);
         o.validate();
         o
@@ -383,8 +445,23 @@ mod tests {
     fn short_segments_near_geometry_are_not_culled() {
         // A tiny triangle right next to the ray origin (within obvhs' fixed node
         // epsilon) must still block.
-        let mut t = vec![(1, [dvec3(-1e-6, -1e-6, 1e-5), dvec3(1e-6, -1e-6, 1e-5), dvec3(0.0, 1e-6, 1e-5)])];
-        t.extend(quad(2, [dvec3(-1.0, -1.0, -1.0), dvec3(1.0, -1.0, -1.0), dvec3(1.0, 1.0, -1.0), dvec3(-1.0, 1.0, -1.0)]));
+        let mut t = vec![(
+            1,
+            [
+                dvec3(-1e-6, -1e-6, 1e-5),
+                dvec3(1e-6, -1e-6, 1e-5),
+                dvec3(0.0, 1e-6, 1e-5),
+            ],
+        )];
+        t.extend(quad(
+            2,
+            [
+                dvec3(-1.0, -1.0, -1.0),
+                dvec3(1.0, -1.0, -1.0),
+                dvec3(1.0, 1.0, -1.0),
+                dvec3(-1.0, 1.0, -1.0),
+            ],
+        ));
         let o = Occluders::new(t);
         assert!(o.occluded(dvec3(0.0, 0.0, 0.0), dvec3(0.0, 0.0, 0.5), (99, 99)));
     }
@@ -393,16 +470,41 @@ mod tests {
     fn any_between_sees_blocker_and_ignores_walls() {
         let o = blocker(1.0);
         let n_up = dvec3(0.0, 0.0, 1.0);
-        let lower = [dvec3(0.0, 0.0, 0.0), dvec3(1.0, 0.0, 0.0), dvec3(1.0, 1.0, 0.0), dvec3(0.0, 1.0, 0.0)];
-        let upper = [dvec3(0.0, 0.0, 1.0), dvec3(0.0, 1.0, 1.0), dvec3(1.0, 1.0, 1.0), dvec3(1.0, 0.0, 1.0)];
+        let lower = [
+            dvec3(0.0, 0.0, 0.0),
+            dvec3(1.0, 0.0, 0.0),
+            dvec3(1.0, 1.0, 0.0),
+            dvec3(0.0, 1.0, 0.0),
+        ];
+        let upper = [
+            dvec3(0.0, 0.0, 1.0),
+            dvec3(0.0, 1.0, 1.0),
+            dvec3(1.0, 1.0, 1.0),
+            dvec3(1.0, 0.0, 1.0),
+        ];
         assert!(o.any_between(&lower, n_up, &upper, -n_up, (8, 9)));
         // Patches on the floor and ceiling away from the blocker's column, only the
         // walls (faces 8, 9 ignored) around: a corner patch pair at x, y ∈ [0, 0.2].
-        let lo = [dvec3(0.0, 0.0, 0.0), dvec3(0.2, 0.0, 0.0), dvec3(0.2, 0.2, 0.0), dvec3(0.0, 0.2, 0.0)];
-        let hi = [dvec3(0.0, 0.0, 1.0), dvec3(0.0, 0.2, 1.0), dvec3(0.2, 0.2, 1.0), dvec3(0.2, 0.0, 1.0)];
+        let lo = [
+            dvec3(0.0, 0.0, 0.0),
+            dvec3(0.2, 0.0, 0.0),
+            dvec3(0.2, 0.2, 0.0),
+            dvec3(0.0, 0.2, 0.0),
+        ];
+        let hi = [
+            dvec3(0.0, 0.0, 1.0),
+            dvec3(0.0, 0.2, 1.0),
+            dvec3(0.2, 0.2, 1.0),
+            dvec3(0.2, 0.0, 1.0),
+        ];
         assert!(!o.any_between(&lo, n_up, &hi, -n_up, (8, 9)));
         // Both below the blocker's plane: it is on one side of the whole hull.
-        let mid = [dvec3(0.0, 0.0, 0.3), dvec3(0.0, 1.0, 0.3), dvec3(1.0, 1.0, 0.3), dvec3(1.0, 0.0, 0.3)];
+        let mid = [
+            dvec3(0.0, 0.0, 0.3),
+            dvec3(0.0, 1.0, 0.3),
+            dvec3(1.0, 1.0, 0.3),
+            dvec3(1.0, 0.0, 0.3),
+        ];
         assert!(!o.any_between(&lower, n_up, &mid, -n_up, (8, 9)));
         assert!(!Occluders::empty().any_between(&lower, n_up, &upper, -n_up, (8, 9)));
     }
