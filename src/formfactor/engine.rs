@@ -20,18 +20,21 @@
 //! Counters live in the [`Scratch`] (no atomics in the hot loop); a caller that uses
 //! several scratches sums them with [`Counters::add`].
 
+use std::cmp::Reverse;
+use std::collections::BinaryHeap;
 use std::sync::Arc;
 
 use glam::DVec3;
 
 use super::contour::{area_form_factor_edges, ContourParams};
+use super::farfield::{self, far_order, PatchPoints, MAX_FAR_ORDER};
 use super::polygon::{EdgeSet, Polygon};
 use super::quadrature::{gauss_table, GaussTable};
-use super::sampling::PatchMap;
-use super::{mc, point, topk, visibility, FormFactorConfig, Method};
+use super::sampling::{pair_seed, PatchMap, SplitMix64};
+use super::{mc, point, topk, visibility, FormFactorConfig, Method, TopKTail};
 use crate::geometry::bvh::Occluders;
 use crate::patch::PatchSet;
-use crate::rows::Row;
+use crate::rows::{Row, RowValues};
 
 /// Plane tolerance of the facing and clipping tests, relative to the diagonal of the
 /// patches' bounding box (so it scales with the scene).
@@ -47,6 +50,11 @@ pub struct Counters {
     /// Pairs skipped without kernel work because one faces away from the other
     /// (including coplanar pairs).
     pub pairs_facing_away: u64,
+    /// `contour` pairs far enough apart for the tensor Gauss rule
+    /// ([`super::farfield`]) instead of the contour integral.
+    pub pairs_far_field: u64,
+    /// Top-k tail pairs (sampled mode) whose visibility was never needed.
+    pub pairs_topk_tail_skipped: u64,
     /// Evaluated pairs between which no occluder can come (no rays needed).
     pub pairs_unoccludable: u64,
     /// Shadow rays cast.
@@ -63,6 +71,8 @@ impl Counters {
         self.rows += o.rows;
         self.pairs_evaluated += o.pairs_evaluated;
         self.pairs_facing_away += o.pairs_facing_away;
+        self.pairs_far_field += o.pairs_far_field;
+        self.pairs_topk_tail_skipped += o.pairs_topk_tail_skipped;
         self.pairs_unoccludable += o.pairs_unoccludable;
         self.rays_cast += o.rays_cast;
         self.rays_skipped += o.rays_skipped;
@@ -74,9 +84,13 @@ impl Counters {
 pub struct Scratch {
     pub(crate) values: Vec<f64>,
     pub(crate) order: Vec<u32>,
+    pub(crate) flags: Vec<bool>,
     pub(crate) perms: Vec<u32>,
     pub(crate) samples: Vec<[f64; 4]>,
     pub(crate) counters: Counters,
+    /// Far-field Gauss points of patch `far_row` by order (index q), filled lazily.
+    far_row: Option<u32>,
+    far_points: [Option<PatchPoints>; MAX_FAR_ORDER + 1],
 }
 
 impl Scratch {
@@ -93,6 +107,22 @@ impl Scratch {
     pub fn take_counters(&mut self) -> Counters {
         std::mem::take(&mut self.counters)
     }
+
+    /// The order-q far-field points of patch i (computed once per row).
+    fn far_points_of(
+        &mut self,
+        i: u32,
+        q: usize,
+        g: &PatchGeom,
+        gauss: &GaussTable,
+    ) -> PatchPoints {
+        if self.far_row != Some(i) {
+            self.far_row = Some(i);
+            self.far_points = [None; MAX_FAR_ORDER + 1];
+        }
+        *self.far_points[q]
+            .get_or_insert_with(|| PatchPoints::new(g.poly.verts(), g.area, q, gauss))
+    }
 }
 
 /// Everything the kernels need about one patch, computed once.
@@ -107,6 +137,8 @@ pub(crate) struct PatchGeom {
     pub area: f64,
     /// Longest edge.
     pub size: f64,
+    /// Largest distance from the centroid to a corner.
+    pub radius: f64,
     pub face: u32,
     pub map: PatchMap,
 }
@@ -117,6 +149,11 @@ impl PatchGeom {
         let edges = EdgeSet::from_polygon(&poly);
         let size = edges.edges().iter().map(|e| e.len).fold(0.0, f64::max);
         let centroid = p.centroid();
+        let radius = p
+            .corners()
+            .iter()
+            .map(|c| (*c - centroid).length())
+            .fold(0.0, f64::max);
         PatchGeom {
             poly,
             edges,
@@ -125,6 +162,7 @@ impl PatchGeom {
             centroid,
             area: p.area,
             size,
+            radius,
             face: p.face,
             map: PatchMap::new(p.corners(), p.area),
         }
@@ -234,6 +272,11 @@ impl RowEngine {
             "row {i} out of range (n = {})",
             self.n()
         );
+        if let (Some(k), Method::Contour, TopKTail::Sampled(t)) =
+            (self.cfg.top_k, self.cfg.method, self.cfg.top_k_tail)
+        {
+            return self.top_k_row_bounded(i, k as usize, t as usize, scratch);
+        }
         let mut values = std::mem::take(&mut scratch.values);
         self.row_values(i, scratch, &mut values);
         let row = match self.cfg.top_k {
@@ -244,7 +287,7 @@ impl RowEngine {
         row
     }
 
-    /// Row i in f64 (before the f32 conversion and top-k), into `out`.
+    /// Row i in f64 (dense, before the f32 conversion and top-k), into `out`.
     ///
     /// # Panics
     /// If `i` is not a patch index.
@@ -276,75 +319,301 @@ impl RowEngine {
         if self.cfg.method == Method::Point {
             return point::pair(gi, gj, &self.occluders, &mut scratch.counters);
         }
+        let Some(extent) = self.facing(gi, gj, scratch) else {
+            return 0.0;
+        };
+        match self.cfg.method {
+            Method::Mc => mc::pair(i, j, gi, gj, &self.occluders, &self.cfg, scratch),
+            _ => match self.contour_unoccluded(i, gi, gj, extent, scratch) {
+                Some(u) => u.f * self.contour_visibility(i, j, gi, gj, &u, scratch),
+                None => 0.0,
+            },
+        }
+    }
+
+    /// None when one patch faces away from the other (every corner on or behind the
+    /// other's plane; coplanar pairs included), else the lowest signed distance of
+    /// i's corners to j's plane and of j's corners to i's plane. Counts the pair.
+    #[inline]
+    fn facing(&self, gi: &PatchGeom, gj: &PatchGeom, scratch: &mut Scratch) -> Option<(f64, f64)> {
         let (j_lo, j_hi) = gj.extent_wrt(gi);
         let (i_lo, i_hi) = gi.extent_wrt(gj);
         if j_hi <= self.tol || i_hi <= self.tol {
             scratch.counters.pairs_facing_away += 1;
-            return 0.0;
+            return None;
         }
         scratch.counters.pairs_evaluated += 1;
-        match self.cfg.method {
-            Method::Mc => mc::pair(i, j, gi, gj, &self.occluders, &self.cfg, scratch),
-            _ => self.contour_pair(i, j, gi, gj, (i_lo, j_lo), scratch),
-        }
+        Some((i_lo, j_lo))
     }
 
-    /// `contour`: exact unoccluded F_ij on the mutually clipped polygons, times the
-    /// visibility fraction.
-    fn contour_pair(
+    /// The polygons clipped to each other's front half-space (only when part of one
+    /// lies behind the other's plane).
+    fn clipped(
+        &self,
+        gi: &PatchGeom,
+        gj: &PatchGeom,
+        (i_lo, j_lo): (f64, f64),
+    ) -> (Polygon, Polygon) {
+        let pi = if i_lo < -self.tol {
+            gi.poly.clip_front(gj.normal, gj.offset, self.tol)
+        } else {
+            gi.poly
+        };
+        let pj = if j_lo < -self.tol {
+            gj.poly.clip_front(gi.normal, gi.offset, self.tol)
+        } else {
+            gj.poly
+        };
+        (pi, pj)
+    }
+
+    /// `contour`, unoccluded part: F⁰_ij on the mutually clipped polygons, by the
+    /// tensor Gauss rule when the pair is far apart and needs no clipping
+    /// ([`super::farfield`]), else by the double contour integral. None when ≤ 0.
+    fn contour_unoccluded(
+        &self,
+        i: u32,
+        gi: &PatchGeom,
+        gj: &PatchGeom,
+        extent: (f64, f64),
+        scratch: &mut Scratch,
+    ) -> Option<Unoccluded> {
+        let clip = extent.0 < -self.tol || extent.1 < -self.tol;
+        let (pi, pj) = self.clipped(gi, gj, extent);
+        let distance = (gi.centroid - gj.centroid).length();
+        let gap = distance - gi.radius - gj.radius;
+        let far = if clip {
+            None
+        } else {
+            far_order(gap, gi.radius.max(gj.radius), self.params.tol)
+        };
+        let af = if let Some(q) = far {
+            scratch.counters.pairs_far_field += 1;
+            let pts_i = scratch.far_points_of(i, q, gi, self.gauss);
+            let pts_j = PatchPoints::new(gj.poly.verts(), gj.area, q, self.gauss);
+            farfield::area_form_factor(&pts_i, gi.normal, &pts_j, gj.normal)
+        } else {
+            let ei = if extent.0 < -self.tol {
+                EdgeSet::from_polygon(&pi)
+            } else {
+                gi.edges
+            };
+            let ej = if extent.1 < -self.tol {
+                EdgeSet::from_polygon(&pj)
+            } else {
+                gj.edges
+            };
+            let r_ref = distance.max(gi.size).max(gj.size);
+            area_form_factor_edges(&ei, &ej, r_ref, self.gauss, self.params)
+        };
+        let f = af / gi.area;
+        if f.is_nan() || f <= 0.0 {
+            return None;
+        }
+        let needs_rays = self.occluders.any_between(
+            pi.verts(),
+            gi.normal,
+            pj.verts(),
+            gj.normal,
+            (gi.face, gj.face),
+        );
+        Some(Unoccluded {
+            f,
+            pi,
+            pj,
+            needs_rays,
+        })
+    }
+
+    /// `contour`, visibility fraction of a pair (1 without rays when nothing can come
+    /// between the polygons).
+    fn contour_visibility(
         &self,
         i: u32,
         j: u32,
         gi: &PatchGeom,
         gj: &PatchGeom,
-        (i_lo, j_lo): (f64, f64),
+        u: &Unoccluded,
         scratch: &mut Scratch,
     ) -> f64 {
-        // Clip only when part of a polygon is behind the other's plane.
-        let clip_i = i_lo < -self.tol;
-        let clip_j = j_lo < -self.tol;
-        let pi = if clip_i {
-            gi.poly.clip_front(gj.normal, gj.offset, self.tol)
-        } else {
-            gi.poly
-        };
-        let pj = if clip_j {
-            gj.poly.clip_front(gi.normal, gi.offset, self.tol)
-        } else {
-            gj.poly
-        };
-        let ei = if clip_i {
-            EdgeSet::from_polygon(&pi)
-        } else {
-            gi.edges
-        };
-        let ej = if clip_j {
-            EdgeSet::from_polygon(&pj)
-        } else {
-            gj.edges
-        };
-        let r_ref = (gi.centroid - gj.centroid)
-            .length()
-            .max(gi.size)
-            .max(gj.size);
-        let af = area_form_factor_edges(&ei, &ej, r_ref, self.gauss, self.params);
-        let f = af / gi.area;
-        if f.is_nan() || f <= 0.0 {
-            return 0.0;
-        }
-        let (ni, nj) = (gi.normal, gj.normal);
-        if !self
-            .occluders
-            .any_between(pi.verts(), ni, pj.verts(), nj, (gi.face, gj.face))
-        {
+        if !u.needs_rays {
             scratch.counters.pairs_unoccludable += 1;
             scratch.counters.rays_skipped += self.cfg.samples as u64;
-            return f;
+            return 1.0;
         }
-        let v = visibility::fraction(i, j, gi, gj, &pi, &pj, &self.occluders, &self.cfg, scratch);
-        f * v
+        visibility::fraction(
+            i,
+            j,
+            gi,
+            gj,
+            &u.pi,
+            &u.pj,
+            &self.occluders,
+            &self.cfg,
+            scratch,
+        )
+    }
+
+    /// Top-k row of the `contour` method with a sampled tail ([`TopKTail::Sampled`]).
+    ///
+    /// 1. F⁰_ij for every j, and whether the pair needs rays;
+    /// 2. candidates in decreasing F⁰ (ties: smaller column first); each gets its
+    ///    visibility and enters a min-heap of the k best final values, until F⁰ falls
+    ///    below the heap's worst value: F ≤ F⁰, so no later candidate can enter;
+    /// 3. dropped = entries pushed out of the heap (exact) + tail pairs that need no
+    ///    rays (exact, F = F⁰) + the estimate of Σ F⁰_j V_j over the tail pairs that
+    ///    need rays, from `t` of them drawn by systematic sampling ∝ F⁰_j (all of them
+    ///    when there are at most `t`).
+    fn top_k_row_bounded(&self, i: u32, k: usize, t: usize, scratch: &mut Scratch) -> Row {
+        let n = self.n();
+        scratch.counters.rows += 1;
+        let mut f0 = std::mem::take(&mut scratch.values);
+        let mut order = std::mem::take(&mut scratch.order);
+        let mut rays = std::mem::take(&mut scratch.flags);
+        f0.clear();
+        f0.resize(n, 0.0);
+        rays.clear();
+        rays.resize(n, false);
+        order.clear();
+        let iu = i as usize;
+        if self.valid[iu] {
+            let gi = &self.geom[iu];
+            for j in 0..n {
+                let gj = &self.geom[j];
+                if j == iu || !self.valid[j] {
+                    continue;
+                }
+                let Some(extent) = self.facing(gi, gj, scratch) else {
+                    continue;
+                };
+                if let Some(u) = self.contour_unoccluded(i, gi, gj, extent, scratch) {
+                    f0[j] = u.f;
+                    rays[j] = u.needs_rays;
+                    if !u.needs_rays {
+                        scratch.counters.pairs_unoccludable += 1;
+                        scratch.counters.rays_skipped += self.cfg.samples as u64;
+                    }
+                    order.push(j as u32);
+                }
+            }
+        }
+        order.sort_unstable_by(|a, b| f0[*b as usize].total_cmp(&f0[*a as usize]).then(a.cmp(b)));
+
+        // Min-heap of (final value bits, Reverse(column)): the top is the worst kept
+        // entry (smallest value; among equal values the larger column). Bit patterns of
+        // non-negative f64 order like the values.
+        let mut heap: BinaryHeap<Reverse<(u64, Reverse<u32>)>> = BinaryHeap::with_capacity(k + 1);
+        let mut dropped = 0.0f64;
+        let mut next = order.len();
+        for (pos, &j) in order.iter().enumerate() {
+            let ju = j as usize;
+            if heap.len() == k {
+                if let Some(Reverse((worst, _))) = heap.peek() {
+                    if f0[ju] < f64::from_bits(*worst) {
+                        next = pos;
+                        break;
+                    }
+                }
+            }
+            let value = if rays[ju] {
+                f0[ju] * self.visibility_of(i, j, scratch)
+            } else {
+                f0[ju]
+            };
+            heap.push(Reverse((value.to_bits(), Reverse(j))));
+            if heap.len() > k {
+                if let Some(Reverse((bits, _))) = heap.pop() {
+                    dropped += f64::from_bits(bits);
+                }
+            }
+        }
+        // The tail, in column order.
+        let tail = &mut order[next..];
+        tail.sort_unstable();
+        let mut with_rays_mass = 0.0;
+        let mut with_rays = 0usize;
+        for &j in tail.iter() {
+            if rays[j as usize] {
+                with_rays_mass += f0[j as usize];
+                with_rays += 1;
+            } else {
+                dropped += f0[j as usize];
+            }
+        }
+        if with_rays <= t {
+            for &j in tail.iter() {
+                if rays[j as usize] {
+                    dropped += f0[j as usize] * self.visibility_of(i, j, scratch);
+                }
+            }
+        } else {
+            // Systematic sampling with probability ∝ F⁰: points u0 + s·step on the
+            // cumulative F⁰ axis, step = mass / t; the estimate step · Σ V is unbiased.
+            let step = with_rays_mass / t as f64;
+            let mut rng = SplitMix64::new(pair_seed(self.cfg.seed, i, u32::MAX, STREAM_TAIL));
+            let mut point = rng.next_f64() * step;
+            let mut cumulative = 0.0;
+            let mut estimate = 0.0;
+            for &j in tail.iter() {
+                let ju = j as usize;
+                if !rays[ju] {
+                    continue;
+                }
+                cumulative += f0[ju];
+                let mut hits = 0u32;
+                while point < cumulative && hits < t as u32 {
+                    hits += 1;
+                    point += step;
+                }
+                if hits > 0 {
+                    estimate += hits as f64 * self.visibility_of(i, j, scratch);
+                } else {
+                    scratch.counters.pairs_topk_tail_skipped += 1;
+                    scratch.counters.rays_skipped += self.cfg.samples as u64;
+                }
+            }
+            dropped += estimate * step;
+        }
+        let mut kept: Vec<(u32, f32)> = heap
+            .into_iter()
+            .map(|Reverse((bits, Reverse(j)))| (j, f64::from_bits(bits) as f32))
+            .filter(|&(_, v)| v > 0.0)
+            .collect();
+        kept.sort_unstable_by_key(|&(j, _)| j);
+        // Entries whose visibility came out 0 carry no mass; they stay out of the row.
+        scratch.values = f0;
+        scratch.order = order;
+        scratch.flags = rays;
+        Row {
+            index: i,
+            values: RowValues::Sparse {
+                cols: kept.iter().map(|&(j, _)| j).collect(),
+                vals: kept.iter().map(|&(_, v)| v).collect(),
+            },
+            dropped: dropped as f32,
+        }
+    }
+
+    /// Visibility fraction of pair (i, j) from scratch (re-clipping the polygons).
+    fn visibility_of(&self, i: u32, j: u32, scratch: &mut Scratch) -> f64 {
+        let (gi, gj) = (&self.geom[i as usize], &self.geom[j as usize]);
+        let (j_lo, _) = gj.extent_wrt(gi);
+        let (i_lo, _) = gi.extent_wrt(gj);
+        let (pi, pj) = self.clipped(gi, gj, (i_lo, j_lo));
+        visibility::fraction(i, j, gi, gj, &pi, &pj, &self.occluders, &self.cfg, scratch)
     }
 }
+
+/// Unoccluded part of a `contour` pair.
+struct Unoccluded {
+    f: f64,
+    pi: Polygon,
+    pj: Polygon,
+    needs_rays: bool,
+}
+
+/// Stream tag of the top-k tail sampling (see [`pair_seed`]).
+const STREAM_TAIL: u64 = 3;
 
 #[cfg(test)]
 mod tests {

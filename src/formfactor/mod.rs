@@ -8,7 +8,7 @@
 //! |---|---|---|---|
 //! | `point` | centroid-to-centroid differential kernel cosθ_i cosθ_j A_j/(π r²) | 1 ray between centroids | [`point`] |
 //! | `mc` | stratified area-to-area Monte Carlo, S point pairs | the same S pairs, 1 ray each | [`mc`] |
-//! | `contour` | exact, double contour integral (Stokes) | kernel-weighted ratio estimator, adaptive, ≤ S rays | [`contour`], [`visibility`] |
+//! | `contour` | exact to `quad_tol`: double contour integral (Stokes), tensor Gauss rule for well-separated pairs | kernel-weighted ratio estimator, adaptive, ≤ S rays | [`contour`], [`farfield`], [`visibility`] |
 //!
 //! [`RowEngine`] computes whole rows: it precomputes per-patch data once, skips pairs
 //! facing away, asks the [`Occluders`](crate::geometry::bvh::Occluders) whether
@@ -19,6 +19,7 @@
 
 pub mod contour;
 pub mod engine;
+pub mod farfield;
 pub mod mc;
 pub mod point;
 pub mod polygon;
@@ -102,16 +103,44 @@ pub struct FormFactorConfig {
     pub seed: u64,
     /// Keep only the k largest entries of each row (the rest goes to `Row::dropped`).
     pub top_k: Option<u32>,
+    /// With `top_k` and `contour`: how the dropped mass of the pairs that cannot make
+    /// the top k is obtained (see [`TopKTail`]).
+    pub top_k_tail: TopKTail,
     /// `contour`: most Gauss–Legendre points per panel of the outer line integral
     /// (1..=24); panels needing more are split.
     pub quad_order: u32,
-    /// `contour`: target relative error per quadrature panel.
+    /// `contour`: target relative error of the unoccluded form factor per quadrature
+    /// panel (double contour integral) or per pair (tensor rule for far pairs).
     pub quad_tol: f64,
 }
 
+/// Top-k rows of the `contour` method: candidates are visited in decreasing order of
+/// their unoccluded value F⁰_ij, an upper bound of the occluded value. Once F⁰ falls
+/// below the k-th largest final value found so far, no later candidate can enter the
+/// top k, so their rays are needed only for the dropped mass (DESIGN.md §3).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TopKTail {
+    /// Cast their rays anyway: `dropped` is the same as for a dense row.
+    Exact,
+    /// Estimate Σ F⁰_j V_j over the tail pairs that need rays from this many of them,
+    /// drawn with probability ∝ F⁰_j (systematic sampling, seeded by (i, seed)):
+    /// unbiased, with an error of order (tail mass)/√samples. The kept entries are
+    /// exactly those of `Exact`; only `dropped` differs.
+    Sampled(u32),
+}
+
+impl fmt::Display for TopKTail {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            TopKTail::Exact => f.write_str("exact"),
+            TopKTail::Sampled(t) => write!(f, "sampled:{t}"),
+        }
+    }
+}
+
 impl FormFactorConfig {
-    /// Cheapest settings that still give the exact unoccluded form factor to ~1e-6:
-    /// 4 visibility rays, low quadrature order.
+    /// Cheapest settings: unoccluded part to ~1e-6 relative, 4 visibility rays, top-k
+    /// tail mass sampled from 32 pairs.
     pub fn fast() -> Self {
         FormFactorConfig {
             method: Method::Contour,
@@ -119,12 +148,14 @@ impl FormFactorConfig {
             first_batch: 4,
             seed: 0,
             top_k: None,
+            top_k_tail: TopKTail::Sampled(32),
             quad_order: 6,
-            quad_tol: 1e-7,
+            quad_tol: 1e-6,
         }
     }
 
-    /// The default: exact unoccluded part to ~1e-9, up to 16 visibility rays.
+    /// The default: unoccluded part to ~1e-8 relative (below the f32 storage
+    /// resolution), up to 16 visibility rays.
     pub fn accurate() -> Self {
         FormFactorConfig {
             method: Method::Contour,
@@ -132,8 +163,9 @@ impl FormFactorConfig {
             first_batch: 4,
             seed: 0,
             top_k: None,
+            top_k_tail: TopKTail::Exact,
             quad_order: 8,
-            quad_tol: 1e-10,
+            quad_tol: 1e-8,
         }
     }
 
@@ -145,8 +177,9 @@ impl FormFactorConfig {
             first_batch: 8,
             seed: 0,
             top_k: None,
+            top_k_tail: TopKTail::Exact,
             quad_order: 16,
-            quad_tol: 1e-14,
+            quad_tol: 1e-13,
         }
     }
 
@@ -217,6 +250,9 @@ impl FormFactorConfig {
         if self.top_k == Some(0) {
             return bad("top_k must be at least 1".into());
         }
+        if self.top_k_tail == TopKTail::Sampled(0) {
+            return bad("top_k_tail sample count must be at least 1".into());
+        }
         Ok(())
     }
 
@@ -227,12 +263,13 @@ impl FormFactorConfig {
             None => "none".to_string(),
         };
         format!(
-            "method={} samples={} first_batch={} seed={} top_k={} quad_order={} quad_tol={:e} ray_epsilon={:e}",
+            "method={} samples={} first_batch={} seed={} top_k={} top_k_tail={} quad_order={} quad_tol={:e} ray_epsilon={:e}",
             self.method,
             self.samples,
             self.first_batch,
             self.seed,
             top_k,
+            self.top_k_tail,
             self.quad_order,
             self.quad_tol,
             crate::geometry::bvh::RAY_EPSILON

@@ -108,17 +108,19 @@ pub(crate) fn fraction(
             &mut b,
         );
     }
+    let v = if b.weight > 0.0 {
+        (b.visible / b.weight).clamp(0.0, 1.0)
+    } else {
+        // Every sample fell where a cosine is not positive (a sliver in front): one
+        // ray between the centres of the clipped parts decides.
+        scratch.counters.rays_cast += 1;
+        if occ.occluded(pi.vertex_mean(), pj.vertex_mean(), (gi.face, gj.face)) {
+            0.0
+        } else {
+            1.0
+        }
+    };
     let cast = scratch.counters.rays_cast - cast_before;
     scratch.counters.rays_skipped += (total as u64).saturating_sub(cast);
-    if b.weight > 0.0 {
-        return (b.visible / b.weight).clamp(0.0, 1.0);
-    }
-    // Every sample fell where a cosine is not positive (a sliver in front): one ray
-    // between the centres of the clipped parts decides.
-    scratch.counters.rays_cast += 1;
-    if occ.occluded(pi.vertex_mean(), pj.vertex_mean(), (gi.face, gj.face)) {
-        0.0
-    } else {
-        1.0
-    }
+    v
 }

@@ -40,6 +40,10 @@ pub const RAY_EPSILON: f64 = 1e-6;
 /// a triangle that only touches the pair's hull within it cannot block a ray.
 pub const PLANE_TOLERANCE: f64 = 1e-9;
 
+/// Work bound of [`Occluders::any_between`]: candidate triangles examined in detail
+/// before it gives up and answers "rays needed".
+pub const MAX_REJECTED_CANDIDATES: usize = 32;
+
 /// obvhs' node test clamps the entry distance to a fixed 1e-4 (ray units,
 /// `cwbvh::node::EPSILON`), which would skip boxes lying entirely within 1e-4 of the
 /// origin. Rays start this far behind their true origin so that no box beyond the
@@ -291,6 +295,10 @@ impl Occluders {
     ///    them never cross it), or
     /// 3. it lies entirely behind the plane of `a` or of `b` (every segment between the
     ///    polygons stays in front of both planes).
+    ///
+    /// The work is bounded: after [`MAX_REJECTED_CANDIDATES`] triangles that overlap
+    /// the box but were rejected by 2–3, the answer is `true` (rays will decide), so a
+    /// pair in a cluttered region costs a short traversal, never a scan.
     pub fn any_between(
         &self,
         a: &[DVec3],
@@ -323,6 +331,7 @@ impl Occluders {
         let oa = na.dot(self.to_norm(a[0]));
         let ob = nb.dot(self.to_norm(b[0]));
         let tris = &self.tris;
+        let mut rejected = 0usize;
         self.for_each_in_box(qlo, qhi, |k| {
             let t = &tris[k];
             if t.face == ignore.0 || t.face == ignore.1 {
@@ -330,6 +339,10 @@ impl Occluders {
             }
             if t.max.cmplt(qlo).any() || t.min.cmpgt(qhi).any() {
                 return false;
+            }
+            rejected += 1;
+            if rejected > MAX_REJECTED_CANDIDATES {
+                return true;
             }
             let off = t.normal.dot(t.v0);
             let (mut above, mut below) = (false, false);

@@ -7,7 +7,7 @@ mod scenes;
 
 use std::sync::Arc;
 
-use ffstream::formfactor::{Counters, FormFactorConfig, Method, RowEngine, Scratch};
+use ffstream::formfactor::{Counters, FormFactorConfig, Method, RowEngine, Scratch, TopKTail};
 use ffstream::rows::{Row, RowValues};
 use glam::{dvec3, DVec3};
 
@@ -457,6 +457,73 @@ fn top_k_keeps_largest_and_preserves_row_sum() {
         );
         assert!((s.true_sum() - 1.0).abs() < TARGET);
     }
+}
+
+#[test]
+fn top_k_sampled_tail_keeps_the_same_entries_and_estimates_dropped_mass() {
+    // Closed cube with a box in the middle: many pairs are partly hidden.
+    let mut b = cube(6, false);
+    let (lo, s) = (dvec3(0.35, 0.35, 0.35), 0.3);
+    let (x, y, z) = (dvec3(s, 0.0, 0.0), dvec3(0.0, s, 0.0), dvec3(0.0, 0.0, s));
+    for (o, u, v) in [
+        (lo, y, x),
+        (lo + z, x, y),
+        (lo, z, y),
+        (lo + x, y, z),
+        (lo, x, z),
+        (lo + y, z, x),
+    ] {
+        b.blocker(o, u, v);
+    }
+    let k = 20;
+    let base = FormFactorConfig::accurate().with_top_k(Some(k));
+    let exact_cfg = FormFactorConfig {
+        top_k_tail: TopKTail::Exact,
+        ..base.clone()
+    };
+    let sampled_cfg = FormFactorConfig {
+        top_k_tail: TopKTail::Sampled(8),
+        ..base
+    };
+    let (exact_e, sampled_e) = (b.engine(exact_cfg), b.engine(sampled_cfg));
+    let (mut se, mut ss) = (Scratch::new(), Scratch::new());
+    let (mut sum_diff, mut sum_dropped, mut worst) = (0.0f64, 0.0f64, 0.0f64);
+    for i in 0..b.n() as u32 {
+        let re = exact_e.compute_row(i, &mut se);
+        let rs = sampled_e.compute_row(i, &mut ss);
+        assert_eq!(re.values, rs.values, "row {i}: kept entries differ");
+        let d = rs.dropped as f64 - re.dropped as f64;
+        sum_diff += d;
+        sum_dropped += re.dropped as f64;
+        worst = worst.max(d.abs() / re.dropped as f64);
+    }
+    let (ce, cs) = (se.counters(), ss.counters());
+    println!(
+        "sampled tail (8 of the tail pairs): mean dropped bias {:.2e} of dropped mass, worst row {worst:.2e}; rays exact {} sampled {} ({} tail pairs skipped)",
+        sum_diff / sum_dropped,
+        ce.rays_cast,
+        cs.rays_cast,
+        cs.pairs_topk_tail_skipped
+    );
+    assert!(cs.pairs_topk_tail_skipped > 0 && cs.rays_cast < ce.rays_cast);
+    // Unbiased: the errors of 216 rows average out; each row's error is of order
+    // (tail mass)/√8.
+    assert!(
+        (sum_diff / sum_dropped).abs() < 0.02,
+        "bias {}",
+        sum_diff / sum_dropped
+    );
+    assert!(worst < 0.5, "worst row {worst}");
+
+    // Without occluders between any pair the tail is exact: identical rows.
+    let c = cube(4, false);
+    let cfg = FormFactorConfig::accurate().with_top_k(Some(10));
+    let a = all_rows(&c.engine(FormFactorConfig {
+        top_k_tail: TopKTail::Sampled(4),
+        ..cfg.clone()
+    }));
+    let e = all_rows(&c.engine(cfg));
+    assert_eq!(a, e);
 }
 
 /// Σ_ij |F_ij − exact_ij| over a scene, with the exact values from `contour`.
