@@ -39,6 +39,44 @@ fn contour_parallel_squares_match_howell_c11() {
 }
 
 #[test]
+fn contour_far_pairs_use_the_tensor_rule_and_stay_exact() {
+    // Squares at distance 4 cut 8 × 8: every cross pair is far enough for the tensor
+    // Gauss rule in `fast` and `accurate`; `reference` uses the contour integral.
+    let b = parallel_squares(0.25, 8, false);
+    let reference = pair_matrix(&b.engine(FormFactorConfig::reference()));
+    for (name, cfg) in FormFactorConfig::presets() {
+        let tol = cfg.quad_tol;
+        let e = b.engine(cfg);
+        let mut s = Scratch::new();
+        let mut row = Vec::new();
+        let mut worst = 0.0f64;
+        for i in 0..e.n() as u32 {
+            e.row_values(i, &mut s, &mut row);
+            for (j, v) in row.iter().enumerate() {
+                let r = reference[i as usize * e.n() + j];
+                if r > 0.0 {
+                    worst = worst.max((v - r).abs() / r);
+                }
+            }
+        }
+        let rows = all_rows(&e);
+        let f = group_ff(&b.patches, &rows, 0, 1);
+        let exact = parallel_rectangles(0.25, 0.25);
+        let far = s.counters().pairs_far_field;
+        println!("{name}: far-field pairs {far}, worst relative deviation from reference {worst:.2e}, F err {:.2e}", f - exact);
+        assert!(worst <= tol.max(1e-12), "{name}: {worst} > {tol}");
+        assert!((f - exact).abs() < TARGET);
+        if name != "reference" {
+            assert_eq!(
+                far,
+                2 * 64 * 64,
+                "{name}: every cross pair should be far-field"
+            );
+        }
+    }
+}
+
+#[test]
 fn contour_perpendicular_shared_edge_matches_howell_c14() {
     for (name, cfg) in FormFactorConfig::presets() {
         for (w, h) in [(1.0, 1.0), (1.0, 2.0), (0.5, 0.5)] {
