@@ -53,9 +53,7 @@ const RAY_BACKOFF: f64 = 1e-3;
 /// A triangle in the normalized frame, with what the exact tests need.
 #[derive(Clone, Copy, Debug)]
 struct OccluderTriangle {
-    v0: DVec3,
-    e1: DVec3,
-    e2: DVec3,
+    v: [DVec3; 3],
     /// Unit normal (either orientation; faces block from both sides).
     normal: DVec3,
     min: DVec3,
@@ -65,17 +63,13 @@ struct OccluderTriangle {
 
 impl OccluderTriangle {
     fn new(face: u32, v: [DVec3; 3]) -> Option<Self> {
-        let e1 = v[1] - v[0];
-        let e2 = v[2] - v[0];
-        let n = e1.cross(e2);
+        let n = (v[1] - v[0]).cross(v[2] - v[0]);
         let len = n.length();
         if !len.is_finite() || len <= 0.0 {
             return None;
         }
         Some(OccluderTriangle {
-            v0: v[0],
-            e1,
-            e2,
+            v,
             normal: n / len,
             min: v[0].min(v[1]).min(v[2]),
             max: v[0].max(v[1]).max(v[2]),
@@ -84,33 +78,67 @@ impl OccluderTriangle {
     }
 
     fn vertices(&self) -> [DVec3; 3] {
-        [self.v0, self.v0 + self.e1, self.v0 + self.e2]
+        self.v
     }
 
-    /// Two-sided Möller–Trumbore ("Fast, minimum storage ray/triangle intersection",
-    /// 1997) in f64: true when the ray origin + t·dir hits the closed triangle for some
-    /// t in [t0, t1]. Edges count as inside so that a ray through the edge shared by
-    /// two triangles of a face is blocked (conservative, no leaks).
+    /// Watertight two-sided ray/triangle test (Woop, Benthin & Wald, "Watertight
+    /// Ray/Triangle Intersection", JCGT 2013) in f64: true when the ray hits the closed
+    /// triangle at a distance in [t0, t1]. Watertight: the edge functions of an edge
+    /// shared by two triangles (with bit-identical vertices) are computed by the same
+    /// operations with opposite signs, so a ray through the edge hits at least one of
+    /// them. A test that is not (Möller–Trumbore) lets rays slip through the diagonal
+    /// of a quad face, which on subdivided scenes happens for whole families of
+    /// grid-aligned rays (regression test `ray_through_a_shared_diagonal_is_blocked`).
     #[inline]
-    fn hit(&self, origin: DVec3, dir: DVec3, t0: f64, t1: f64) -> bool {
-        let p = dir.cross(self.e2);
-        let det = self.e1.dot(p);
+    fn hit(&self, ray: &ShearedRay, t0: f64, t1: f64) -> bool {
+        let [kx, ky, kz] = ray.axes;
+        let a = self.v[0] - ray.origin;
+        let b = self.v[1] - ray.origin;
+        let c = self.v[2] - ray.origin;
+        let (ax, ay) = (a[kx] - ray.sx * a[kz], a[ky] - ray.sy * a[kz]);
+        let (bx, by) = (b[kx] - ray.sx * b[kz], b[ky] - ray.sy * b[kz]);
+        let (cx, cy) = (c[kx] - ray.sx * c[kz], c[ky] - ray.sy * c[kz]);
+        let u = cx * by - cy * bx;
+        let v = ax * cy - ay * cx;
+        let w = bx * ay - by * ax;
+        // Zero counts as inside (closed triangle), from either side.
+        if (u < 0.0 || v < 0.0 || w < 0.0) && (u > 0.0 || v > 0.0 || w > 0.0) {
+            return false;
+        }
+        let det = u + v + w;
         if det == 0.0 {
             return false;
         }
-        let inv = 1.0 / det;
-        let s = origin - self.v0;
-        let u = s.dot(p) * inv;
-        if !(0.0..=1.0).contains(&u) {
-            return false;
-        }
-        let q = s.cross(self.e1);
-        let v = dir.dot(q) * inv;
-        if v < 0.0 || u + v > 1.0 {
-            return false;
-        }
-        let t = self.e2.dot(q) * inv;
+        let t = (u * (ray.sz * a[kz]) + v * (ray.sz * b[kz]) + w * (ray.sz * c[kz])) / det;
         t >= t0 && t <= t1
+    }
+}
+
+/// A ray prepared for [`OccluderTriangle::hit`]: the axis permutation that makes the
+/// largest direction component z, and the shear that maps the direction to +z.
+struct ShearedRay {
+    origin: DVec3,
+    axes: [usize; 3],
+    sx: f64,
+    sy: f64,
+    sz: f64,
+}
+
+impl ShearedRay {
+    fn new(origin: DVec3, dir: DVec3) -> Self {
+        let kz = dir.abs().max_position();
+        let mut kx = (kz + 1) % 3;
+        let mut ky = (kx + 1) % 3;
+        if dir[kz] < 0.0 {
+            std::mem::swap(&mut kx, &mut ky);
+        }
+        ShearedRay {
+            origin,
+            axes: [kx, ky, kz],
+            sx: dir[kx] / dir[kz],
+            sy: dir[ky] / dir[kz],
+            sz: 1.0 / dir[kz],
+        }
     }
 }
 
@@ -244,10 +272,11 @@ impl Occluders {
         let tmax32 = ((RAY_BACKOFF + len) * (1.0 + 1e-5) + 1e-6) as f32;
         let ray = Ray::new(origin32, dir.as_vec3a(), 0.0, tmax32);
         let tris = &self.tris;
+        let sheared = ShearedRay::new(f, dir);
         // ray_traverse_miss stops at the first primitive whose returned t < tmax.
         !bvh.ray_traverse_miss(ray, |_, id| {
             let tri = &tris[id];
-            if tri.face != ignore.0 && tri.face != ignore.1 && tri.hit(f, dir, t0, t1) {
+            if tri.face != ignore.0 && tri.face != ignore.1 && tri.hit(&sheared, t0, t1) {
                 0.0
             } else {
                 f32::INFINITY
@@ -344,7 +373,7 @@ impl Occluders {
             if rejected > MAX_REJECTED_CANDIDATES {
                 return true;
             }
-            let off = t.normal.dot(t.v0);
+            let off = t.normal.dot(t.v[0]);
             let (mut above, mut below) = (false, false);
             for p in pts {
                 let s = t.normal.dot(*p) - off;
@@ -444,6 +473,55 @@ mod tests {
             // Segment ending before the blocker.
             assert!(!o.occluded(a, dvec3(0.5, 0.5, 0.4) * s, (8, 9)));
         }
+    }
+
+    #[test]
+    fn ray_through_a_shared_diagonal_is_blocked() {
+        // A quad face as two triangles sharing the diagonal (0.25,0.25)–(0.75,0.75) at
+        // z = 0.5; rays crossing the plane exactly on the diagonal, in many directions,
+        // must all be blocked (a non-watertight test lets some through).
+        let q = [
+            dvec3(0.25, 0.25, 0.5),
+            dvec3(0.75, 0.25, 0.5),
+            dvec3(0.75, 0.75, 0.5),
+            dvec3(0.25, 0.75, 0.5),
+        ];
+        let mut t = quad(1, q);
+        t.extend(quad(
+            2,
+            [
+                dvec3(0.0, 0.0, 0.0),
+                dvec3(1.0, 0.0, 0.0),
+                dvec3(1.0, 1.0, 0.0),
+                dvec3(0.0, 1.0, 0.0),
+            ],
+        ));
+        t.extend(quad(
+            3,
+            [
+                dvec3(0.0, 0.0, 1.0),
+                dvec3(0.0, 1.0, 1.0),
+                dvec3(1.0, 1.0, 1.0),
+                dvec3(1.0, 0.0, 1.0),
+            ],
+        ));
+        let o = Occluders::new(t);
+        let mut missed = 0;
+        for a in 0..=16 {
+            for b in 0..=16 {
+                let on = 0.3 + 0.4 * a as f64 / 16.0; // point on the diagonal
+                let from = dvec3(
+                    on - 0.3 + 0.6 * b as f64 / 16.0,
+                    on + 0.1 * (a as f64 - 8.0) / 8.0,
+                    0.0,
+                );
+                let to = 2.0 * dvec3(on, on, 0.5) - from;
+                if !o.occluded(from, to, (2, 3)) {
+                    missed += 1;
+                }
+            }
+        }
+        assert_eq!(missed, 0, "{missed} rays slipped through the diagonal");
     }
 
     #[test]

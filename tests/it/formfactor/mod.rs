@@ -442,6 +442,61 @@ fn blocker_covering_half_the_receiver() {
 }
 
 #[test]
+fn floor_under_a_bottomless_box_stays_dark() {
+    // REFERENCES.md, Cornell box: blocks have no bottom face and stand on the floor,
+    // whose cells under them must receive (and send) no light: every face blocks rays
+    // from both sides. Floor 4 × 4 at z = 0, box [0.25, 0.75]² × [0, 0.5] with four
+    // outward sides and a top, ceiling at z = 1.
+    let (x, y, z) = (
+        dvec3(1.0, 0.0, 0.0),
+        dvec3(0.0, 1.0, 0.0),
+        dvec3(0.0, 0.0, 1.0),
+    );
+    let mut b = Built::default();
+    b.face("floor", DVec3::ZERO, x, y, 4, false);
+    b.face("ceiling", z, y, x, 4, false);
+    let (lo, w, h) = (dvec3(0.25, 0.25, 0.0), 0.5, 0.5);
+    b.face("box_top", lo + z * h, x * w, y * w, 2, false);
+    b.face("box_x0", lo, z * h, y * w, 2, false);
+    b.face("box_x1", lo + x * w, y * w, z * h, 2, false);
+    b.face("box_y0", lo, x * w, z * h, 2, false);
+    b.face("box_y1", lo + y * w, z * h, x * w, 2, false);
+    for (name, cfg) in FormFactorConfig::presets() {
+        for method in Method::ALL {
+            let rows = all_rows(&b.engine(cfg.clone().with_method(method)));
+            for (i, p) in b.patches.patches.iter().enumerate() {
+                let c = p.centroid();
+                let under =
+                    p.group == 0 && (0.25..=0.75).contains(&c.x) && (0.25..=0.75).contains(&c.y);
+                let sum = rows[i].true_sum();
+                if under {
+                    assert_eq!(
+                        sum, 0.0,
+                        "{name} {method}: floor cell {i} under the box sees light"
+                    );
+                } else {
+                    assert!(sum > 0.0, "{name} {method}: patch {i} sees nothing");
+                }
+            }
+            // Nothing sends light to the hidden cells either.
+            for r in &rows {
+                r.for_each_nonzero(|j, _| {
+                    let c = b.patches.patches[j as usize].centroid();
+                    let hidden = b.patches.patches[j as usize].group == 0
+                        && (0.25..=0.75).contains(&c.x)
+                        && (0.25..=0.75).contains(&c.y);
+                    assert!(
+                        !hidden,
+                        "{name} {method}: row {} reaches hidden cell {j}",
+                        r.index
+                    );
+                });
+            }
+        }
+    }
+}
+
+#[test]
 fn obstructed_plates_lose_light() {
     let open = parallel_squares(1.0, 4, false);
     let mut closed = open.clone();
