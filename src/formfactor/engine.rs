@@ -22,6 +22,7 @@
 
 use std::cmp::Reverse;
 use std::collections::BinaryHeap;
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
 
 use glam::DVec3;
@@ -88,8 +89,9 @@ pub struct Scratch {
     pub(crate) perms: Vec<u32>,
     pub(crate) samples: Vec<[f64; 4]>,
     pub(crate) counters: Counters,
-    /// Far-field Gauss points of patch `far_row` by order (index q), filled lazily.
-    far_row: Option<u32>,
+    /// Far-field Gauss points of patch `far_row.1` of engine `far_row.0`, by order
+    /// (index q), filled lazily.
+    far_row: Option<(u64, u32)>,
     far_points: [Option<PatchPoints>; MAX_FAR_ORDER + 1],
 }
 
@@ -111,13 +113,14 @@ impl Scratch {
     /// The order-q far-field points of patch i (computed once per row).
     fn far_points_of(
         &mut self,
+        engine: u64,
         i: u32,
         q: usize,
         g: &PatchGeom,
         gauss: &GaussTable,
     ) -> PatchPoints {
-        if self.far_row != Some(i) {
-            self.far_row = Some(i);
+        if self.far_row != Some((engine, i)) {
+            self.far_row = Some((engine, i));
             self.far_points = [None; MAX_FAR_ORDER + 1];
         }
         *self.far_points[q]
@@ -193,6 +196,9 @@ impl PatchGeom {
 /// Computes form-factor rows; shared by all threads of a process.
 #[derive(Debug)]
 pub struct RowEngine {
+    /// Process-unique id, so a [`Scratch`] moved between engines never reuses
+    /// cached per-row data.
+    id: u64,
     patches: Arc<PatchSet>,
     occluders: Arc<Occluders>,
     cfg: FormFactorConfig,
@@ -223,7 +229,9 @@ impl RowEngine {
             (hi - lo).length()
         };
         let params = cfg.contour_params();
+        static NEXT_ID: AtomicU64 = AtomicU64::new(0);
         RowEngine {
+            id: NEXT_ID.fetch_add(1, Ordering::Relaxed),
             patches,
             occluders,
             cfg,
@@ -389,7 +397,7 @@ impl RowEngine {
         };
         let af = if let Some(q) = far {
             scratch.counters.pairs_far_field += 1;
-            let pts_i = scratch.far_points_of(i, q, gi, self.gauss);
+            let pts_i = scratch.far_points_of(self.id, i, q, gi, self.gauss);
             let pts_j = PatchPoints::new(gj.poly.verts(), gj.area, q, self.gauss);
             farfield::area_form_factor(&pts_i, gi.normal, &pts_j, gj.normal)
         } else {
@@ -670,6 +678,14 @@ mod tests {
         let c = s.counters();
         assert_eq!(c.pairs_evaluated, 1);
         assert_eq!(c.rays_cast, 0);
+    }
+
+    #[test]
+    fn shared_types_are_send_and_sync() {
+        fn check<T: Send + Sync>() {}
+        check::<RowEngine>();
+        check::<Occluders>();
+        check::<Scratch>();
     }
 
     #[test]

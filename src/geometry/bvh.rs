@@ -476,6 +476,32 @@ mod tests {
     }
 
     #[test]
+    fn single_and_degenerate_triangles() {
+        let one = Occluders::new(vec![(
+            0,
+            [
+                dvec3(0.0, 0.0, 1.0),
+                dvec3(1.0, 0.0, 1.0),
+                dvec3(0.0, 1.0, 1.0),
+            ],
+        )]);
+        one.validate();
+        assert_eq!(one.len(), 1);
+        assert!(one.occluded(dvec3(0.2, 0.2, 0.0), dvec3(0.2, 0.2, 2.0), (9, 9)));
+        let flat = Occluders::new(vec![(
+            0,
+            [
+                dvec3(0.0, 0.0, 0.0),
+                dvec3(1.0, 0.0, 0.0),
+                dvec3(2.0, 0.0, 0.0),
+            ],
+        )]);
+        assert!(flat.is_empty());
+        assert!(!flat.occluded(dvec3(0.5, -1.0, 0.0), dvec3(0.5, 1.0, 0.0), (9, 9)));
+        assert!(Occluders::new(Vec::new()).is_empty());
+    }
+
+    #[test]
     fn ray_through_a_shared_diagonal_is_blocked() {
         // A quad face as two triangles sharing the diagonal (0.25,0.25)–(0.75,0.75) at
         // z = 0.5; rays crossing the plane exactly on the diagonal, in many directions,
