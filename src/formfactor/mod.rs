@@ -169,12 +169,14 @@ impl FormFactorConfig {
         }
     }
 
-    /// For reference solutions: quadrature near machine precision, up to 256 rays.
+    /// For reference solutions: quadrature near machine precision, 256 rays for every
+    /// pair that may be occluded (no early stop, so no early-stop bias; see
+    /// [`visibility`]).
     pub fn reference() -> Self {
         FormFactorConfig {
             method: Method::Contour,
             samples: 256,
-            first_batch: 8,
+            first_batch: 256,
             seed: 0,
             top_k: None,
             top_k_tail: TopKTail::Exact,

@@ -17,6 +17,13 @@
 //! otherwise a second, independent batch brings the total to `samples` and the
 //! estimate uses both. Pairs that no occluder can come between cast no rays at all
 //! (decided by [`Occluders::any_between`] before calling here).
+//!
+//! The early stop is biased: a pair with a small shadowed part whose first batch
+//! happens to be all free gets V̄ = 1 (and symmetrically a mostly hidden pair gets 0).
+//! Measured on the Cornell box at ~2000 patches, rows of the block faces: the mean
+//! row sum with first batch 4 / 8 is ~1e-4 above the one without early stop (256 of
+//! 256 rays), the largest single-row difference ~7e-4. The `reference` preset
+//! therefore casts all its rays.
 
 use super::engine::PatchGeom;
 use super::polygon::Polygon;
