@@ -3,8 +3,9 @@
 //!
 //! # Formula
 //! Stokes' theorem applied twice to eq. (1) of the paper (with V = 1) turns the area
-//! integral into a double line integral over the two boundaries (Sparrow 1963; also
-//! Siegel & Howell, "Thermal Radiation Heat Transfer", §4.3 "contour integration"):
+//! integral into a double line integral over the two boundaries (Sparrow 1963,
+//! "A new and simpler formulation for radiative angle factors"; also Siegel & Howell,
+//! "Thermal Radiation Heat Transfer", contour integration):
 //!
 //! ```text
 //! A_i F_ij = (1 / 2π) ∮_{∂i} ∮_{∂j} ln r  dx_i · dx_j
@@ -25,7 +26,7 @@
 //! The integral splits into a sum over edge pairs (a of i, b of j), each
 //! (d_a·d_b) ∫_a ∫_b ln r ds dt with unit edge directions d:
 //! - perpendicular edges contribute exactly zero (d_a·d_b = 0);
-//! - parallel edges (collinear or not) have a closed form, [`parallel_pair`]: with
+//! - parallel edges (collinear or not) have a closed form (`parallel_pair`): with
 //!   u, v the coordinates along the common direction and h the distance between the
 //!   two lines, ∫∫ ½ ln((u − v)² + h²) = Σ± K(u − v) with
 //!   K(x) = (x² − h²)/4 · ln(x² + h²) − 3x²/4 + h x atan(x/h), K'' = ½ ln(x² + h²).
@@ -36,7 +37,7 @@
 //!   and the outer one by Gauss–Legendre panels along a. The integrand is analytic
 //!   except near the point of a closest to b, so panels are graded geometrically
 //!   towards that point and each panel gets the fewest points that meet the error
-//!   target for its distance-to-length ratio ([`panel_order`]); this keeps edges that
+//!   target for its distance-to-length ratio (`panel_order`); this keeps edges that
 //!   share a vertex accurate and well separated edges cheap (2–4 points).
 //!
 //! Numerical conditioning: ln r is replaced by ln(r / r_ref) with r_ref the distance
@@ -44,7 +45,9 @@
 //! integrates to zero over closed contours ((∮dx_i)·(∮dx_j) = 0), so the exact value
 //! is unchanged, but the edge-pair terms no longer carry a large common ln r that
 //! would cancel: lengths are divided by r_ref and the result multiplied by r_ref²,
-//! which also makes the result exactly scale-covariant.
+//! which also makes the result scale-covariant up to rounding.
+//!
+//! Well-separated pairs are cheaper by a tensor Gauss rule, see [`super::farfield`].
 
 use glam::DVec3;
 

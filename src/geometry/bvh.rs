@@ -17,7 +17,7 @@
 //! fractions of d ([`RAY_EPSILON`]), so scaling a scene by 10⁻³ or 10³ changes no
 //! visibility decision.
 //!
-//! Traversal takes closures ([`Occluders::for_each_in_box`]), so the geometry tests
+//! Traversal takes closures (`Occluders::for_each_in_box`), so the geometry tests
 //! stay out of the hierarchy and the accelerator can be swapped (STYLE.md point 6).
 
 use std::time::Duration;
