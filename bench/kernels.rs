@@ -14,7 +14,7 @@ use std::time::Duration;
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use ffstream::formfactor::sampling::SplitMix64;
-use ffstream::formfactor::{FormFactorConfig, Method, RowEngine, Scratch};
+use ffstream::formfactor::{FormFactorConfig, Method, RowEngine, Scratch, TopKTail};
 use ffstream::geometry::bvh::Occluders;
 use ffstream::patch::{Patch, PatchSet};
 use glam::{dvec3, DVec3};
@@ -235,6 +235,14 @@ fn rows(c: &mut Criterion) {
         for (name, cfg) in [
             ("contour_fast", FormFactorConfig::fast()),
             ("contour_accurate", FormFactorConfig::accurate()),
+            (
+                "contour_accurate_top200_tail32",
+                FormFactorConfig {
+                    top_k: Some(200),
+                    top_k_tail: TopKTail::Sampled(32),
+                    ..FormFactorConfig::accurate()
+                },
+            ),
             (
                 "mc16",
                 FormFactorConfig::accurate()
