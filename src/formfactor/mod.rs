@@ -1,1 +1,347 @@
-//! (being written)
+//! Form factors: the kernels and the row engine (DESIGN.md §3).
+//!
+//! F_ij = 1/A_i ∫_Ai ∫_Aj cosθ_i cosθ_j / (π r²) V_ij dA_j dA_i  (eq. (1) of the paper)
+//!
+//! Three methods behind one interface ([`Method`]), selected by [`FormFactorConfig`]:
+//!
+//! | method | unoccluded part | visibility | file |
+//! |---|---|---|---|
+//! | `point` | centroid-to-centroid differential kernel cosθ_i cosθ_j A_j/(π r²) | 1 ray between centroids | [`point`] |
+//! | `mc` | stratified area-to-area Monte Carlo, S point pairs | the same S pairs, 1 ray each | [`mc`] |
+//! | `contour` | exact to `quad_tol`: double contour integral (Stokes), tensor Gauss rule for well-separated pairs | kernel-weighted ratio estimator, adaptive, ≤ S rays | [`contour`], [`farfield`], [`visibility`] |
+//!
+//! [`RowEngine`] computes whole rows: it precomputes per-patch data once, skips pairs
+//! facing away, asks the [`Occluders`](crate::geometry::bvh::Occluders) whether
+//! anything can come between a pair before casting rays, accumulates in f64 and
+//! emits f32 (dense, or top-k with the dropped mass recorded). Every random number is
+//! drawn from a stream seeded by (i, j, seed), so a row is bitwise the same on any
+//! thread or rank.
+
+pub mod contour;
+pub mod engine;
+pub mod farfield;
+pub mod mc;
+pub mod point;
+pub mod polygon;
+pub mod quadrature;
+pub mod sampling;
+pub mod topk;
+pub mod visibility;
+
+use std::fmt;
+use std::str::FromStr;
+
+pub use engine::{Counters, RowEngine, Scratch};
+
+/// Errors of the form-factor layer (configuration only: the kernels themselves do
+/// not fail).
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum FormFactorError {
+    #[error("unknown form-factor method `{0}` (expected point, mc or contour)")]
+    UnknownMethod(String),
+    #[error("unknown form-factor preset `{0}` (expected fast, accurate or reference)")]
+    UnknownPreset(String),
+    #[error("invalid form-factor configuration: {0}")]
+    InvalidConfig(String),
+}
+
+/// The form-factor kernel (a fixed set, STYLE.md point 4).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Method {
+    /// Centroid-to-centroid differential kernel with one ray: the paper's baseline.
+    Point,
+    /// Stratified area-to-area Monte Carlo with `samples` point pairs and rays.
+    Mc,
+    /// Exact unoccluded form factor (double contour integral) times a kernel-weighted
+    /// visibility fraction.
+    Contour,
+}
+
+impl Method {
+    pub const ALL: [Method; 3] = [Method::Point, Method::Mc, Method::Contour];
+
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Method::Point => "point",
+            Method::Mc => "mc",
+            Method::Contour => "contour",
+        }
+    }
+}
+
+impl fmt::Display for Method {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+impl FromStr for Method {
+    type Err = FormFactorError;
+
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        match s.trim().to_ascii_lowercase().as_str() {
+            "point" => Ok(Method::Point),
+            "mc" => Ok(Method::Mc),
+            "contour" => Ok(Method::Contour),
+            _ => Err(FormFactorError::UnknownMethod(s.to_string())),
+        }
+    }
+}
+
+/// Parameters of a form-factor run. Everything that changes the numbers is here and
+/// in [`RowEngine::describe`] (stored in the file header).
+#[derive(Clone, Debug, PartialEq)]
+pub struct FormFactorConfig {
+    pub method: Method,
+    /// Visibility samples per pair: the number of rays (`mc`), the most rays of the
+    /// adaptive visibility estimate (`contour`). `point` always casts one.
+    pub samples: u32,
+    /// `contour`: size of the first batch of visibility rays; when all of them agree
+    /// (all blocked or all free) the pair stops there, else it goes on to `samples`.
+    pub first_batch: u32,
+    /// Seed of the sampling streams (each pair (i, j) draws from hash(i, j, seed)).
+    pub seed: u64,
+    /// Keep only the k largest entries of each row (the rest goes to `Row::dropped`).
+    pub top_k: Option<u32>,
+    /// With `top_k` and `contour`: how the dropped mass of the pairs that cannot make
+    /// the top k is obtained (see [`TopKTail`]).
+    pub top_k_tail: TopKTail,
+    /// `contour`: most Gauss–Legendre points per panel of the outer line integral
+    /// (1..=24); panels needing more are split.
+    pub quad_order: u32,
+    /// `contour`: target relative error of the unoccluded form factor per quadrature
+    /// panel (double contour integral) or per pair (tensor rule for far pairs).
+    pub quad_tol: f64,
+}
+
+/// Top-k rows of the `contour` method: candidates are visited in decreasing order of
+/// their unoccluded value F⁰_ij, an upper bound of the occluded value. Once F⁰ falls
+/// below the k-th largest final value found so far, no later candidate can enter the
+/// top k, so their rays are needed only for the dropped mass (DESIGN.md §3).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TopKTail {
+    /// Cast their rays anyway: `dropped` is the same as for a dense row.
+    Exact,
+    /// Estimate Σ F⁰_j V_j over the tail pairs that need rays from this many of them,
+    /// drawn with probability ∝ F⁰_j (systematic sampling, seeded by (i, seed)):
+    /// unbiased, with an error of order (tail mass)/√samples. The kept entries are
+    /// exactly those of `Exact`; only `dropped` differs.
+    Sampled(u32),
+}
+
+impl fmt::Display for TopKTail {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            TopKTail::Exact => f.write_str("exact"),
+            TopKTail::Sampled(t) => write!(f, "sampled:{t}"),
+        }
+    }
+}
+
+impl FormFactorConfig {
+    /// Cheapest settings: unoccluded part to ~1e-6 relative, 4 visibility rays, top-k
+    /// tail mass sampled from 32 pairs.
+    pub fn fast() -> Self {
+        FormFactorConfig {
+            method: Method::Contour,
+            samples: 4,
+            first_batch: 4,
+            seed: 0,
+            top_k: None,
+            top_k_tail: TopKTail::Sampled(32),
+            quad_order: 6,
+            quad_tol: 1e-6,
+        }
+    }
+
+    /// The default: unoccluded part to ~1e-8 relative (below the f32 storage
+    /// resolution), up to 16 visibility rays.
+    pub fn accurate() -> Self {
+        FormFactorConfig {
+            method: Method::Contour,
+            samples: 16,
+            first_batch: 4,
+            seed: 0,
+            top_k: None,
+            top_k_tail: TopKTail::Exact,
+            quad_order: 8,
+            quad_tol: 1e-8,
+        }
+    }
+
+    /// For reference solutions: quadrature near machine precision, 256 rays for every
+    /// pair that may be occluded (no early stop, so no early-stop bias; see
+    /// [`visibility`]).
+    pub fn reference() -> Self {
+        FormFactorConfig {
+            method: Method::Contour,
+            samples: 256,
+            first_batch: 256,
+            seed: 0,
+            top_k: None,
+            top_k_tail: TopKTail::Exact,
+            quad_order: 16,
+            quad_tol: 1e-13,
+        }
+    }
+
+    /// Every preset, with its name (tests run all of them).
+    pub fn presets() -> [(&'static str, FormFactorConfig); 3] {
+        [
+            ("fast", Self::fast()),
+            ("accurate", Self::accurate()),
+            ("reference", Self::reference()),
+        ]
+    }
+
+    /// A preset by name.
+    ///
+    /// # Errors
+    /// [`FormFactorError::UnknownPreset`] for a name other than fast/accurate/reference.
+    pub fn preset(name: &str) -> Result<Self, FormFactorError> {
+        match name.trim().to_ascii_lowercase().as_str() {
+            "fast" => Ok(Self::fast()),
+            "accurate" => Ok(Self::accurate()),
+            "reference" => Ok(Self::reference()),
+            _ => Err(FormFactorError::UnknownPreset(name.to_string())),
+        }
+    }
+
+    pub fn with_method(mut self, method: Method) -> Self {
+        self.method = method;
+        self
+    }
+
+    pub fn with_samples(mut self, samples: u32) -> Self {
+        self.samples = samples;
+        self
+    }
+
+    pub fn with_seed(mut self, seed: u64) -> Self {
+        self.seed = seed;
+        self
+    }
+
+    pub fn with_top_k(mut self, top_k: Option<u32>) -> Self {
+        self.top_k = top_k;
+        self
+    }
+
+    /// Checks the ranges of every field.
+    ///
+    /// # Errors
+    /// [`FormFactorError::InvalidConfig`] naming the offending field.
+    pub fn validate(&self) -> Result<(), FormFactorError> {
+        let bad = |m: String| Err(FormFactorError::InvalidConfig(m));
+        if self.samples == 0 {
+            return bad("samples must be at least 1".into());
+        }
+        if self.first_batch == 0 {
+            return bad("first_batch must be at least 1".into());
+        }
+        if !(1..=quadrature::MAX_ORDER as u32).contains(&self.quad_order) {
+            return bad(format!(
+                "quad_order {} outside 1..={}",
+                self.quad_order,
+                quadrature::MAX_ORDER
+            ));
+        }
+        if !(self.quad_tol > 0.0 && self.quad_tol <= 0.1) {
+            return bad(format!("quad_tol {} outside (0, 0.1]", self.quad_tol));
+        }
+        if self.top_k == Some(0) {
+            return bad("top_k must be at least 1".into());
+        }
+        if self.top_k_tail == TopKTail::Sampled(0) {
+            return bad("top_k_tail sample count must be at least 1".into());
+        }
+        Ok(())
+    }
+
+    /// `key=value` pairs of every parameter that changes the numbers.
+    pub fn describe(&self) -> String {
+        let top_k = match self.top_k {
+            Some(k) => k.to_string(),
+            None => "none".to_string(),
+        };
+        format!(
+            "method={} samples={} first_batch={} seed={} top_k={} top_k_tail={} quad_order={} quad_tol={:e} ray_epsilon={:e}",
+            self.method,
+            self.samples,
+            self.first_batch,
+            self.seed,
+            top_k,
+            self.top_k_tail,
+            self.quad_order,
+            self.quad_tol,
+            crate::geometry::bvh::RAY_EPSILON
+        )
+    }
+
+    pub(crate) fn contour_params(&self) -> contour::ContourParams {
+        contour::ContourParams {
+            max_order: self.quad_order as usize,
+            tol: self.quad_tol,
+        }
+    }
+}
+
+impl Default for FormFactorConfig {
+    fn default() -> Self {
+        Self::accurate()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn method_round_trips() {
+        for m in Method::ALL {
+            assert_eq!(m.to_string().parse::<Method>(), Ok(m));
+        }
+        assert_eq!("Contour".parse::<Method>(), Ok(Method::Contour));
+        assert!(matches!(
+            "ray".parse::<Method>(),
+            Err(FormFactorError::UnknownMethod(_))
+        ));
+    }
+
+    #[test]
+    fn presets_validate() {
+        for (name, cfg) in FormFactorConfig::presets() {
+            cfg.validate().unwrap();
+            assert_eq!(FormFactorConfig::preset(name), Ok(cfg));
+        }
+        assert!(FormFactorConfig::preset("slow").is_err());
+        assert!(FormFactorConfig::default()
+            .with_samples(0)
+            .validate()
+            .is_err());
+        let c = FormFactorConfig {
+            quad_order: 99,
+            ..Default::default()
+        };
+        assert!(c.validate().is_err());
+        assert!(FormFactorConfig::default()
+            .with_top_k(Some(0))
+            .validate()
+            .is_err());
+    }
+
+    #[test]
+    fn describe_names_every_parameter() {
+        let d = FormFactorConfig::accurate().with_top_k(Some(12)).describe();
+        for key in [
+            "method=contour",
+            "samples=16",
+            "seed=0",
+            "top_k=12",
+            "quad_order=8",
+            "quad_tol=",
+        ] {
+            assert!(d.contains(key), "{d}");
+        }
+    }
+}

@@ -1,3 +1,5 @@
-//! (being written)
+//! Geometry: subdivision of scene faces into patches ([`subdivide`]) and the bounding
+//! volume hierarchy used for visibility ([`bvh`]).
 
+pub mod bvh;
 pub mod subdivide;

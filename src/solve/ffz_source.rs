@@ -1,12 +1,6 @@
 //! [`RowSource`] for the `.ffz` reader: the solver reads a file row by row through
 //! its memory map, never loading the matrix.
 //!
-//! INTEGRATION NOTE (solve helper → integrator): this file is NOT compiled yet. It
-//! was written before `crate::ffz::FfzReader` existed, against the API announced in
-//! INTERFACES.md (`scan` in file order, `row(i) -> Option<Row>`, `meta().patches`).
-//! To enable it: add `mod ffz_source;` in `src/solve/mod.rs`, adjust the two calls
-//! marked ADAPT to the reader's final signatures, and run
-//! `cargo test --no-default-features --test it solve`.
 
 use crate::ffz::FfzReader;
 use crate::patch::PatchSet;
@@ -25,10 +19,9 @@ impl RowSource for FfzReader {
         // later rows are passed over without work. (If the reader's scan can stop
         // early on a callback error, stop it instead.)
         let mut failed: Option<SolveError> = None;
-        // ADAPT: the reader's scan signature (closure taking `Row` or `&Row`).
-        FfzReader::scan(self, |row: Row| {
+        FfzReader::scan(self, |row: &Row| {
             if failed.is_none() {
-                if let Err(e) = f(&row) {
+                if let Err(e) = f(row) {
                     failed = Some(e);
                 }
             }
@@ -41,7 +34,6 @@ impl RowSource for FfzReader {
     }
 
     fn row(&self, i: u32) -> Result<Option<Row>, SolveError> {
-        // ADAPT: whether `row` returns `Option<Row>` or `Result<Option<Row>, FfzError>`.
         FfzReader::row(self, i).map_err(SolveError::source_error)
     }
 }

@@ -42,6 +42,7 @@ mod check;
 mod csv;
 mod energy;
 mod error;
+mod ffz_source;
 mod gauss_seidel;
 mod jacobi;
 mod output;

@@ -8,6 +8,7 @@ mod ffz_kill;
 mod ffz_python;
 mod ffz_roundtrip;
 mod ffz_tools;
+mod formfactor;
 mod mpi;
 mod render;
 mod scene;

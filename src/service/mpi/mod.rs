@@ -94,10 +94,10 @@ pub fn agree_on_job(ctx: &MpiContext, job: Result<ComputeJob, String>) -> Result
     };
     let mut verdict = [0u8; 1]; // 1 = go
     if ctx.rank() == 0 {
-        let mut all = vec![[0u64; 3]; ctx.size() as usize];
-        root.gather_into_root(&mine, &mut all[..]);
+        let mut all = vec![0u64; 3 * ctx.size() as usize];
+        root.gather_into_root(&mine[..], &mut all[..]);
         let mut problem: Option<ServiceError> = job.as_ref().err().map(|m| ServiceError::Setup { rank: 0, message: m.clone() });
-        for (rank, s) in all.iter().enumerate().skip(1) {
+        for (rank, s) in all.chunks_exact(3).enumerate().skip(1) {
             let rank = rank as i32;
             let e = if s[0] == 0 {
                 let (bytes, _) = world.process_at_rank(rank).receive_vec_with_tag::<u8>(protocol::SETUP);
@@ -124,7 +124,7 @@ pub fn agree_on_job(ctx: &MpiContext, job: Result<ComputeJob, String>) -> Result
             None => job.map_err(|m| ServiceError::Setup { rank: 0, message: m }),
         }
     } else {
-        root.gather_into(&mine);
+        root.gather_into(&mine[..]);
         if let Err(m) = &job {
             root.send_with_tag(m.as_bytes(), protocol::SETUP);
         }

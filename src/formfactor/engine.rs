@@ -1,0 +1,711 @@
+//! The row engine: computes row i of the form-factor matrix, F_ij for every j.
+//!
+//! One [`RowEngine`] is shared (it is `Send + Sync`) by all threads of a process; each
+//! thread brings its own [`Scratch`] (buffers and counters). Per-patch data (plane,
+//! edges, sampling map, centroid) is computed once in [`RowEngine::new`].
+//!
+//! Per pair (i, j), cheapest test first:
+//! 1. j = i → 0 (planar patches do not see themselves);
+//! 2. facing away → 0 without any kernel work: every corner of j on or behind the plane
+//!    of i, or every corner of i on or behind the plane of j (this includes coplanar
+//!    pairs);
+//! 3. the method's kernel ([`super::contour`], [`super::mc`], [`super::point`]),
+//!    with rays only when [`Occluders::any_between`] says something can come between.
+//!
+//! Determinism: a row depends only on (i, patches, occluders, config). Random streams
+//! are seeded by (i, j, seed), every sum runs in a fixed order, and nothing is shared
+//! between threads except read-only data, so the same row comes out bitwise equal on
+//! any thread, in any order, on any rank.
+//!
+//! Counters live in the [`Scratch`] (no atomics in the hot loop); a caller that uses
+//! several scratches sums them with [`Counters::add`].
+
+use std::cmp::Reverse;
+use std::collections::BinaryHeap;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::Arc;
+
+use glam::DVec3;
+
+use super::contour::{area_form_factor_edges, ContourParams};
+use super::farfield::{self, far_order, PatchPoints, MAX_FAR_ORDER};
+use super::polygon::{EdgeSet, Polygon};
+use super::quadrature::{gauss_table, GaussTable};
+use super::sampling::{pair_seed, PatchMap, SplitMix64};
+use super::{mc, point, topk, visibility, FormFactorConfig, Method, TopKTail};
+use crate::geometry::bvh::Occluders;
+use crate::patch::PatchSet;
+use crate::rows::{Row, RowValues};
+
+/// Plane tolerance of the facing and clipping tests, relative to the diagonal of the
+/// patches' bounding box (so it scales with the scene).
+const PLANE_RELATIVE_TOLERANCE: f64 = 1e-10;
+
+/// Work done, for reports and benchmarks. Summed over scratches by the caller.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Counters {
+    /// Rows computed.
+    pub rows: u64,
+    /// Pairs (i ≠ j) whose kernel was evaluated.
+    pub pairs_evaluated: u64,
+    /// Pairs skipped without kernel work because one faces away from the other
+    /// (including coplanar pairs).
+    pub pairs_facing_away: u64,
+    /// `contour` pairs far enough apart for the tensor Gauss rule
+    /// ([`super::farfield`]) instead of the contour integral.
+    pub pairs_far_field: u64,
+    /// Top-k tail pairs (sampled mode) whose visibility was never needed.
+    pub pairs_topk_tail_skipped: u64,
+    /// Evaluated pairs between which no occluder can come (no rays needed).
+    pub pairs_unoccludable: u64,
+    /// Shadow rays cast.
+    pub rays_cast: u64,
+    /// Rays the per-pair budget allowed but that were not cast: all of them for pairs
+    /// no occluder can come between, the rest of the budget when the adaptive
+    /// estimate stopped after its first batch (`contour`), samples with a
+    /// non-positive kernel (`mc`).
+    pub rays_skipped: u64,
+}
+
+impl Counters {
+    pub fn add(&mut self, o: &Counters) {
+        self.rows += o.rows;
+        self.pairs_evaluated += o.pairs_evaluated;
+        self.pairs_facing_away += o.pairs_facing_away;
+        self.pairs_far_field += o.pairs_far_field;
+        self.pairs_topk_tail_skipped += o.pairs_topk_tail_skipped;
+        self.pairs_unoccludable += o.pairs_unoccludable;
+        self.rays_cast += o.rays_cast;
+        self.rays_skipped += o.rays_skipped;
+    }
+}
+
+/// Per-thread working memory of [`RowEngine::compute_row`].
+#[derive(Debug, Default)]
+pub struct Scratch {
+    pub(crate) values: Vec<f64>,
+    pub(crate) order: Vec<u32>,
+    pub(crate) flags: Vec<bool>,
+    pub(crate) perms: Vec<u32>,
+    pub(crate) samples: Vec<[f64; 4]>,
+    pub(crate) counters: Counters,
+    /// Far-field Gauss points of patch `far_row.1` of engine `far_row.0`, by order
+    /// (index q), filled lazily.
+    far_row: Option<(u64, u32)>,
+    far_points: [Option<PatchPoints>; MAX_FAR_ORDER + 1],
+}
+
+impl Scratch {
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Counters accumulated since creation or the last [`Scratch::take_counters`].
+    pub fn counters(&self) -> Counters {
+        self.counters
+    }
+
+    /// Returns the counters and resets them.
+    pub fn take_counters(&mut self) -> Counters {
+        std::mem::take(&mut self.counters)
+    }
+
+    /// The order-q far-field points of patch i (computed once per row).
+    fn far_points_of(
+        &mut self,
+        engine: u64,
+        i: u32,
+        q: usize,
+        g: &PatchGeom,
+        gauss: &GaussTable,
+    ) -> PatchPoints {
+        if self.far_row != Some((engine, i)) {
+            self.far_row = Some((engine, i));
+            self.far_points = [None; MAX_FAR_ORDER + 1];
+        }
+        *self.far_points[q]
+            .get_or_insert_with(|| PatchPoints::new(g.poly.verts(), g.area, q, gauss))
+    }
+}
+
+/// Everything the kernels need about one patch, computed once.
+#[derive(Clone, Debug)]
+pub(crate) struct PatchGeom {
+    pub poly: Polygon,
+    pub edges: EdgeSet,
+    pub normal: DVec3,
+    /// normal · x for x on the patch's plane.
+    pub offset: f64,
+    pub centroid: DVec3,
+    pub area: f64,
+    /// Longest edge.
+    pub size: f64,
+    /// Largest distance from the centroid to a corner.
+    pub radius: f64,
+    pub face: u32,
+    pub map: PatchMap,
+}
+
+impl PatchGeom {
+    fn new(p: &crate::patch::Patch) -> Self {
+        let poly = Polygon::new(p.corners());
+        let edges = EdgeSet::from_polygon(&poly);
+        let size = edges.edges().iter().map(|e| e.len).fold(0.0, f64::max);
+        let centroid = p.centroid();
+        let radius = p
+            .corners()
+            .iter()
+            .map(|c| (*c - centroid).length())
+            .fold(0.0, f64::max);
+        PatchGeom {
+            poly,
+            edges,
+            normal: p.normal,
+            offset: p.normal.dot(centroid),
+            centroid,
+            area: p.area,
+            size,
+            radius,
+            face: p.face,
+            map: PatchMap::new(p.corners(), p.area),
+        }
+    }
+
+    /// Largest and smallest signed distance of this patch's corners to `other`'s plane.
+    #[inline]
+    fn extent_wrt(&self, other: &PatchGeom) -> (f64, f64) {
+        let mut lo = f64::INFINITY;
+        let mut hi = f64::NEG_INFINITY;
+        for c in self.poly.verts() {
+            let d = other.normal.dot(*c) - other.offset;
+            lo = lo.min(d);
+            hi = hi.max(d);
+        }
+        (lo, hi)
+    }
+
+    /// A usable patch: positive finite area and a unit normal.
+    fn is_valid(&self) -> bool {
+        self.area > 0.0
+            && self.area.is_finite()
+            && (self.normal.length() - 1.0).abs() < 1e-6
+            && self.poly.n >= 3
+    }
+}
+
+/// Computes form-factor rows; shared by all threads of a process.
+#[derive(Debug)]
+pub struct RowEngine {
+    /// Process-unique id, so a [`Scratch`] moved between engines never reuses
+    /// cached per-row data.
+    id: u64,
+    patches: Arc<PatchSet>,
+    occluders: Arc<Occluders>,
+    cfg: FormFactorConfig,
+    geom: Vec<PatchGeom>,
+    valid: Vec<bool>,
+    gauss: &'static GaussTable,
+    params: ContourParams,
+    tol: f64,
+}
+
+impl RowEngine {
+    /// Precomputes per-patch data. Patches with zero area (or no proper normal) get
+    /// zero rows and columns. The configuration should have passed
+    /// [`FormFactorConfig::validate`]; out-of-range values are clamped.
+    pub fn new(patches: Arc<PatchSet>, occluders: Arc<Occluders>, cfg: FormFactorConfig) -> Self {
+        let geom: Vec<PatchGeom> = patches.patches.iter().map(PatchGeom::new).collect();
+        let valid = geom.iter().map(PatchGeom::is_valid).collect();
+        let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
+        for g in &geom {
+            for c in g.poly.verts() {
+                lo = lo.min(*c);
+                hi = hi.max(*c);
+            }
+        }
+        let diag = if geom.is_empty() {
+            1.0
+        } else {
+            (hi - lo).length()
+        };
+        let params = cfg.contour_params();
+        static NEXT_ID: AtomicU64 = AtomicU64::new(0);
+        RowEngine {
+            id: NEXT_ID.fetch_add(1, Ordering::Relaxed),
+            patches,
+            occluders,
+            cfg,
+            geom,
+            valid,
+            gauss: gauss_table(),
+            params,
+            tol: PLANE_RELATIVE_TOLERANCE * diag,
+        }
+    }
+
+    pub fn patches(&self) -> &Arc<PatchSet> {
+        &self.patches
+    }
+
+    pub fn occluders(&self) -> &Arc<Occluders> {
+        &self.occluders
+    }
+
+    pub fn config(&self) -> &FormFactorConfig {
+        &self.cfg
+    }
+
+    /// Number of patches (rows and columns).
+    pub fn n(&self) -> usize {
+        self.geom.len()
+    }
+
+    /// The parameters that determine the numbers, for the file header.
+    pub fn describe(&self) -> String {
+        format!(
+            "{} occluder_triangles={}",
+            self.cfg.describe(),
+            self.occluders.len()
+        )
+    }
+
+    /// Row i: dense, or the k largest entries when `top_k` is set. Values are
+    /// accumulated in f64 and stored as f32.
+    ///
+    /// # Panics
+    /// If `i` is not a patch index (a caller bug, not an input error).
+    pub fn compute_row(&self, i: u32, scratch: &mut Scratch) -> Row {
+        assert!(
+            (i as usize) < self.n(),
+            "row {i} out of range (n = {})",
+            self.n()
+        );
+        if let (Some(k), Method::Contour, TopKTail::Sampled(t)) =
+            (self.cfg.top_k, self.cfg.method, self.cfg.top_k_tail)
+        {
+            return self.top_k_row_bounded(i, k as usize, t as usize, scratch);
+        }
+        let mut values = std::mem::take(&mut scratch.values);
+        self.row_values(i, scratch, &mut values);
+        let row = match self.cfg.top_k {
+            Some(k) => topk::top_k_row(i, &values, k as usize, &mut scratch.order),
+            None => Row::dense(i, values.iter().map(|&v| v as f32).collect()),
+        };
+        scratch.values = values;
+        row
+    }
+
+    /// Row i in f64 (dense, before the f32 conversion and top-k), into `out`.
+    ///
+    /// # Panics
+    /// If `i` is not a patch index.
+    pub fn row_values(&self, i: u32, scratch: &mut Scratch, out: &mut Vec<f64>) {
+        let n = self.n();
+        assert!((i as usize) < n, "row {i} out of range (n = {n})");
+        out.clear();
+        out.resize(n, 0.0);
+        scratch.counters.rows += 1;
+        if !self.valid[i as usize] {
+            return;
+        }
+        for (j, v) in out.iter_mut().enumerate() {
+            *v = self.pair_value(i, j as u32, scratch);
+        }
+    }
+
+    /// F_ij in f64.
+    ///
+    /// # Panics
+    /// If `i` or `j` is not a patch index.
+    pub fn pair_value(&self, i: u32, j: u32, scratch: &mut Scratch) -> f64 {
+        let (iu, ju) = (i as usize, j as usize);
+        if iu == ju || !self.valid[iu] || !self.valid[ju] {
+            return 0.0;
+        }
+        let gi = &self.geom[iu];
+        let gj = &self.geom[ju];
+        if self.cfg.method == Method::Point {
+            return point::pair(gi, gj, &self.occluders, &mut scratch.counters);
+        }
+        let Some(extent) = self.facing(gi, gj, scratch) else {
+            return 0.0;
+        };
+        match self.cfg.method {
+            Method::Mc => mc::pair(i, j, gi, gj, &self.occluders, &self.cfg, scratch),
+            _ => match self.contour_unoccluded(i, gi, gj, extent, scratch) {
+                Some(u) => u.f * self.contour_visibility(i, j, gi, gj, &u, scratch),
+                None => 0.0,
+            },
+        }
+    }
+
+    /// None when one patch faces away from the other (every corner on or behind the
+    /// other's plane; coplanar pairs included), else the lowest signed distance of
+    /// i's corners to j's plane and of j's corners to i's plane. Counts the pair.
+    #[inline]
+    fn facing(&self, gi: &PatchGeom, gj: &PatchGeom, scratch: &mut Scratch) -> Option<(f64, f64)> {
+        let (j_lo, j_hi) = gj.extent_wrt(gi);
+        let (i_lo, i_hi) = gi.extent_wrt(gj);
+        if j_hi <= self.tol || i_hi <= self.tol {
+            scratch.counters.pairs_facing_away += 1;
+            return None;
+        }
+        scratch.counters.pairs_evaluated += 1;
+        Some((i_lo, j_lo))
+    }
+
+    /// The polygons clipped to each other's front half-space (only when part of one
+    /// lies behind the other's plane).
+    fn clipped(
+        &self,
+        gi: &PatchGeom,
+        gj: &PatchGeom,
+        (i_lo, j_lo): (f64, f64),
+    ) -> (Polygon, Polygon) {
+        let pi = if i_lo < -self.tol {
+            gi.poly.clip_front(gj.normal, gj.offset, self.tol)
+        } else {
+            gi.poly
+        };
+        let pj = if j_lo < -self.tol {
+            gj.poly.clip_front(gi.normal, gi.offset, self.tol)
+        } else {
+            gj.poly
+        };
+        (pi, pj)
+    }
+
+    /// `contour`, unoccluded part: F⁰_ij on the mutually clipped polygons, by the
+    /// tensor Gauss rule when the pair is far apart and needs no clipping
+    /// ([`super::farfield`]), else by the double contour integral. None when ≤ 0.
+    fn contour_unoccluded(
+        &self,
+        i: u32,
+        gi: &PatchGeom,
+        gj: &PatchGeom,
+        extent: (f64, f64),
+        scratch: &mut Scratch,
+    ) -> Option<Unoccluded> {
+        let clip = extent.0 < -self.tol || extent.1 < -self.tol;
+        let (pi, pj) = self.clipped(gi, gj, extent);
+        let distance = (gi.centroid - gj.centroid).length();
+        let gap = distance - gi.radius - gj.radius;
+        let far = if clip {
+            None
+        } else {
+            far_order(gap, gi.radius.max(gj.radius), self.params.tol)
+        };
+        let af = if let Some(q) = far {
+            scratch.counters.pairs_far_field += 1;
+            let pts_i = scratch.far_points_of(self.id, i, q, gi, self.gauss);
+            let pts_j = PatchPoints::new(gj.poly.verts(), gj.area, q, self.gauss);
+            farfield::area_form_factor(&pts_i, gi.normal, &pts_j, gj.normal)
+        } else {
+            let ei = if extent.0 < -self.tol {
+                EdgeSet::from_polygon(&pi)
+            } else {
+                gi.edges
+            };
+            let ej = if extent.1 < -self.tol {
+                EdgeSet::from_polygon(&pj)
+            } else {
+                gj.edges
+            };
+            let r_ref = distance.max(gi.size).max(gj.size);
+            area_form_factor_edges(&ei, &ej, r_ref, self.gauss, self.params)
+        };
+        let f = af / gi.area;
+        if f.is_nan() || f <= 0.0 {
+            return None;
+        }
+        let needs_rays = self.occluders.any_between(
+            pi.verts(),
+            gi.normal,
+            pj.verts(),
+            gj.normal,
+            (gi.face, gj.face),
+        );
+        Some(Unoccluded {
+            f,
+            pi,
+            pj,
+            needs_rays,
+        })
+    }
+
+    /// `contour`, visibility fraction of a pair (1 without rays when nothing can come
+    /// between the polygons).
+    fn contour_visibility(
+        &self,
+        i: u32,
+        j: u32,
+        gi: &PatchGeom,
+        gj: &PatchGeom,
+        u: &Unoccluded,
+        scratch: &mut Scratch,
+    ) -> f64 {
+        if !u.needs_rays {
+            scratch.counters.pairs_unoccludable += 1;
+            scratch.counters.rays_skipped += self.cfg.samples as u64;
+            return 1.0;
+        }
+        visibility::fraction(
+            i,
+            j,
+            gi,
+            gj,
+            &u.pi,
+            &u.pj,
+            &self.occluders,
+            &self.cfg,
+            scratch,
+        )
+    }
+
+    /// Top-k row of the `contour` method with a sampled tail ([`TopKTail::Sampled`]).
+    ///
+    /// 1. F⁰_ij for every j, and whether the pair needs rays;
+    /// 2. candidates in decreasing F⁰ (ties: smaller column first); each gets its
+    ///    visibility and enters a min-heap of the k best final values, until F⁰ falls
+    ///    below the heap's worst value: F ≤ F⁰, so no later candidate can enter;
+    /// 3. dropped = entries pushed out of the heap (exact) + tail pairs that need no
+    ///    rays (exact, F = F⁰) + the estimate of Σ F⁰_j V_j over the tail pairs that
+    ///    need rays, from `t` of them drawn by systematic sampling ∝ F⁰_j (all of them
+    ///    when there are at most `t`).
+    fn top_k_row_bounded(&self, i: u32, k: usize, t: usize, scratch: &mut Scratch) -> Row {
+        let n = self.n();
+        scratch.counters.rows += 1;
+        let mut f0 = std::mem::take(&mut scratch.values);
+        let mut order = std::mem::take(&mut scratch.order);
+        let mut rays = std::mem::take(&mut scratch.flags);
+        f0.clear();
+        f0.resize(n, 0.0);
+        rays.clear();
+        rays.resize(n, false);
+        order.clear();
+        let iu = i as usize;
+        if self.valid[iu] {
+            let gi = &self.geom[iu];
+            for j in 0..n {
+                let gj = &self.geom[j];
+                if j == iu || !self.valid[j] {
+                    continue;
+                }
+                let Some(extent) = self.facing(gi, gj, scratch) else {
+                    continue;
+                };
+                if let Some(u) = self.contour_unoccluded(i, gi, gj, extent, scratch) {
+                    f0[j] = u.f;
+                    rays[j] = u.needs_rays;
+                    if !u.needs_rays {
+                        scratch.counters.pairs_unoccludable += 1;
+                        scratch.counters.rays_skipped += self.cfg.samples as u64;
+                    }
+                    order.push(j as u32);
+                }
+            }
+        }
+        order.sort_unstable_by(|a, b| f0[*b as usize].total_cmp(&f0[*a as usize]).then(a.cmp(b)));
+
+        // Min-heap of (final value bits, Reverse(column)): the top is the worst kept
+        // entry (smallest value; among equal values the larger column). Bit patterns of
+        // non-negative f64 order like the values.
+        let mut heap: BinaryHeap<Reverse<(u64, Reverse<u32>)>> = BinaryHeap::with_capacity(k + 1);
+        let mut dropped = 0.0f64;
+        let mut next = order.len();
+        for (pos, &j) in order.iter().enumerate() {
+            let ju = j as usize;
+            if heap.len() == k {
+                if let Some(Reverse((worst, _))) = heap.peek() {
+                    if f0[ju] < f64::from_bits(*worst) {
+                        next = pos;
+                        break;
+                    }
+                }
+            }
+            let value = if rays[ju] {
+                f0[ju] * self.visibility_of(i, j, scratch)
+            } else {
+                f0[ju]
+            };
+            heap.push(Reverse((value.to_bits(), Reverse(j))));
+            if heap.len() > k {
+                if let Some(Reverse((bits, _))) = heap.pop() {
+                    dropped += f64::from_bits(bits);
+                }
+            }
+        }
+        // The tail, in column order.
+        let tail = &mut order[next..];
+        tail.sort_unstable();
+        let mut with_rays_mass = 0.0;
+        let mut with_rays = 0usize;
+        for &j in tail.iter() {
+            if rays[j as usize] {
+                with_rays_mass += f0[j as usize];
+                with_rays += 1;
+            } else {
+                dropped += f0[j as usize];
+            }
+        }
+        if with_rays <= t {
+            for &j in tail.iter() {
+                if rays[j as usize] {
+                    dropped += f0[j as usize] * self.visibility_of(i, j, scratch);
+                }
+            }
+        } else {
+            // Systematic sampling with probability ∝ F⁰: points u0 + s·step on the
+            // cumulative F⁰ axis, step = mass / t; the estimate step · Σ V is unbiased.
+            let step = with_rays_mass / t as f64;
+            let mut rng = SplitMix64::new(pair_seed(self.cfg.seed, i, u32::MAX, STREAM_TAIL));
+            let mut point = rng.next_f64() * step;
+            let mut cumulative = 0.0;
+            let mut estimate = 0.0;
+            for &j in tail.iter() {
+                let ju = j as usize;
+                if !rays[ju] {
+                    continue;
+                }
+                cumulative += f0[ju];
+                let mut hits = 0u32;
+                while point < cumulative && hits < t as u32 {
+                    hits += 1;
+                    point += step;
+                }
+                if hits > 0 {
+                    estimate += hits as f64 * self.visibility_of(i, j, scratch);
+                } else {
+                    scratch.counters.pairs_topk_tail_skipped += 1;
+                    scratch.counters.rays_skipped += self.cfg.samples as u64;
+                }
+            }
+            dropped += estimate * step;
+        }
+        let mut kept: Vec<(u32, f32)> = heap
+            .into_iter()
+            .map(|Reverse((bits, Reverse(j)))| (j, f64::from_bits(bits) as f32))
+            .filter(|&(_, v)| v > 0.0)
+            .collect();
+        kept.sort_unstable_by_key(|&(j, _)| j);
+        // Entries whose visibility came out 0 carry no mass; they stay out of the row.
+        scratch.values = f0;
+        scratch.order = order;
+        scratch.flags = rays;
+        Row {
+            index: i,
+            values: RowValues::Sparse {
+                cols: kept.iter().map(|&(j, _)| j).collect(),
+                vals: kept.iter().map(|&(_, v)| v).collect(),
+            },
+            dropped: dropped as f32,
+        }
+    }
+
+    /// Visibility fraction of pair (i, j) from scratch (re-clipping the polygons).
+    fn visibility_of(&self, i: u32, j: u32, scratch: &mut Scratch) -> f64 {
+        let (gi, gj) = (&self.geom[i as usize], &self.geom[j as usize]);
+        let (j_lo, _) = gj.extent_wrt(gi);
+        let (i_lo, _) = gi.extent_wrt(gj);
+        let (pi, pj) = self.clipped(gi, gj, (i_lo, j_lo));
+        visibility::fraction(i, j, gi, gj, &pi, &pj, &self.occluders, &self.cfg, scratch)
+    }
+}
+
+/// Unoccluded part of a `contour` pair.
+struct Unoccluded {
+    f: f64,
+    pi: Polygon,
+    pj: Polygon,
+    needs_rays: bool,
+}
+
+/// Stream tag of the top-k tail sampling (see [`pair_seed`]).
+const STREAM_TAIL: u64 = 3;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::patch::Patch;
+    use glam::dvec3;
+
+    fn square(origin: DVec3, u: DVec3, v: DVec3, face: u32) -> Patch {
+        let n = u.cross(v);
+        Patch {
+            corners: [origin, origin + u, origin + u + v, origin + v],
+            n_corners: 4,
+            normal: n.normalize(),
+            area: n.length(),
+            group: 0,
+            face,
+            rho: [0.5; 3],
+            emission: [0.0; 3],
+        }
+    }
+
+    /// Two unit squares facing each other at distance 1 (Howell C-11, X = Y = 1).
+    fn facing_pair() -> PatchSet {
+        PatchSet {
+            patches: vec![
+                square(
+                    dvec3(0.0, 0.0, 0.0),
+                    dvec3(1.0, 0.0, 0.0),
+                    dvec3(0.0, 1.0, 0.0),
+                    0,
+                ),
+                square(
+                    dvec3(0.0, 0.0, 1.0),
+                    dvec3(0.0, 1.0, 0.0),
+                    dvec3(1.0, 0.0, 0.0),
+                    1,
+                ),
+            ],
+            groups: vec!["g".into()],
+        }
+    }
+
+    #[test]
+    fn contour_single_pair_matches_howell() {
+        let e = RowEngine::new(
+            Arc::new(facing_pair()),
+            Arc::new(Occluders::empty()),
+            FormFactorConfig::accurate(),
+        );
+        let mut s = Scratch::new();
+        let f = e.pair_value(0, 1, &mut s);
+        assert!((f - 0.19982489570).abs() < 1e-10, "{f}");
+        assert_eq!(e.pair_value(0, 0, &mut s), 0.0);
+        let c = s.counters();
+        assert_eq!(c.pairs_evaluated, 1);
+        assert_eq!(c.rays_cast, 0);
+    }
+
+    #[test]
+    fn shared_types_are_send_and_sync() {
+        fn check<T: Send + Sync>() {}
+        check::<RowEngine>();
+        check::<Occluders>();
+        check::<Scratch>();
+    }
+
+    #[test]
+    fn facing_away_costs_nothing() {
+        let mut ps = facing_pair();
+        // Turn the upper square around: it now faces up, away from the lower one.
+        ps.patches[1] = square(
+            dvec3(0.0, 0.0, 1.0),
+            dvec3(1.0, 0.0, 0.0),
+            dvec3(0.0, 1.0, 0.0),
+            1,
+        );
+        let e = RowEngine::new(
+            Arc::new(ps),
+            Arc::new(Occluders::empty()),
+            FormFactorConfig::accurate(),
+        );
+        let mut s = Scratch::new();
+        assert_eq!(e.pair_value(0, 1, &mut s), 0.0);
+        assert_eq!(s.counters().pairs_facing_away, 1);
+        assert_eq!(s.counters().pairs_evaluated, 0);
+    }
+}

@@ -1,0 +1,223 @@
+//! Small fixed-capacity planar polygons (patches and their clipped parts) and
+//! clipping against a plane, without heap allocation in the hot loop.
+//!
+//! A patch is a triangle or a convex quad; clipping a convex polygon by one plane
+//! adds at most one vertex, and the `contour` kernel clips each polygon by one plane,
+//! so [`MAX_VERTS`] = 8 leaves room to spare.
+
+use glam::DVec3;
+
+/// Capacity of a [`Polygon`].
+pub const MAX_VERTS: usize = 8;
+
+/// A closed planar polygon; the first `n` entries of `v` count, in contour order.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Polygon {
+    pub v: [DVec3; MAX_VERTS],
+    pub n: usize,
+}
+
+impl Polygon {
+    /// A polygon from up to [`MAX_VERTS`] vertices (extra vertices are ignored).
+    pub fn new(pts: &[DVec3]) -> Self {
+        let mut v = [DVec3::ZERO; MAX_VERTS];
+        let n = pts.len().min(MAX_VERTS);
+        v[..n].copy_from_slice(&pts[..n]);
+        Polygon { v, n }
+    }
+
+    /// The vertices that count.
+    #[inline]
+    pub fn verts(&self) -> &[DVec3] {
+        &self.v[..self.n]
+    }
+
+    /// Vector area (½ Σ v_k × v_{k+1}): its length is the area, its direction the
+    /// normal of the side the contour winds counter-clockwise around.
+    pub fn vector_area(&self) -> DVec3 {
+        if self.n < 3 {
+            return DVec3::ZERO;
+        }
+        let o = self.v[0];
+        let mut s = DVec3::ZERO;
+        for k in 1..self.n - 1 {
+            s += (self.v[k] - o).cross(self.v[k + 1] - o);
+        }
+        0.5 * s
+    }
+
+    /// Mean of the vertices (a point inside a convex polygon).
+    pub fn vertex_mean(&self) -> DVec3 {
+        let mut s = DVec3::ZERO;
+        for p in self.verts() {
+            s += *p;
+        }
+        s / self.n.max(1) as f64
+    }
+
+    /// Keeps the part where `normal·x − offset ≥ 0` (Sutherland–Hodgman against one
+    /// plane). Signed distances within `tol` of zero count as on the plane, so a
+    /// polygon touching the plane along an edge is kept whole and not split into
+    /// slivers.
+    pub fn clip_front(&self, normal: DVec3, offset: f64, tol: f64) -> Polygon {
+        let mut out = Polygon {
+            v: [DVec3::ZERO; MAX_VERTS],
+            n: 0,
+        };
+        if self.n == 0 {
+            return out;
+        }
+        let dist = |p: DVec3| {
+            let d = normal.dot(p) - offset;
+            if d.abs() <= tol {
+                0.0
+            } else {
+                d
+            }
+        };
+        let mut prev = self.v[self.n - 1];
+        let mut dprev = dist(prev);
+        for k in 0..self.n {
+            let cur = self.v[k];
+            let dcur = dist(cur);
+            if dcur >= 0.0 {
+                if dprev < 0.0 && dcur > 0.0 {
+                    out.push(prev + (cur - prev) * (dprev / (dprev - dcur)));
+                }
+                out.push(cur);
+            } else if dprev > 0.0 {
+                out.push(prev + (cur - prev) * (dprev / (dprev - dcur)));
+            }
+            prev = cur;
+            dprev = dcur;
+        }
+        out
+    }
+
+    #[inline]
+    fn push(&mut self, p: DVec3) {
+        if self.n < MAX_VERTS {
+            self.v[self.n] = p;
+            self.n += 1;
+        } else {
+            debug_assert!(false, "polygon capacity exceeded");
+        }
+    }
+}
+
+/// One directed polygon edge: `start + t·dir` for t in [0, len], `dir` unit.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Edge {
+    pub start: DVec3,
+    pub dir: DVec3,
+    pub len: f64,
+}
+
+impl Edge {
+    #[inline]
+    pub fn end(&self) -> DVec3 {
+        self.start + self.dir * self.len
+    }
+}
+
+/// The edges of a polygon in contour order; zero-length edges are dropped (they
+/// contribute nothing to a contour integral).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct EdgeSet {
+    pub e: [Edge; MAX_VERTS],
+    pub n: usize,
+}
+
+impl EdgeSet {
+    pub fn from_polygon(p: &Polygon) -> Self {
+        let blank = Edge {
+            start: DVec3::ZERO,
+            dir: DVec3::ZERO,
+            len: 0.0,
+        };
+        let mut out = EdgeSet {
+            e: [blank; MAX_VERTS],
+            n: 0,
+        };
+        for k in 0..p.n {
+            let a = p.v[k];
+            let b = p.v[(k + 1) % p.n];
+            let d = b - a;
+            let len = d.length();
+            if len > 0.0 {
+                out.e[out.n] = Edge {
+                    start: a,
+                    dir: d / len,
+                    len,
+                };
+                out.n += 1;
+            }
+        }
+        out
+    }
+
+    #[inline]
+    pub fn edges(&self) -> &[Edge] {
+        &self.e[..self.n]
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::dvec3;
+
+    fn unit_square() -> Polygon {
+        Polygon::new(&[
+            dvec3(0.0, 0.0, 0.0),
+            dvec3(1.0, 0.0, 0.0),
+            dvec3(1.0, 1.0, 0.0),
+            dvec3(0.0, 1.0, 0.0),
+        ])
+    }
+
+    #[test]
+    fn vector_area_of_square() {
+        let a = unit_square().vector_area();
+        assert!((a - dvec3(0.0, 0.0, 1.0)).length() < 1e-15);
+    }
+
+    #[test]
+    fn clip_halves_square() {
+        let c = unit_square().clip_front(dvec3(1.0, 0.0, 0.0), 0.5, 1e-12);
+        assert_eq!(c.n, 4);
+        assert!((c.vector_area().z - 0.5).abs() < 1e-15);
+        for p in c.verts() {
+            assert!(p.x >= 0.5 - 1e-15);
+        }
+    }
+
+    #[test]
+    fn clip_diagonal_gives_pentagon() {
+        // keep x + y ≥ 0.5: cuts one corner off.
+        let n = dvec3(1.0, 1.0, 0.0).normalize();
+        let c = unit_square().clip_front(n, 0.5 * n.x, 1e-12);
+        assert_eq!(c.n, 5);
+        assert!((c.vector_area().z - (1.0 - 0.125)).abs() < 1e-14);
+    }
+
+    #[test]
+    fn touching_plane_keeps_whole_polygon() {
+        // The square lies in x ≥ 0 and touches x = 0 along an edge.
+        let c = unit_square().clip_front(dvec3(1.0, 0.0, 0.0), 0.0, 1e-12);
+        assert_eq!(c.n, 4);
+        let c = unit_square().clip_front(dvec3(-1.0, 0.0, 0.0), 0.0, 1e-12);
+        assert!(c.vector_area().length() < 1e-15);
+    }
+
+    #[test]
+    fn edges_skip_zero_length() {
+        let p = Polygon::new(&[
+            dvec3(0.0, 0.0, 0.0),
+            dvec3(1.0, 0.0, 0.0),
+            dvec3(1.0, 0.0, 0.0),
+            dvec3(0.0, 1.0, 0.0),
+        ]);
+        assert_eq!(EdgeSet::from_polygon(&p).n, 3);
+    }
+}

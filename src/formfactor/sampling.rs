@@ -1,0 +1,247 @@
+//! Deterministic sampling: a small counter-based random generator seeded by the pair
+//! (i, j) and the run seed (never by thread or rank, DESIGN.md §3), Latin-hypercube
+//! stratification, and the maps from the unit square onto a patch.
+//!
+//! Stratification: S point pairs are drawn as a 4-dimensional Latin hypercube
+//! (McKay, Beckman & Conover 1979) over (u_i, v_i, u_j, v_j): every one of the four
+//! coordinates has exactly one sample in each of the S strata [k/S, (k+1)/S). So the
+//! points on patch i are stratified in both directions, likewise on patch j, and the
+//! pairing between them is a random permutation. This works for any S (a jittered
+//! √S×√S grid would need square S).
+
+use glam::DVec3;
+
+/// SplitMix64 (Steele, Lea & Flood 2014): tiny, fast, and good enough to drive
+/// stratified jitter. The state is a plain counter, so a stream is fully determined
+/// by its seed.
+#[derive(Clone, Copy, Debug)]
+pub struct SplitMix64 {
+    state: u64,
+}
+
+impl SplitMix64 {
+    pub fn new(seed: u64) -> Self {
+        SplitMix64 { state: seed }
+    }
+
+    #[inline]
+    pub fn next_u64(&mut self) -> u64 {
+        self.state = self.state.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        mix64(self.state)
+    }
+
+    /// Uniform in [0, 1) with 53 random bits.
+    #[inline]
+    pub fn next_f64(&mut self) -> f64 {
+        (self.next_u64() >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
+    }
+
+    /// Uniform integer in [0, n) (multiply-shift; the bias is below 2⁻³² for the
+    /// small n used here and the result is deterministic either way).
+    #[inline]
+    pub fn below(&mut self, n: u32) -> u32 {
+        (((self.next_u64() >> 32) * n as u64) >> 32) as u32
+    }
+}
+
+/// The SplitMix64 output function (a bijective 64-bit mixer).
+#[inline]
+pub fn mix64(mut z: u64) -> u64 {
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^ (z >> 31)
+}
+
+/// Seed of the random stream for the ordered pair (i, j), the run seed and a stream
+/// tag (so that different uses of the same pair draw independent numbers).
+#[inline]
+pub fn pair_seed(seed: u64, i: u32, j: u32, stream: u64) -> u64 {
+    let ij = ((i as u64) << 32) | j as u64;
+    mix64(
+        mix64(mix64(seed ^ 0x5851_F42D_4C95_7F2D) ^ ij)
+            ^ stream.wrapping_mul(0x9E37_79B9_7F4A_7C15),
+    )
+}
+
+/// Fills `out` with a random permutation of 0..out.len() (Fisher–Yates).
+pub fn permutation(rng: &mut SplitMix64, out: &mut [u32]) {
+    for (k, x) in out.iter_mut().enumerate() {
+        *x = k as u32;
+    }
+    for k in (1..out.len()).rev() {
+        let r = rng.below(k as u32 + 1) as usize;
+        out.swap(k, r);
+    }
+}
+
+/// S stratified point pairs in the unit square × unit square (a Latin hypercube).
+/// `perms` is scratch space (3·S entries); the result goes to `out` as
+/// `[u_i, v_i, u_j, v_j]`.
+pub fn latin_pairs(rng: &mut SplitMix64, s: usize, perms: &mut Vec<u32>, out: &mut Vec<[f64; 4]>) {
+    perms.clear();
+    perms.resize(3 * s, 0);
+    out.clear();
+    if s == 0 {
+        return;
+    }
+    let (p1, rest) = perms.split_at_mut(s);
+    let (p2, p3) = rest.split_at_mut(s);
+    permutation(rng, p1);
+    permutation(rng, p2);
+    permutation(rng, p3);
+    let inv = 1.0 / s as f64;
+    for k in 0..s {
+        out.push([
+            (k as f64 + rng.next_f64()) * inv,
+            (p1[k] as f64 + rng.next_f64()) * inv,
+            (p2[k] as f64 + rng.next_f64()) * inv,
+            (p3[k] as f64 + rng.next_f64()) * inv,
+        ]);
+    }
+}
+
+/// A map from the unit square onto a patch, with its area Jacobian, so that
+/// ∫_patch f dA = ∫∫ f(x(u, v)) J(u, v) du dv.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum PatchMap {
+    /// Area-preserving square-to-triangle map x = (1 − √u) a + √u (1 − v) b + √u v c
+    /// (Shirley & Chiu 1997 style); J = area everywhere.
+    Triangle {
+        a: DVec3,
+        b: DVec3,
+        c: DVec3,
+        area: f64,
+    },
+    /// Bilinear map of a planar convex quad; J varies unless it is a parallelogram.
+    Quad { p: [DVec3; 4] },
+}
+
+impl PatchMap {
+    pub fn new(corners: &[DVec3], area: f64) -> Self {
+        if corners.len() == 3 {
+            PatchMap::Triangle {
+                a: corners[0],
+                b: corners[1],
+                c: corners[2],
+                area,
+            }
+        } else {
+            PatchMap::Quad {
+                p: [corners[0], corners[1], corners[2], corners[3]],
+            }
+        }
+    }
+
+    /// Point and Jacobian at (u, v) ∈ [0, 1]².
+    #[inline]
+    pub fn eval(&self, u: f64, v: f64) -> (DVec3, f64) {
+        match *self {
+            PatchMap::Triangle { a, b, c, area } => {
+                let s = u.sqrt();
+                (a * (1.0 - s) + b * (s * (1.0 - v)) + c * (s * v), area)
+            }
+            PatchMap::Quad { p } => {
+                let x = p[0] * ((1.0 - u) * (1.0 - v))
+                    + p[1] * (u * (1.0 - v))
+                    + p[2] * (u * v)
+                    + p[3] * ((1.0 - u) * v);
+                let du = (p[1] - p[0]) * (1.0 - v) + (p[2] - p[3]) * v;
+                let dv = (p[3] - p[0]) * (1.0 - u) + (p[2] - p[1]) * u;
+                (x, du.cross(dv).length())
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::dvec3;
+
+    #[test]
+    fn streams_are_deterministic_and_distinct() {
+        let a: Vec<u64> = {
+            let mut r = SplitMix64::new(pair_seed(7, 3, 4, 0));
+            (0..4).map(|_| r.next_u64()).collect()
+        };
+        let b: Vec<u64> = {
+            let mut r = SplitMix64::new(pair_seed(7, 3, 4, 0));
+            (0..4).map(|_| r.next_u64()).collect()
+        };
+        assert_eq!(a, b);
+        assert_ne!(pair_seed(7, 3, 4, 0), pair_seed(7, 4, 3, 0));
+        assert_ne!(pair_seed(7, 3, 4, 0), pair_seed(8, 3, 4, 0));
+        assert_ne!(pair_seed(7, 3, 4, 0), pair_seed(7, 3, 4, 1));
+    }
+
+    #[test]
+    fn latin_pairs_are_stratified() {
+        let mut rng = SplitMix64::new(1);
+        let (mut perms, mut out) = (Vec::new(), Vec::new());
+        for s in [1usize, 2, 5, 16, 17] {
+            latin_pairs(&mut rng, s, &mut perms, &mut out);
+            assert_eq!(out.len(), s);
+            for d in 0..4 {
+                let mut seen = vec![false; s];
+                for q in &out {
+                    let k = (q[d] * s as f64) as usize;
+                    assert!(q[d] >= 0.0 && q[d] < 1.0);
+                    assert!(!seen[k], "stratum {k} of dim {d} used twice (s={s})");
+                    seen[k] = true;
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn maps_integrate_area() {
+        // Midpoint rule on a fine grid: ∫∫ J du dv = area.
+        let tri = PatchMap::new(
+            &[
+                dvec3(0.0, 0.0, 0.0),
+                dvec3(2.0, 0.0, 0.0),
+                dvec3(0.0, 1.0, 1.0),
+            ],
+            2f64.sqrt(),
+        );
+        let quad = PatchMap::new(
+            &[
+                dvec3(0.0, 0.0, 0.0),
+                dvec3(2.0, 0.0, 0.0),
+                dvec3(1.5, 1.0, 0.0),
+                dvec3(0.0, 2.0, 0.0),
+            ],
+            0.0,
+        );
+        // Quad area by the shoelace formula: ½|Σ x_k y_{k+1} − x_{k+1} y_k| = 2.5.
+        for (m, area) in [(tri, 2f64.sqrt()), (quad, 2.5)] {
+            let g = 200;
+            let mut s = 0.0;
+            for a in 0..g {
+                for b in 0..g {
+                    let (_, j) = m.eval((a as f64 + 0.5) / g as f64, (b as f64 + 0.5) / g as f64);
+                    s += j;
+                }
+            }
+            s /= (g * g) as f64;
+            assert!((s - area).abs() < 1e-9, "{s} vs {area}");
+        }
+    }
+
+    #[test]
+    fn triangle_map_stays_inside() {
+        let m = PatchMap::new(
+            &[
+                dvec3(0.0, 0.0, 0.0),
+                dvec3(1.0, 0.0, 0.0),
+                dvec3(0.0, 1.0, 0.0),
+            ],
+            0.5,
+        );
+        let mut rng = SplitMix64::new(3);
+        for _ in 0..1000 {
+            let (p, _) = m.eval(rng.next_f64(), rng.next_f64());
+            assert!(p.x >= 0.0 && p.y >= 0.0 && p.x + p.y <= 1.0 + 1e-15);
+        }
+    }
+}

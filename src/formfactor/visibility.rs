@@ -1,0 +1,133 @@
+//! Visibility fraction for the `contour` kernel: a kernel-weighted ratio estimator.
+//!
+//! With occluders, F_ij = F⁰_ij · V̄_ij, where F⁰ is the exact unoccluded form factor
+//! and V̄ the kernel-weighted mean visibility
+//!
+//! ```text
+//! V̄ = ∫∫ K V dA dA / ∫∫ K dA dA ≈ Σ_k w_k V_k / Σ_k w_k,   w_k = J_i J_j cosθ_i cosθ_j / r²
+//! ```
+//!
+//! over stratified point pairs (DESIGN.md §3: weight the samples by the kernel rather
+//! than multiplying by a plain hit fraction; the ratio estimator is consistent, and
+//! exact whenever V is constant over the pair). Samples where either cosine is not
+//! positive get weight 0 (the clipped-away parts) and cast no ray.
+//!
+//! Adaptive: a first Latin-hypercube batch of `first_batch` pairs; if every weighted
+//! sample agrees (all free or all blocked) the answer is 0 or 1 and the pair stops;
+//! otherwise a second, independent batch brings the total to `samples` and the
+//! estimate uses both. Pairs that no occluder can come between cast no rays at all
+//! (decided by [`Occluders::any_between`] before calling here).
+//!
+//! The early stop is biased: a pair with a small shadowed part whose first batch
+//! happens to be all free gets V̄ = 1 (and symmetrically a mostly hidden pair gets 0).
+//! Measured on the Cornell box at ~2000 patches, rows of the block faces: the mean
+//! row sum with first batch 4 / 8 is ~1e-4 above the one without early stop (256 of
+//! 256 rays), the largest single-row difference ~7e-4. The `reference` preset
+//! therefore casts all its rays.
+
+use super::engine::PatchGeom;
+use super::polygon::Polygon;
+use super::sampling::{latin_pairs, pair_seed, SplitMix64};
+use super::{FormFactorConfig, Scratch};
+use crate::geometry::bvh::Occluders;
+
+/// Stream tags of the two batches (see [`pair_seed`]).
+const STREAM_FIRST: u64 = 0;
+const STREAM_SECOND: u64 = 1;
+
+/// Weighted sums of one batch.
+#[derive(Default)]
+struct Batch {
+    weight: f64,
+    visible: f64,
+    any_free: bool,
+    any_blocked: bool,
+}
+
+#[allow(clippy::too_many_arguments)]
+fn run_batch(
+    i: u32,
+    j: u32,
+    gi: &PatchGeom,
+    gj: &PatchGeom,
+    occ: &Occluders,
+    cfg: &FormFactorConfig,
+    n: usize,
+    stream: u64,
+    scratch: &mut Scratch,
+    out: &mut Batch,
+) {
+    let mut rng = SplitMix64::new(pair_seed(cfg.seed, i, j, stream));
+    latin_pairs(&mut rng, n, &mut scratch.perms, &mut scratch.samples);
+    for q in &scratch.samples {
+        let (x, jx) = gi.map.eval(q[0], q[1]);
+        let (y, jy) = gj.map.eval(q[2], q[3]);
+        let d = y - x;
+        let r2 = d.length_squared();
+        let ci = gi.normal.dot(d);
+        let cj = -gj.normal.dot(d);
+        if !(ci > 0.0 && cj > 0.0 && r2 > 0.0) {
+            continue;
+        }
+        let w = jx * jy * ci * cj / (r2 * r2);
+        scratch.counters.rays_cast += 1;
+        out.weight += w;
+        if occ.occluded(x, y, (gi.face, gj.face)) {
+            out.any_blocked = true;
+        } else {
+            out.any_free = true;
+            out.visible += w;
+        }
+    }
+}
+
+/// V̄_ij in [0, 1] for a pair that may be occluded. `pi`, `pj` are the clipped
+/// polygons (used only for the fallback ray when no sample has a positive weight).
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn fraction(
+    i: u32,
+    j: u32,
+    gi: &PatchGeom,
+    gj: &PatchGeom,
+    pi: &Polygon,
+    pj: &Polygon,
+    occ: &Occluders,
+    cfg: &FormFactorConfig,
+    scratch: &mut Scratch,
+) -> f64 {
+    let total = cfg.samples.max(1) as usize;
+    let first = (cfg.first_batch.max(1) as usize).min(total);
+    let cast_before = scratch.counters.rays_cast;
+    let mut b = Batch::default();
+    run_batch(i, j, gi, gj, occ, cfg, first, STREAM_FIRST, scratch, &mut b);
+    let agree = !(b.any_free && b.any_blocked);
+    if !(agree && b.weight > 0.0) && total > first {
+        run_batch(
+            i,
+            j,
+            gi,
+            gj,
+            occ,
+            cfg,
+            total - first,
+            STREAM_SECOND,
+            scratch,
+            &mut b,
+        );
+    }
+    let v = if b.weight > 0.0 {
+        (b.visible / b.weight).clamp(0.0, 1.0)
+    } else {
+        // Every sample fell where a cosine is not positive (a sliver in front): one
+        // ray between the centres of the clipped parts decides.
+        scratch.counters.rays_cast += 1;
+        if occ.occluded(pi.vertex_mean(), pj.vertex_mean(), (gi.face, gj.face)) {
+            0.0
+        } else {
+            1.0
+        }
+    };
+    let cast = scratch.counters.rays_cast - cast_before;
+    scratch.counters.rays_skipped += (total as u64).saturating_sub(cast);
+    v
+}

@@ -1,0 +1,628 @@
+//! Occluders: a bounding volume hierarchy over the scene triangles, answering the two
+//! visibility questions the form-factor kernels ask.
+//!
+//! - [`Occluders::occluded`]: does any triangle (other than those of two given scene
+//!   faces) cut the open segment between two points? Every face is opaque from both
+//!   sides (REFERENCES.md, Cornell box: the blocks have no bottom faces, and the floor
+//!   under them must stay dark, so rays from the floor hit the blocks from inside).
+//! - [`Occluders::any_between`]: can any triangle come between two given polygons at
+//!   all? When not, the pair needs no rays (DESIGN.md §3 "pairs with no possible
+//!   occluder need no rays"), decided from the hierarchy, not from a flag.
+//!
+//! The hierarchy is obvhs' compressed wide BVH (CWBVH, Ylitie et al. 2017) built by
+//! PLOC; it works in f32. To make results independent of the scene's units and
+//! position, everything is mapped to a normalized frame first: x ↦ (x − centre) / d
+//! with d the diagonal of the triangles' bounding box. The exact triangle tests run
+//! in f64 on the normalized triangles; the f32 hierarchy only culls. Ray offsets are
+//! fractions of d ([`RAY_EPSILON`]), so scaling a scene by 10⁻³ or 10³ changes no
+//! visibility decision.
+//!
+//! Traversal takes closures (`Occluders::for_each_in_box`), so the geometry tests
+//! stay out of the hierarchy and the accelerator can be swapped (STYLE.md point 6).
+
+use std::time::Duration;
+
+// UVec2 is named (unqualified) by obvhs' traverse! macro expansion.
+use glam::{DVec3, UVec2, Vec3A};
+use obvhs::{
+    aabb::Aabb,
+    cwbvh::{builder::build_cwbvh_from_tris, CwBvh},
+    ray::Ray,
+    triangle::Triangle,
+    BvhBuildParams,
+};
+
+/// Rays ignore hits closer than this to either end point (normalized units, i.e. a
+/// fraction of the scene diagonal).
+pub const RAY_EPSILON: f64 = 1e-6;
+
+/// Tolerance (normalized units) of the plane-side tests of [`Occluders::any_between`]:
+/// a triangle that only touches the pair's hull within it cannot block a ray.
+pub const PLANE_TOLERANCE: f64 = 1e-9;
+
+/// Work bound of [`Occluders::any_between`]: candidate triangles examined in detail
+/// before it gives up and answers "rays needed".
+pub const MAX_REJECTED_CANDIDATES: usize = 32;
+
+/// obvhs' node test clamps the entry distance to a fixed 1e-4 (ray units,
+/// `cwbvh::node::EPSILON`), which would skip boxes lying entirely within 1e-4 of the
+/// origin. Rays start this far behind their true origin so that no box beyond the
+/// true origin is skipped; the exact test then measures t from the true origin.
+const RAY_BACKOFF: f64 = 1e-3;
+
+/// A triangle in the normalized frame, with what the exact tests need.
+#[derive(Clone, Copy, Debug)]
+struct OccluderTriangle {
+    v: [DVec3; 3],
+    /// Unit normal (either orientation; faces block from both sides).
+    normal: DVec3,
+    min: DVec3,
+    max: DVec3,
+    face: u32,
+}
+
+impl OccluderTriangle {
+    fn new(face: u32, v: [DVec3; 3]) -> Option<Self> {
+        let n = (v[1] - v[0]).cross(v[2] - v[0]);
+        let len = n.length();
+        if !len.is_finite() || len <= 0.0 {
+            return None;
+        }
+        Some(OccluderTriangle {
+            v,
+            normal: n / len,
+            min: v[0].min(v[1]).min(v[2]),
+            max: v[0].max(v[1]).max(v[2]),
+            face,
+        })
+    }
+
+    fn vertices(&self) -> [DVec3; 3] {
+        self.v
+    }
+
+    /// Watertight two-sided ray/triangle test (Woop, Benthin & Wald, "Watertight
+    /// Ray/Triangle Intersection", JCGT 2013) in f64: true when the ray hits the closed
+    /// triangle at a distance in [t0, t1]. Watertight: the edge functions of an edge
+    /// shared by two triangles (with bit-identical vertices) are computed by the same
+    /// operations with opposite signs, so a ray through the edge hits at least one of
+    /// them. A test that is not (Möller–Trumbore) lets rays slip through the diagonal
+    /// of a quad face, which on subdivided scenes happens for whole families of
+    /// grid-aligned rays (regression test `ray_through_a_shared_diagonal_is_blocked`).
+    #[inline]
+    fn hit(&self, ray: &ShearedRay, t0: f64, t1: f64) -> bool {
+        let [kx, ky, kz] = ray.axes;
+        let a = self.v[0] - ray.origin;
+        let b = self.v[1] - ray.origin;
+        let c = self.v[2] - ray.origin;
+        let (ax, ay) = (a[kx] - ray.sx * a[kz], a[ky] - ray.sy * a[kz]);
+        let (bx, by) = (b[kx] - ray.sx * b[kz], b[ky] - ray.sy * b[kz]);
+        let (cx, cy) = (c[kx] - ray.sx * c[kz], c[ky] - ray.sy * c[kz]);
+        let u = cx * by - cy * bx;
+        let v = ax * cy - ay * cx;
+        let w = bx * ay - by * ax;
+        // Zero counts as inside (closed triangle), from either side.
+        if (u < 0.0 || v < 0.0 || w < 0.0) && (u > 0.0 || v > 0.0 || w > 0.0) {
+            return false;
+        }
+        let det = u + v + w;
+        if det == 0.0 {
+            return false;
+        }
+        let t = (u * (ray.sz * a[kz]) + v * (ray.sz * b[kz]) + w * (ray.sz * c[kz])) / det;
+        t >= t0 && t <= t1
+    }
+}
+
+/// A ray prepared for [`OccluderTriangle::hit`]: the axis permutation that makes the
+/// largest direction component z, and the shear that maps the direction to +z.
+struct ShearedRay {
+    origin: DVec3,
+    axes: [usize; 3],
+    sx: f64,
+    sy: f64,
+    sz: f64,
+}
+
+impl ShearedRay {
+    fn new(origin: DVec3, dir: DVec3) -> Self {
+        let kz = dir.abs().max_position();
+        let mut kx = (kz + 1) % 3;
+        let mut ky = (kx + 1) % 3;
+        if dir[kz] < 0.0 {
+            std::mem::swap(&mut kx, &mut ky);
+        }
+        ShearedRay {
+            origin,
+            axes: [kx, ky, kz],
+            sx: dir[kx] / dir[kz],
+            sy: dir[ky] / dir[kz],
+            sz: 1.0 / dir[kz],
+        }
+    }
+}
+
+/// Triangles that block light, in a hierarchy. Immutable after [`Occluders::new`], so
+/// it is `Send + Sync` and shared by all threads.
+#[derive(Clone, Debug)]
+pub struct Occluders {
+    bvh: Option<CwBvh>,
+    /// Triangles in hierarchy primitive order (so no index indirection at traversal).
+    tris: Vec<OccluderTriangle>,
+    center: DVec3,
+    /// Scene diagonal (world units): normalized = (world − center) / scale.
+    scale: f64,
+    inv_scale: f64,
+}
+
+impl Occluders {
+    /// Builds the hierarchy over `(scene face, triangle)` pairs. Degenerate (zero
+    /// area) or non-finite triangles are dropped: they cannot block anything.
+    pub fn new(tris: Vec<(u32, [DVec3; 3])>) -> Self {
+        let finite: Vec<(u32, [DVec3; 3])> = tris
+            .into_iter()
+            .filter(|(_, t)| t.iter().all(|p| p.is_finite()))
+            .collect();
+        let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
+        for (_, t) in &finite {
+            for p in t {
+                lo = lo.min(*p);
+                hi = hi.max(*p);
+            }
+        }
+        let diag = (hi - lo).length();
+        if finite.is_empty() || !diag.is_finite() || diag <= 0.0 {
+            return Occluders::empty();
+        }
+        let center = 0.5 * (lo + hi);
+        let inv_scale = 1.0 / diag;
+        let norm: Vec<OccluderTriangle> = finite
+            .iter()
+            .filter_map(|(f, t)| {
+                OccluderTriangle::new(
+                    *f,
+                    [
+                        (t[0] - center) * inv_scale,
+                        (t[1] - center) * inv_scale,
+                        (t[2] - center) * inv_scale,
+                    ],
+                )
+            })
+            .collect();
+        if norm.is_empty() {
+            return Occluders::empty();
+        }
+        let f32_tris: Vec<Triangle> = norm
+            .iter()
+            .map(|t| {
+                let [a, b, c] = t.vertices();
+                Triangle {
+                    v0: a.as_vec3a(),
+                    v1: b.as_vec3a(),
+                    v2: c.as_vec3a(),
+                }
+            })
+            .collect();
+        let bvh = build_cwbvh_from_tris(
+            &f32_tris,
+            BvhBuildParams::medium_build(),
+            &mut Duration::default(),
+        );
+        let ordered: Vec<OccluderTriangle> = bvh
+            .primitive_indices
+            .iter()
+            .map(|&k| norm[k as usize])
+            .collect();
+        Occluders {
+            bvh: Some(bvh),
+            tris: ordered,
+            center,
+            scale: diag,
+            inv_scale,
+        }
+    }
+
+    /// No occluders at all: nothing is ever occluded.
+    pub fn empty() -> Self {
+        Occluders {
+            bvh: None,
+            tris: Vec::new(),
+            center: DVec3::ZERO,
+            scale: 1.0,
+            inv_scale: 1.0,
+        }
+    }
+
+    /// Number of triangles in the hierarchy.
+    pub fn len(&self) -> usize {
+        self.tris.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.tris.is_empty()
+    }
+
+    /// Diagonal of the triangles' bounding box (world units), the length that ray
+    /// offsets and tolerances are relative to.
+    pub fn diagonal(&self) -> f64 {
+        self.scale
+    }
+
+    #[inline]
+    fn to_norm(&self, p: DVec3) -> DVec3 {
+        (p - self.center) * self.inv_scale
+    }
+
+    /// True when a triangle of a face other than `ignore.0` and `ignore.1` cuts the
+    /// segment from `from` to `to`, ignoring hits within [`RAY_EPSILON`] × diagonal of
+    /// either end.
+    pub fn occluded(&self, from: DVec3, to: DVec3, ignore: (u32, u32)) -> bool {
+        let Some(bvh) = &self.bvh else { return false };
+        let f = self.to_norm(from);
+        let t = self.to_norm(to);
+        let d = t - f;
+        let len = d.length();
+        if len.is_nan() || len <= 2.0 * RAY_EPSILON {
+            return false;
+        }
+        let dir = d / len;
+        let t0 = RAY_EPSILON;
+        let t1 = len - RAY_EPSILON;
+        let origin32 = (f - dir * RAY_BACKOFF).as_vec3a();
+        let tmax32 = ((RAY_BACKOFF + len) * (1.0 + 1e-5) + 1e-6) as f32;
+        let ray = Ray::new(origin32, dir.as_vec3a(), 0.0, tmax32);
+        let tris = &self.tris;
+        let sheared = ShearedRay::new(f, dir);
+        // ray_traverse_miss stops at the first primitive whose returned t < tmax.
+        !bvh.ray_traverse_miss(ray, |_, id| {
+            let tri = &tris[id];
+            if tri.face != ignore.0 && tri.face != ignore.1 && tri.hit(&sheared, t0, t1) {
+                0.0
+            } else {
+                f32::INFINITY
+            }
+        })
+    }
+
+    /// Calls `visit` with the index of every triangle whose hierarchy leaf box
+    /// overlaps the box [lo, hi] (normalized units), until it returns `true` ("stop").
+    /// Returns whether a visit stopped the traversal.
+    fn for_each_in_box(&self, lo: DVec3, hi: DVec3, mut visit: impl FnMut(usize) -> bool) -> bool {
+        let Some(bvh) = &self.bvh else { return false };
+        let aabb = Aabb::new(lo.as_vec3a(), hi.as_vec3a());
+        let mut state = bvh.new_traversal(Vec3A::ONE);
+        let mut node;
+        let mut stopped = false;
+        'walk: {
+            obvhs::traverse!(
+                bvh,
+                node,
+                state,
+                node.intersect_aabb(&aabb, state.oct_inv4),
+                {
+                    if visit(state.primitive_id as usize) {
+                        stopped = true;
+                        break 'walk;
+                    }
+                }
+            );
+        }
+        stopped
+    }
+
+    /// Can any triangle (other than those of faces `ignore.0`, `ignore.1`) come between
+    /// polygon `a` (front normal `na`) and polygon `b` (front normal `nb`)? Both are
+    /// given in world units and should already be clipped to each other's front
+    /// half-space. Conservative: `false` means that no segment from a point of `a` to
+    /// a point of `b` can be blocked, so the pair needs no rays; `true` means rays are
+    /// needed.
+    ///
+    /// A triangle cannot block when (all with [`PLANE_TOLERANCE`]):
+    /// 1. its box does not overlap the box of the two polygons (found through the
+    ///    hierarchy), or
+    /// 2. all corners of both polygons lie on one side of its plane (segments between
+    ///    them never cross it), or
+    /// 3. it lies entirely behind the plane of `a` or of `b` (every segment between the
+    ///    polygons stays in front of both planes).
+    ///
+    /// The work is bounded: after [`MAX_REJECTED_CANDIDATES`] triangles that overlap
+    /// the box but were rejected by 2–3, the answer is `true` (rays will decide), so a
+    /// pair in a cluttered region costs a short traversal, never a scan.
+    pub fn any_between(
+        &self,
+        a: &[DVec3],
+        na: DVec3,
+        b: &[DVec3],
+        nb: DVec3,
+        ignore: (u32, u32),
+    ) -> bool {
+        if self.bvh.is_none() || a.is_empty() || b.is_empty() {
+            return false;
+        }
+        const CAP: usize = 16;
+        let mut pts = [DVec3::ZERO; CAP];
+        let mut np = 0;
+        for p in a.iter().chain(b.iter()).take(CAP) {
+            pts[np] = self.to_norm(*p);
+            np += 1;
+        }
+        let pts = &pts[..np];
+        let (mut lo, mut hi) = (pts[0], pts[0]);
+        for p in pts {
+            lo = lo.min(*p);
+            hi = hi.max(*p);
+        }
+        // Shrink by the tolerance so that faces merely touching the hull (the walls
+        // around a corner) do not count; keep the box non-empty.
+        let mid = 0.5 * (lo + hi);
+        let qlo = (lo + DVec3::splat(PLANE_TOLERANCE)).min(mid);
+        let qhi = (hi - DVec3::splat(PLANE_TOLERANCE)).max(mid);
+        let oa = na.dot(self.to_norm(a[0]));
+        let ob = nb.dot(self.to_norm(b[0]));
+        let tris = &self.tris;
+        let mut rejected = 0usize;
+        self.for_each_in_box(qlo, qhi, |k| {
+            let t = &tris[k];
+            if t.face == ignore.0 || t.face == ignore.1 {
+                return false;
+            }
+            if t.max.cmplt(qlo).any() || t.min.cmpgt(qhi).any() {
+                return false;
+            }
+            rejected += 1;
+            if rejected > MAX_REJECTED_CANDIDATES {
+                return true;
+            }
+            let off = t.normal.dot(t.v[0]);
+            let (mut above, mut below) = (false, false);
+            for p in pts {
+                let s = t.normal.dot(*p) - off;
+                above |= s > PLANE_TOLERANCE;
+                below |= s < -PLANE_TOLERANCE;
+            }
+            if !(above && below) {
+                return false;
+            }
+            let verts = t.vertices();
+            let behind = |n: DVec3, o: f64| verts.iter().all(|v| n.dot(*v) - o <= PLANE_TOLERANCE);
+            if behind(na, oa) || behind(nb, ob) {
+                return false;
+            }
+            true
+        })
+    }
+
+    /// Checks internal invariants (for tests): every triangle is finite with a unit
+    /// normal, lies inside the normalized unit-diagonal box, and the hierarchy holds
+    /// each triangle exactly once.
+    pub fn validate(&self) {
+        for t in &self.tris {
+            assert!((t.normal.length() - 1.0).abs() < 1e-12);
+            for v in t.vertices() {
+                assert!(v.is_finite() && v.abs().max_element() <= 0.5 + 1e-12);
+            }
+        }
+        if let Some(bvh) = &self.bvh {
+            assert_eq!(bvh.primitive_indices.len(), self.tris.len());
+            let mut seen = vec![false; self.tris.len()];
+            for &k in &bvh.primitive_indices {
+                assert!(!seen[k as usize]);
+                seen[k as usize] = true;
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::dvec3;
+
+    fn quad(face: u32, p: [DVec3; 4]) -> Vec<(u32, [DVec3; 3])> {
+        vec![(face, [p[0], p[1], p[2]]), (face, [p[0], p[2], p[3]])]
+    }
+
+    /// A unit square blocker in the plane z = 0.5 over [0.25, 0.75]².
+    fn blocker(scale: f64) -> Occluders {
+        let s = scale;
+        let mut t = quad(
+            7,
+            [
+                dvec3(0.25, 0.25, 0.5) * s,
+                dvec3(0.75, 0.25, 0.5) * s,
+                dvec3(0.75, 0.75, 0.5) * s,
+                dvec3(0.25, 0.75, 0.5) * s,
+            ],
+        );
+        // Two faces far away so that the scene box is larger than the blocker.
+        t.extend(quad(
+            8,
+            [
+                dvec3(0.0, 0.0, 0.0) * s,
+                dvec3(1.0, 0.0, 0.0) * s,
+                dvec3(1.0, 1.0, 0.0) * s,
+                dvec3(0.0, 1.0, 0.0) * s,
+            ],
+        ));
+        t.extend(quad(
+            9,
+            [
+                dvec3(0.0, 0.0, 1.0) * s,
+                dvec3(0.0, 1.0, 1.0) * s,
+                dvec3(1.0, 1.0, 1.0) * s,
+                dvec3(1.0, 0.0, 1.0) * s,
+            ],
+        ));
+        let o = Occluders::new(t);
+        o.validate();
+        o
+    }
+
+    #[test]
+    fn ray_through_blocker_is_occluded_from_both_sides() {
+        for s in [1e-3, 1.0, 1e3] {
+            let o = blocker(s);
+            let a = dvec3(0.5, 0.5, 0.0) * s;
+            let b = dvec3(0.5, 0.5, 1.0) * s;
+            assert!(o.occluded(a, b, (8, 9)));
+            assert!(o.occluded(b, a, (8, 9)));
+            // Ignoring the blocker's face lets it through.
+            assert!(!o.occluded(a, b, (7, 9)));
+            // A ray beside the blocker passes.
+            assert!(!o.occluded(dvec3(0.1, 0.1, 0.0) * s, dvec3(0.1, 0.9, 1.0) * s, (8, 9)));
+            // Segment ending before the blocker.
+            assert!(!o.occluded(a, dvec3(0.5, 0.5, 0.4) * s, (8, 9)));
+        }
+    }
+
+    #[test]
+    fn single_and_degenerate_triangles() {
+        let one = Occluders::new(vec![(
+            0,
+            [
+                dvec3(0.0, 0.0, 1.0),
+                dvec3(1.0, 0.0, 1.0),
+                dvec3(0.0, 1.0, 1.0),
+            ],
+        )]);
+        one.validate();
+        assert_eq!(one.len(), 1);
+        assert!(one.occluded(dvec3(0.2, 0.2, 0.0), dvec3(0.2, 0.2, 2.0), (9, 9)));
+        let flat = Occluders::new(vec![(
+            0,
+            [
+                dvec3(0.0, 0.0, 0.0),
+                dvec3(1.0, 0.0, 0.0),
+                dvec3(2.0, 0.0, 0.0),
+            ],
+        )]);
+        assert!(flat.is_empty());
+        assert!(!flat.occluded(dvec3(0.5, -1.0, 0.0), dvec3(0.5, 1.0, 0.0), (9, 9)));
+        assert!(Occluders::new(Vec::new()).is_empty());
+    }
+
+    #[test]
+    fn ray_through_a_shared_diagonal_is_blocked() {
+        // A quad face as two triangles sharing the diagonal (0.25,0.25)–(0.75,0.75) at
+        // z = 0.5; rays crossing the plane exactly on the diagonal, in many directions,
+        // must all be blocked (a non-watertight test lets some through).
+        let q = [
+            dvec3(0.25, 0.25, 0.5),
+            dvec3(0.75, 0.25, 0.5),
+            dvec3(0.75, 0.75, 0.5),
+            dvec3(0.25, 0.75, 0.5),
+        ];
+        let mut t = quad(1, q);
+        t.extend(quad(
+            2,
+            [
+                dvec3(0.0, 0.0, 0.0),
+                dvec3(1.0, 0.0, 0.0),
+                dvec3(1.0, 1.0, 0.0),
+                dvec3(0.0, 1.0, 0.0),
+            ],
+        ));
+        t.extend(quad(
+            3,
+            [
+                dvec3(0.0, 0.0, 1.0),
+                dvec3(0.0, 1.0, 1.0),
+                dvec3(1.0, 1.0, 1.0),
+                dvec3(1.0, 0.0, 1.0),
+            ],
+        ));
+        let o = Occluders::new(t);
+        let mut missed = 0;
+        for a in 0..=16 {
+            for b in 0..=16 {
+                let on = 0.3 + 0.4 * a as f64 / 16.0; // point on the diagonal
+                let from = dvec3(
+                    on - 0.3 + 0.6 * b as f64 / 16.0,
+                    on + 0.1 * (a as f64 - 8.0) / 8.0,
+                    0.0,
+                );
+                let to = 2.0 * dvec3(on, on, 0.5) - from;
+                if !o.occluded(from, to, (2, 3)) {
+                    missed += 1;
+                }
+            }
+        }
+        assert_eq!(missed, 0, "{missed} rays slipped through the diagonal");
+    }
+
+    #[test]
+    fn ray_ending_on_a_face_is_not_blocked_by_it() {
+        let o = blocker(1.0);
+        // From the floor to a point on the blocker itself (face 7 not ignored): the
+        // end point lies on face 7 and the epsilon keeps that hit out.
+        assert!(!o.occluded(dvec3(0.5, 0.5, 0.0), dvec3(0.5, 0.5, 0.5), (8, 9)));
+    }
+
+    #[test]
+    fn short_segments_near_geometry_are_not_culled() {
+        // A tiny triangle right next to the ray origin (within obvhs' fixed node
+        // epsilon) must still block.
+        let mut t = vec![(
+            1,
+            [
+                dvec3(-1e-6, -1e-6, 1e-5),
+                dvec3(1e-6, -1e-6, 1e-5),
+                dvec3(0.0, 1e-6, 1e-5),
+            ],
+        )];
+        t.extend(quad(
+            2,
+            [
+                dvec3(-1.0, -1.0, -1.0),
+                dvec3(1.0, -1.0, -1.0),
+                dvec3(1.0, 1.0, -1.0),
+                dvec3(-1.0, 1.0, -1.0),
+            ],
+        ));
+        let o = Occluders::new(t);
+        assert!(o.occluded(dvec3(0.0, 0.0, 0.0), dvec3(0.0, 0.0, 0.5), (99, 99)));
+    }
+
+    #[test]
+    fn any_between_sees_blocker_and_ignores_walls() {
+        let o = blocker(1.0);
+        let n_up = dvec3(0.0, 0.0, 1.0);
+        let lower = [
+            dvec3(0.0, 0.0, 0.0),
+            dvec3(1.0, 0.0, 0.0),
+            dvec3(1.0, 1.0, 0.0),
+            dvec3(0.0, 1.0, 0.0),
+        ];
+        let upper = [
+            dvec3(0.0, 0.0, 1.0),
+            dvec3(0.0, 1.0, 1.0),
+            dvec3(1.0, 1.0, 1.0),
+            dvec3(1.0, 0.0, 1.0),
+        ];
+        assert!(o.any_between(&lower, n_up, &upper, -n_up, (8, 9)));
+        // Patches on the floor and ceiling away from the blocker's column, only the
+        // walls (faces 8, 9 ignored) around: a corner patch pair at x, y ∈ [0, 0.2].
+        let lo = [
+            dvec3(0.0, 0.0, 0.0),
+            dvec3(0.2, 0.0, 0.0),
+            dvec3(0.2, 0.2, 0.0),
+            dvec3(0.0, 0.2, 0.0),
+        ];
+        let hi = [
+            dvec3(0.0, 0.0, 1.0),
+            dvec3(0.0, 0.2, 1.0),
+            dvec3(0.2, 0.2, 1.0),
+            dvec3(0.2, 0.0, 1.0),
+        ];
+        assert!(!o.any_between(&lo, n_up, &hi, -n_up, (8, 9)));
+        // Both below the blocker's plane: it is on one side of the whole hull.
+        let mid = [
+            dvec3(0.0, 0.0, 0.3),
+            dvec3(0.0, 1.0, 0.3),
+            dvec3(1.0, 1.0, 0.3),
+            dvec3(1.0, 0.0, 0.3),
+        ];
+        assert!(!o.any_between(&lower, n_up, &mid, -n_up, (8, 9)));
+        assert!(!Occluders::empty().any_between(&lower, n_up, &upper, -n_up, (8, 9)));
+    }
+}

@@ -1,0 +1,293 @@
+//! Test scenes built directly as patch sets (independent of the scene loader):
+//! parallelogram faces subdivided into m × m quads (or 2m² triangles), with one scene
+//! face per parallelogram and its two occluder triangles.
+
+use std::sync::Arc;
+
+use ffstream::formfactor::{FormFactorConfig, RowEngine, Scratch};
+use ffstream::geometry::bvh::Occluders;
+use ffstream::patch::{Patch, PatchSet};
+use ffstream::rows::Row;
+use glam::{dvec3, DVec3};
+
+#[derive(Clone, Debug, Default)]
+pub struct Built {
+    pub patches: PatchSet,
+    pub tris: Vec<(u32, [DVec3; 3])>,
+    faces: u32,
+}
+
+impl Built {
+    /// Adds the parallelogram origin + [0,1]·u + [0,1]·v (front normal u × v) as a new
+    /// face in a new group, subdivided m × m; `split` cuts each cell into 2 triangles
+    /// (alternating diagonals, so edges of every direction occur).
+    pub fn face(
+        &mut self,
+        name: &str,
+        origin: DVec3,
+        u: DVec3,
+        v: DVec3,
+        m: usize,
+        split: bool,
+    ) -> &mut Self {
+        let face = self.faces;
+        self.faces += 1;
+        let group = self.patches.groups.len() as u32;
+        self.patches.groups.push(name.to_string());
+        let n = u.cross(v).normalize();
+        let at =
+            |a: usize, b: usize| origin + u * (a as f64 / m as f64) + v * (b as f64 / m as f64);
+        for b in 0..m {
+            for a in 0..m {
+                let c = [at(a, b), at(a + 1, b), at(a + 1, b + 1), at(a, b + 1)];
+                if split {
+                    let (t1, t2) = if (a + b) % 2 == 0 {
+                        ([c[0], c[1], c[2]], [c[0], c[2], c[3]])
+                    } else {
+                        ([c[0], c[1], c[3]], [c[1], c[2], c[3]])
+                    };
+                    for t in [t1, t2] {
+                        self.patches.patches.push(patch(&t, n, group, face));
+                    }
+                } else {
+                    self.patches.patches.push(patch(&c, n, group, face));
+                }
+            }
+        }
+        self.tris.push((face, [origin, origin + u, origin + u + v]));
+        self.tris.push((face, [origin, origin + u + v, origin + v]));
+        self
+    }
+
+    /// Adds the triangle v (front = counter-clockwise) as a new face in a new group,
+    /// subdivided into k² similar triangles.
+    pub fn triangle(&mut self, name: &str, v: [DVec3; 3], k: usize) -> &mut Self {
+        let face = self.faces;
+        self.faces += 1;
+        let group = self.patches.groups.len() as u32;
+        self.patches.groups.push(name.to_string());
+        let n = (v[1] - v[0]).cross(v[2] - v[0]).normalize();
+        let at = |a: usize, b: usize| {
+            v[0] + (v[1] - v[0]) * (a as f64 / k as f64) + (v[2] - v[0]) * (b as f64 / k as f64)
+        };
+        for b in 0..k {
+            for a in 0..k - b {
+                self.patches.patches.push(patch(
+                    &[at(a, b), at(a + 1, b), at(a, b + 1)],
+                    n,
+                    group,
+                    face,
+                ));
+                if a + b + 1 < k {
+                    self.patches.patches.push(patch(
+                        &[at(a + 1, b), at(a + 1, b + 1), at(a, b + 1)],
+                        n,
+                        group,
+                        face,
+                    ));
+                }
+            }
+        }
+        self.tris.push((face, v));
+        self
+    }
+
+    /// An occluder only (no patches): a parallelogram as two triangles.
+    pub fn blocker(&mut self, origin: DVec3, u: DVec3, v: DVec3) -> &mut Self {
+        let face = self.faces;
+        self.faces += 1;
+        self.tris.push((face, [origin, origin + u, origin + u + v]));
+        self.tris.push((face, [origin, origin + u + v, origin + v]));
+        self
+    }
+
+    pub fn scaled(&self, s: f64) -> Built {
+        let mut b = self.clone();
+        for p in &mut b.patches.patches {
+            for c in &mut p.corners {
+                *c *= s;
+            }
+            p.area *= s * s;
+        }
+        for (_, t) in &mut b.tris {
+            for c in t {
+                *c *= s;
+            }
+        }
+        b
+    }
+
+    pub fn engine(&self, cfg: FormFactorConfig) -> RowEngine {
+        RowEngine::new(
+            Arc::new(self.patches.clone()),
+            Arc::new(Occluders::new(self.tris.clone())),
+            cfg,
+        )
+    }
+
+    pub fn n(&self) -> usize {
+        self.patches.len()
+    }
+}
+
+fn patch(c: &[DVec3], n: DVec3, group: u32, face: u32) -> Patch {
+    let mut corners = [DVec3::ZERO; 4];
+    corners[..c.len()].copy_from_slice(c);
+    let area = if c.len() == 3 {
+        0.5 * (c[1] - c[0]).cross(c[2] - c[0]).length()
+    } else {
+        0.5 * ((c[1] - c[0]).cross(c[2] - c[0]).length()
+            + (c[2] - c[0]).cross(c[3] - c[0]).length())
+    };
+    Patch {
+        corners,
+        n_corners: c.len() as u8,
+        normal: n,
+        area,
+        group,
+        face,
+        rho: [0.5; 3],
+        emission: [0.0; 3],
+    }
+}
+
+/// Two squares of side 1 at distance 1/x, directly opposed, facing each other
+/// (Howell C-11 with X = Y = x). Groups 0 (lower) and 1 (upper).
+pub fn parallel_squares(x: f64, m: usize, split: bool) -> Built {
+    let c = 1.0 / x;
+    let mut b = Built::default();
+    b.face(
+        "lower",
+        DVec3::ZERO,
+        dvec3(1.0, 0.0, 0.0),
+        dvec3(0.0, 1.0, 0.0),
+        m,
+        split,
+    );
+    b.face(
+        "upper",
+        dvec3(0.0, 0.0, c),
+        dvec3(0.0, 1.0, 0.0),
+        dvec3(1.0, 0.0, 0.0),
+        m,
+        split,
+    );
+    b
+}
+
+/// Perpendicular rectangles sharing the edge x ∈ [0, 1] (Howell C-14): the emitter
+/// (group 0) spans y ∈ [0, w] in z = 0 facing +z, the receiver (group 1) spans
+/// z ∈ [0, h] in y = 0 facing +y.
+pub fn perpendicular(w: f64, h: f64, m: usize, split: bool) -> Built {
+    let mut b = Built::default();
+    b.face(
+        "emitter",
+        DVec3::ZERO,
+        dvec3(1.0, 0.0, 0.0),
+        dvec3(0.0, w, 0.0),
+        m,
+        split,
+    );
+    b.face(
+        "receiver",
+        DVec3::ZERO,
+        dvec3(0.0, 0.0, h),
+        dvec3(1.0, 0.0, 0.0),
+        m,
+        split,
+    );
+    b
+}
+
+/// Unit cube with inward faces, each subdivided m × m. Groups: 0 z=0, 1 z=1, 2 x=0,
+/// 3 x=1, 4 y=0, 5 y=1 (so 0–1, 2–3, 4–5 are opposite).
+pub fn cube(m: usize, split: bool) -> Built {
+    let (x, y, z) = (
+        dvec3(1.0, 0.0, 0.0),
+        dvec3(0.0, 1.0, 0.0),
+        dvec3(0.0, 0.0, 1.0),
+    );
+    let mut b = Built::default();
+    b.face("z0", DVec3::ZERO, x, y, m, split);
+    b.face("z1", z, y, x, m, split);
+    b.face("x0", DVec3::ZERO, y, z, m, split);
+    b.face("x1", x, z, y, m, split);
+    b.face("y0", DVec3::ZERO, z, x, m, split);
+    b.face("y1", y, x, z, m, split);
+    b
+}
+
+/// Regular icosahedron (circumradius √(1 + φ²)) with inward faces, each cut into k²
+/// triangles: a closed convex enclosure whose edges run in many directions.
+pub fn icosahedron(k: usize) -> Built {
+    let phi = (1.0 + 5f64.sqrt()) / 2.0;
+    let mut v = Vec::new();
+    for (a, b) in [(1.0, phi), (-1.0, phi), (1.0, -phi), (-1.0, -phi)] {
+        v.push(dvec3(0.0, a, b));
+        v.push(dvec3(a, b, 0.0));
+        v.push(dvec3(b, 0.0, a));
+    }
+    // Faces: the triples of mutually adjacent vertices (edge length 2).
+    let mut b = Built::default();
+    let adjacent = |p: DVec3, q: DVec3| ((p - q).length() - 2.0).abs() < 1e-9;
+    for i in 0..12 {
+        for j in i + 1..12 {
+            for l in j + 1..12 {
+                if adjacent(v[i], v[j]) && adjacent(v[j], v[l]) && adjacent(v[i], v[l]) {
+                    let mut t = [v[i], v[j], v[l]];
+                    let n = (t[1] - t[0]).cross(t[2] - t[0]);
+                    if n.dot(t[0] + t[1] + t[2]) > 0.0 {
+                        t.swap(1, 2); // make it face inward
+                    }
+                    b.triangle("face", t, k);
+                }
+            }
+        }
+    }
+    assert_eq!(b.patches.groups.len(), 20);
+    b
+}
+
+/// Every row of the engine (dense f32 as stored), in order.
+pub fn all_rows(e: &RowEngine) -> Vec<Row> {
+    let mut s = Scratch::new();
+    (0..e.n() as u32)
+        .map(|i| e.compute_row(i, &mut s))
+        .collect()
+}
+
+/// Group-to-group form factor F_IJ = Σ_{i∈I} (A_i / A_I) Σ_{j∈J} F_ij (REFERENCES.md).
+pub fn group_ff(ps: &PatchSet, rows: &[Row], gi: u32, gj: u32) -> f64 {
+    let mut num = 0.0;
+    let mut area = 0.0;
+    for (i, p) in ps.patches.iter().enumerate() {
+        if p.group != gi {
+            continue;
+        }
+        area += p.area;
+        let mut s = 0.0;
+        rows[i].for_each_nonzero(|j, f| {
+            if ps.patches[j as usize].group == gj {
+                s += f as f64;
+            }
+        });
+        num += p.area * s;
+    }
+    num / area
+}
+
+/// max |A_i F_ij − A_j F_ji| / max A_i F_ij over all pairs.
+pub fn reciprocity_error(ps: &PatchSet, rows: &[Row]) -> f64 {
+    let n = ps.len();
+    let dense: Vec<Vec<f32>> = rows.iter().map(|r| r.to_dense(n)).collect();
+    let (mut worst, mut scale) = (0.0f64, 0.0f64);
+    for (i, row) in dense.iter().enumerate() {
+        for (j, &fij) in row.iter().enumerate() {
+            let a = ps.patches[i].area * fij as f64;
+            let b = ps.patches[j].area * dense[j][i] as f64;
+            worst = worst.max((a - b).abs());
+            scale = scale.max(a);
+        }
+    }
+    worst / scale
+}
