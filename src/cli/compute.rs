@@ -96,7 +96,12 @@ pub fn load_scene(spec: &str) -> anyhow::Result<Scene> {
 
 /// Everything built from the scene: patches and the engine. `announce` prints what was
 /// chosen (rank 0 / embedded only).
-pub fn build_job(input: &SceneInput, output: PathBuf, o: &ComputeOptions, announce: bool) -> anyhow::Result<ComputeJob> {
+pub fn build_job(
+    input: &SceneInput,
+    output: PathBuf,
+    o: &ComputeOptions,
+    announce: bool,
+) -> anyhow::Result<ComputeJob> {
     let scene = load_scene(&input.scene)?;
     if announce {
         for w in &scene.warnings {
@@ -110,8 +115,16 @@ pub fn build_job(input: &SceneInput, output: PathBuf, o: &ComputeOptions, announ
     };
     let patches = Arc::new(subdivide(&scene, max_edge));
     if announce {
-        let how = if input.max_edge.is_some() { "given" } else { "chosen for about --patches" };
-        eprintln!("ffstream: {} faces -> {} patches (max edge {max_edge:.6} scene units, {how})", scene.faces.len(), patches.len());
+        let how = if input.max_edge.is_some() {
+            "given"
+        } else {
+            "chosen for about --patches"
+        };
+        eprintln!(
+            "ffstream: {} faces -> {} patches (max edge {max_edge:.6} scene units, {how})",
+            scene.faces.len(),
+            patches.len()
+        );
     }
     if patches.is_empty() {
         bail!("{}: the scene has no patches", input.scene);
@@ -140,12 +153,18 @@ pub fn build_job(input: &SceneInput, output: PathBuf, o: &ComputeOptions, announ
     let meta = FileMeta {
         layout,
         method: cfg.method.to_string(),
-        params: format!("{} max_edge={max_edge} scene={}", engine.describe(), input.scene),
+        params: format!(
+            "{} max_edge={max_edge} scene={}",
+            engine.describe(),
+            input.scene
+        ),
         scene_hash: patches.content_hash(),
         created: format!("ffstream {} ", env!("CARGO_PKG_VERSION")),
         patches: (*patches).clone(),
     };
-    let threads = o.threads.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
+    let threads = o
+        .threads
+        .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
     if threads == 0 {
         bail!("--threads must be at least 1");
     }
@@ -159,9 +178,18 @@ pub fn build_job(input: &SceneInput, output: PathBuf, o: &ComputeOptions, announ
         engine: Arc::new(engine),
         resume: o.resume,
         schedule: o.schedule.parse::<Schedule>().map_err(anyhow::Error::msg)?,
-        rows: o.rows.as_deref().unwrap_or("all").parse::<RowSelection>().map_err(anyhow::Error::msg)?,
+        rows: o
+            .rows
+            .as_deref()
+            .unwrap_or("all")
+            .parse::<RowSelection>()
+            .map_err(anyhow::Error::msg)?,
         threads,
-        writer: WriterOptions { zstd_level: o.zstd_level, chunk_bytes: o.chunk_kib * 1024, fsync: !o.no_fsync },
+        writer: WriterOptions {
+            zstd_level: o.zstd_level,
+            chunk_bytes: o.chunk_kib * 1024,
+            fsync: !o.no_fsync,
+        },
         flush_seconds: o.flush_seconds,
         progress: !o.quiet,
     })
@@ -208,14 +236,22 @@ fn execute_mpi(input: &SceneInput, output: PathBuf, o: &ComputeOptions) -> anyho
     let rank = ctx.rank();
     let input = scene_for_rank(input, rank);
     let built = build_job(&input, output, o, rank == 0).map_err(|e| format!("{e:#}"));
-    let result = agree_on_job(&ctx, built).and_then(|job| if o.gather { run_gather(&ctx, &job) } else { run(&ctx, &job) });
+    let result = agree_on_job(&ctx, built).and_then(|job| {
+        if o.gather {
+            run_gather(&ctx, &job)
+        } else {
+            run(&ctx, &job)
+        }
+    });
     match result {
         Ok(Some(report)) => Ok(Outcome::Master(report)),
         Ok(None) => Ok(Outcome::Worker),
         Err(e) if rank == 0 => {
             // Rank 0 has finished the file with what it had; stop every rank.
             eprintln!("ffstream: error: {e}");
-            eprintln!("ffstream: rows written so far are kept: rerun with --resume to complete the file");
+            eprintln!(
+                "ffstream: rows written so far are kept: rerun with --resume to complete the file"
+            );
             ctx.abort(1)
         }
         Err(e) => {

@@ -42,7 +42,11 @@ pub fn info(a: InfoArgs) -> anyhow::Result<ExitCode> {
 pub fn verify(a: VerifyArgs) -> anyhow::Result<ExitCode> {
     let mut out = std::io::stdout().lock();
     let ok = ffstream::ffz::tools::verify(&a.file, a.against.as_deref(), &mut out)?;
-    Ok(if ok { ExitCode::SUCCESS } else { ExitCode::from(3) })
+    Ok(if ok {
+        ExitCode::SUCCESS
+    } else {
+        ExitCode::from(3)
+    })
 }
 
 pub fn export(a: ExportArgs) -> anyhow::Result<ExitCode> {

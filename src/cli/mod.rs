@@ -75,7 +75,11 @@ pub fn init_tracing(verbose: u8) {
         _ => "debug",
     };
     let filter = EnvFilter::try_from_default_env().unwrap_or_else(|_| EnvFilter::new(default));
-    let _ = tracing_subscriber::fmt().with_env_filter(filter).with_writer(std::io::stderr).with_target(false).try_init();
+    let _ = tracing_subscriber::fmt()
+        .with_env_filter(filter)
+        .with_writer(std::io::stderr)
+        .with_target(false)
+        .try_init();
 }
 
 pub fn dispatch(cli: Cli) -> anyhow::Result<ExitCode> {
@@ -91,15 +95,15 @@ pub fn dispatch(cli: Cli) -> anyhow::Result<ExitCode> {
     }
 }
 
-/// A path argument's display form for messages.
-pub fn show(p: &std::path::Path) -> String {
-    p.display().to_string()
-}
-
 /// Default output directory of `run`.
 pub fn default_run_dir(scene: &str) -> PathBuf {
-    let stem = scene.strip_prefix("builtin:").map(|s| s.split(':').next().unwrap_or(s).to_string()).unwrap_or_else(|| {
-        std::path::Path::new(scene).file_stem().map_or("scene".into(), |s| s.to_string_lossy().into_owned())
-    });
+    let stem = scene
+        .strip_prefix("builtin:")
+        .map(|s| s.split(':').next().unwrap_or(s).to_string())
+        .unwrap_or_else(|| {
+            std::path::Path::new(scene)
+                .file_stem()
+                .map_or("scene".into(), |s| s.to_string_lossy().into_owned())
+        });
     PathBuf::from(format!("out/{stem}"))
 }

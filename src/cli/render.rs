@@ -53,10 +53,22 @@ pub struct ViewOptions {
 }
 
 /// The group names of the Cornell box (built-in and the published file).
-const CORNELL_GROUPS: [&str; 8] = ["floor", "ceiling", "back_wall", "right_wall", "left_wall", "short_block", "tall_block", "light"];
+const CORNELL_GROUPS: [&str; 8] = [
+    "floor",
+    "ceiling",
+    "back_wall",
+    "right_wall",
+    "left_wall",
+    "short_block",
+    "tall_block",
+    "light",
+];
 
 fn default_camera(patches: &PatchSet) -> Camera {
-    let is_cornell = patches.groups.len() == CORNELL_GROUPS.len() && CORNELL_GROUPS.iter().all(|g| patches.groups.iter().any(|h| h == g));
+    let is_cornell = patches.groups.len() == CORNELL_GROUPS.len()
+        && CORNELL_GROUPS
+            .iter()
+            .all(|g| patches.groups.iter().any(|h| h == g));
     if is_cornell {
         Camera::cornell()
     } else {
@@ -65,12 +77,22 @@ fn default_camera(patches: &PatchSet) -> Camera {
 }
 
 /// Render `radiosity` on `patches` to `output`.
-pub fn render_to(patches: &PatchSet, radiosity: &[[f32; 3]], output: &Path, v: &ViewOptions, wireframe: bool) -> anyhow::Result<()> {
+pub fn render_to(
+    patches: &PatchSet,
+    radiosity: &[[f32; 3]],
+    output: &Path,
+    v: &ViewOptions,
+    wireframe: bool,
+) -> anyhow::Result<()> {
     let camera = match &v.camera {
         Some(s) => s.parse::<Camera>()?,
         None => {
             let mut c = default_camera(patches);
-            if v.width != v.height && !CORNELL_GROUPS.iter().all(|g| patches.groups.iter().any(|h| h == g)) {
+            if v.width != v.height
+                && !CORNELL_GROUPS
+                    .iter()
+                    .all(|g| patches.groups.iter().any(|h| h == g))
+            {
                 c = Camera::frame_for(patches, v.width as f64 / v.height as f64);
             }
             c

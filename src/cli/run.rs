@@ -31,8 +31,12 @@ pub struct RunArgs {
 }
 
 pub fn run(mut a: RunArgs) -> anyhow::Result<ExitCode> {
-    let dir = a.output.clone().unwrap_or_else(|| super::default_run_dir(&a.input.scene));
-    std::fs::create_dir_all(&dir).map_err(|e| anyhow::anyhow!("cannot create {}: {e}", dir.display()))?;
+    let dir = a
+        .output
+        .clone()
+        .unwrap_or_else(|| super::default_run_dir(&a.input.scene));
+    std::fs::create_dir_all(&dir)
+        .map_err(|e| anyhow::anyhow!("cannot create {}: {e}", dir.display()))?;
     let ffz = dir.join("form_factors.ffz");
     // A gathering solve never reads rows of patches that neither reflect nor emit.
     a.compute.rows.get_or_insert_with(|| "needed".to_string());
@@ -51,7 +55,13 @@ pub fn run(mut a: RunArgs) -> anyhow::Result<ExitCode> {
     let image = dir.join("image.png");
     render_to(&patches, &radiosity, &image, &a.view, a.view.wireframe)?;
     if !a.view.wireframe {
-        render_to(&patches, &radiosity, &dir.join("wireframe.png"), &a.view, true)?;
+        render_to(
+            &patches,
+            &radiosity,
+            &dir.join("wireframe.png"),
+            &a.view,
+            true,
+        )?;
     }
     println!("picture: {}", image.display());
     Ok(ExitCode::SUCCESS)

@@ -20,6 +20,11 @@ pub struct SceneArgs {
 pub fn run(a: SceneArgs) -> anyhow::Result<ExitCode> {
     let scene = ffstream::scene::builtin(&a.name, a.param)?;
     ffstream::scene::write_obj(&scene, &a.output)?;
-    eprintln!("ffstream: wrote {} ({} faces, {} groups)", a.output.display(), scene.faces.len(), scene.groups.len());
+    eprintln!(
+        "ffstream: wrote {} ({} faces, {} groups)",
+        a.output.display(),
+        scene.faces.len(),
+        scene.groups.len()
+    );
     Ok(ExitCode::SUCCESS)
 }

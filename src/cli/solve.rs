@@ -9,7 +9,7 @@ use clap::Args;
 use ffstream::ffz::FfzReader;
 use ffstream::patch::PatchSet;
 use ffstream::scene::Scene;
-use ffstream::solve::{self, SolveConfig, SolveMethod, Solution};
+use ffstream::solve::{self, Solution, SolveConfig, SolveMethod};
 
 #[derive(Args, Debug, Clone)]
 pub struct SolveArgs {
@@ -56,22 +56,38 @@ pub struct SolveOptions {
 /// Reflectance and emission of the file's patches taken from `scene` instead: each patch
 /// keeps the index of the face it was cut from, which must exist in `scene`, carry the
 /// same group name and contain the patch.
-fn materials_from_scene(patches: &PatchSet, scene: &Scene, spec: &str) -> anyhow::Result<(Vec<[f32; 3]>, Vec<[f32; 3]>)> {
+fn materials_from_scene(
+    patches: &PatchSet,
+    scene: &Scene,
+    spec: &str,
+) -> anyhow::Result<(Vec<[f32; 3]>, Vec<[f32; 3]>)> {
     let (lo, hi) = scene.bounds();
     let tol = 1e-6 * (hi - lo).length().max(f64::MIN_POSITIVE);
     let mut rho = Vec::with_capacity(patches.len());
     let mut emission = Vec::with_capacity(patches.len());
     for (i, p) in patches.patches.iter().enumerate() {
-        let mismatch = |why: String| anyhow::anyhow!("{spec} is not the scene this file was computed from: patch {i}: {why}");
-        let face = scene.faces.get(p.face as usize).ok_or_else(|| mismatch(format!("face {} does not exist", p.face)))?;
+        let mismatch = |why: String| {
+            anyhow::anyhow!("{spec} is not the scene this file was computed from: patch {i}: {why}")
+        };
+        let face = scene
+            .faces
+            .get(p.face as usize)
+            .ok_or_else(|| mismatch(format!("face {} does not exist", p.face)))?;
         let group = &scene.groups[face.group as usize];
         if group != patches.group_name(i) {
-            return Err(mismatch(format!("face {} is in group '{group}', the file says '{}'", p.face, patches.group_name(i))));
+            return Err(mismatch(format!(
+                "face {} is in group '{group}', the file says '{}'",
+                p.face,
+                patches.group_name(i)
+            )));
         }
         let n = face.normal();
         let c = p.centroid();
         if (c - face.corners[0]).dot(n).abs() > tol || n.dot(p.normal) < 1.0 - 1e-9 {
-            return Err(mismatch(format!("it does not lie on face {} (line {})", p.face, face.line)));
+            return Err(mismatch(format!(
+                "it does not lie on face {} (line {})",
+                p.face, face.line
+            )));
         }
         let m = &scene.materials[face.material as usize];
         rho.push(m.rho);
@@ -81,7 +97,12 @@ fn materials_from_scene(patches: &PatchSet, scene: &Scene, spec: &str) -> anyhow
 }
 
 /// Solve `file` and write the outputs; returns the solution and the patches.
-pub fn solve_file(file: &Path, output: &Path, method: &str, o: &SolveOptions) -> anyhow::Result<(Solution, PatchSet)> {
+pub fn solve_file(
+    file: &Path,
+    output: &Path,
+    method: &str,
+    o: &SolveOptions,
+) -> anyhow::Result<(Solution, PatchSet)> {
     let reader = FfzReader::open(file)?;
     for w in reader.warnings() {
         eprintln!("ffstream: warning: {w}");
@@ -89,7 +110,10 @@ pub fn solve_file(file: &Path, output: &Path, method: &str, o: &SolveOptions) ->
     let patches = reader.meta().patches.clone();
     let (rho, own_emission) = match &o.materials_from {
         Some(spec) => materials_from_scene(&patches, &super::compute::load_scene(spec)?, spec)?,
-        None => (solve::scene_reflectance(&patches), solve::scene_emission(&patches)),
+        None => (
+            solve::scene_reflectance(&patches),
+            solve::scene_emission(&patches),
+        ),
     };
     let cases = match &o.emission {
         Some(path) => solve::read_emission_cases(path, &patches)?,
@@ -100,7 +124,11 @@ pub fn solve_file(file: &Path, output: &Path, method: &str, o: &SolveOptions) ->
         bail!(
             "{}: nothing emits light (every Ke is 0){}: the radiosity would be zero everywhere",
             file.display(),
-            if o.emission.is_some() { " in the emission cases" } else { "" }
+            if o.emission.is_some() {
+                " in the emission cases"
+            } else {
+                ""
+            }
         );
     }
     let cfg = SolveConfig {
@@ -109,14 +137,23 @@ pub fn solve_file(file: &Path, output: &Path, method: &str, o: &SolveOptions) ->
         max_iterations: o.max_iterations,
         renormalize_top_k: !o.no_renormalize,
     };
-    let solution = solve::solve(&reader, &cases, &rho, &cfg).with_context(|| format!("solving {}", file.display()))?;
+    let solution = solve::solve(&reader, &cases, &rho, &cfg)
+        .with_context(|| format!("solving {}", file.display()))?;
     eprint!("{}", solution.summary());
     let k = solution.cases();
     for case in 0..k {
         let path = solve::case_path(output, case, k);
         solve::write_csv(&path, &patches, &solution, case)?;
         let table = solve::group_table(&patches, &solution, case)?;
-        println!("{}per-group area-averaged radiosity{}:", if k > 1 { "\n" } else { "" }, if k > 1 { format!(" (case {case})") } else { String::new() });
+        println!(
+            "{}per-group area-averaged radiosity{}:",
+            if k > 1 { "\n" } else { "" },
+            if k > 1 {
+                format!(" (case {case})")
+            } else {
+                String::new()
+            }
+        );
         print!("{}", solve::format_group_table(&table));
         eprintln!("ffstream: wrote {}", path.display());
     }

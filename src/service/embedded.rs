@@ -27,12 +27,16 @@ impl MasterLink for MasterSide {
         match self.rx.recv_timeout(timeout) {
             Ok(m) => Ok(Some(m)),
             Err(RecvTimeoutError::Timeout) => Ok(None),
-            Err(RecvTimeoutError::Disconnected) => Err(ServiceError::Transport("the compute pool stopped without reporting".into())),
+            Err(RecvTimeoutError::Disconnected) => Err(ServiceError::Transport(
+                "the compute pool stopped without reporting".into(),
+            )),
         }
     }
 
     fn assign(&mut self, _worker: usize, rows: Vec<u32>) -> Result<(), ServiceError> {
-        self.assign_tx.send(rows).map_err(|_| ServiceError::Transport("the compute pool stopped".into()))
+        self.assign_tx
+            .send(rows)
+            .map_err(|_| ServiceError::Transport("the compute pool stopped".into()))
     }
 }
 
@@ -43,7 +47,9 @@ struct WorkerSide {
 
 impl WorkerSide {
     fn send(&self, m: ToMaster) -> Result<(), ServiceError> {
-        self.tx.send(m).map_err(|_| ServiceError::Transport("the I/O master stopped".into()))
+        self.tx
+            .send(m)
+            .map_err(|_| ServiceError::Transport("the I/O master stopped".into()))
     }
 }
 
@@ -56,7 +62,9 @@ impl WorkerLink for WorkerSide {
         match self.assign_rx.try_recv() {
             Ok(rows) => Ok(Some(rows)),
             Err(TryRecvError::Empty) => Ok(None),
-            Err(TryRecvError::Disconnected) => Err(ServiceError::Transport("the I/O master stopped".into())),
+            Err(TryRecvError::Disconnected) => {
+                Err(ServiceError::Transport("the I/O master stopped".into()))
+            }
         }
     }
 
@@ -65,7 +73,12 @@ impl WorkerLink for WorkerSide {
     }
 
     fn failed(&mut self, row: i64, message: &str) -> Result<(), ServiceError> {
-        self.send(ToMaster::Failed { worker: 0, rank: 0, row, message: message.to_string() })
+        self.send(ToMaster::Failed {
+            worker: 0,
+            rank: 0,
+            row,
+            message: message.to_string(),
+        })
     }
 
     fn done(&mut self, stats: WorkerStats) -> Result<(), ServiceError> {
@@ -103,7 +116,9 @@ pub fn run_embedded(job: &ComputeJob) -> Result<ComputeReport, ServiceError> {
     let mut link = MasterSide { rx, assign_tx };
     let outcome = run_master(&mut link, writer, &plan);
     drop(link); // unblocks the pool if the master stopped early
-    let pool_result = pool.join().map_err(|_| ServiceError::Transport("the worker thread panicked".into()))?;
+    let pool_result = pool
+        .join()
+        .map_err(|_| ServiceError::Transport("the worker thread panicked".into()))?;
     let outcome = outcome?;
     pool_result?;
     Ok(report(job, &plan, present, outcome))

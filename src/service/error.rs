@@ -10,7 +10,11 @@ pub enum ServiceError {
     File(#[from] FfzError),
     /// A worker reported a failure; the run was stopped.
     #[error("rank {rank}: row {row}: {message}")]
-    WorkerFailed { rank: i32, row: i64, message: String },
+    WorkerFailed {
+        rank: i32,
+        row: i64,
+        message: String,
+    },
     /// A worker could not set up (scene missing, different scene, ...).
     #[error("rank {rank}: {message}")]
     Setup { rank: i32, message: String },

@@ -51,7 +51,10 @@ pub fn write_dense(job: &ComputeJob, matrix: &[f64]) -> Result<ComputeReport, Se
     let n = job.patches.len();
     let mut writer = FfzWriter::create(&job.output, &job.meta, job.writer.clone())?;
     for i in 0..n {
-        let vals: Vec<f32> = matrix[i * n..(i + 1) * n].iter().map(|&x| x as f32).collect();
+        let vals: Vec<f32> = matrix[i * n..(i + 1) * n]
+            .iter()
+            .map(|&x| x as f32)
+            .collect();
         writer.push_row(Row::dense(i as u32, vals))?;
     }
     let stats = writer.finish()?;
@@ -74,7 +77,9 @@ pub fn run_gather_embedded(job: &ComputeJob) -> Result<ComputeReport, ServiceErr
     let n = job.patches.len();
     let mut matrix = vec![0f64; n * n];
     let all: Vec<u32> = (0..n as u32).collect();
-    compute_rows_f64(job, &all, |i, row| matrix[i as usize * n..(i as usize + 1) * n].copy_from_slice(row));
+    compute_rows_f64(job, &all, |i, row| {
+        matrix[i as usize * n..(i as usize + 1) * n].copy_from_slice(row)
+    });
     let mut report = write_dense(job, &matrix)?;
     report.wall_seconds = start.elapsed().as_secs_f64();
     Ok(report)

@@ -24,7 +24,9 @@ impl std::str::FromStr for RowSelection {
         match s {
             "all" => Ok(RowSelection::All),
             "needed" => Ok(RowSelection::Needed),
-            _ => Err(format!("unknown row selection '{s}' (expected all or needed)")),
+            _ => Err(format!(
+                "unknown row selection '{s}' (expected all or needed)"
+            )),
         }
     }
 }
@@ -80,7 +82,11 @@ pub struct ComputeReport {
 impl ComputeReport {
     /// Human-readable summary (several lines, no trailing newline).
     pub fn summary(&self) -> String {
-        let ratio = if self.bytes_on_disk > 0 { self.raw_bytes as f64 / self.bytes_on_disk as f64 } else { 0.0 };
+        let ratio = if self.bytes_on_disk > 0 {
+            self.raw_bytes as f64 / self.bytes_on_disk as f64
+        } else {
+            0.0
+        };
         let mut s = format!(
             "rows: {} computed, {} skipped (not needed), {} already present, n = {}\n\
              wall {:.2} s, {:.1} rows/s; file {:.2} MB on disk ({:.2} MB raw, ratio {:.2})\n\

@@ -14,7 +14,12 @@ pub enum ToMaster {
     /// Compressed rows, ready to append.
     Chunk { worker: usize, chunk: EncodedChunk },
     /// The worker failed; `row` is -1 when no row was involved.
-    Failed { worker: usize, rank: i32, row: i64, message: String },
+    Failed {
+        worker: usize,
+        rank: i32,
+        row: i64,
+        message: String,
+    },
     /// The worker computed all its rows and sent every chunk.
     Done { worker: usize, stats: WorkerStats },
 }

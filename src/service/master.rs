@@ -67,7 +67,11 @@ struct WriterCounters {
 /// # Errors
 /// A worker failure, a broken link, or a file error (disk full, ...). In every case the
 /// chunks written so far stay recoverable.
-pub fn run_master(link: &mut dyn MasterLink, writer: FfzWriter, plan: &MasterPlan) -> Result<MasterOutcome, ServiceError> {
+pub fn run_master(
+    link: &mut dyn MasterLink,
+    writer: FfzWriter,
+    plan: &MasterPlan,
+) -> Result<MasterOutcome, ServiceError> {
     let _span = tracing::info_span!("io_master", rows = plan.todo.len()).entered();
     let start = Instant::now();
     let counters = Arc::new(WriterCounters::default());
@@ -83,7 +87,9 @@ pub fn run_master(link: &mut dyn MasterLink, writer: FfzWriter, plan: &MasterPla
                     WriterJob::Chunk(chunk) => writer.append_chunk(chunk)?,
                 }
                 let s = writer.stats();
-                writer_counters.disk.store(s.bytes_on_disk, Ordering::Relaxed);
+                writer_counters
+                    .disk
+                    .store(s.bytes_on_disk, Ordering::Relaxed);
                 writer_counters.raw.store(s.raw_bytes, Ordering::Relaxed);
             }
             writer.finish()
@@ -147,17 +153,27 @@ fn master_loop(
         let handled = match msg {
             ToMaster::Request { worker } => {
                 // After a failure, answer every request with "no more work".
-                let batch = if failure.is_some() { Vec::new() } else { queue.next_batch() };
+                let batch = if failure.is_some() {
+                    Vec::new()
+                } else {
+                    queue.next_batch()
+                };
                 link.assign(worker, batch)
             }
             ToMaster::Chunk { chunk, .. } => {
                 let rows = chunk.row_ids.len() as u64;
                 outcome.rows_received += rows;
                 let sent = tx.send(WriterJob::Chunk(chunk)).map_err(|_| writer_gone());
-                progress.advance(rows, counters.disk.load(Ordering::Relaxed), counters.raw.load(Ordering::Relaxed));
+                progress.advance(
+                    rows,
+                    counters.disk.load(Ordering::Relaxed),
+                    counters.raw.load(Ordering::Relaxed),
+                );
                 sent
             }
-            ToMaster::Failed { rank, row, message, .. } => {
+            ToMaster::Failed {
+                rank, row, message, ..
+            } => {
                 tracing::error!(rank, row, "worker failed: {message}");
                 failure.get_or_insert(ServiceError::WorkerFailed { rank, row, message });
                 Ok(())
@@ -195,15 +211,21 @@ fn writer_gone() -> ServiceError {
 /// # Errors
 /// The file cannot be created, or (with `resume`) belongs to a different scene or
 /// layout.
-pub fn prepare(job: &crate::service::ComputeJob, min_batch: usize) -> Result<(FfzWriter, MasterPlan, u64), ServiceError> {
+pub fn prepare(
+    job: &crate::service::ComputeJob,
+    min_batch: usize,
+) -> Result<(FfzWriter, MasterPlan, u64), ServiceError> {
     use crate::ffz::RowState;
     use crate::service::RowSelection;
     let n = job.patches.len() as u32;
-    let (writer, presence) = if job.resume && job.output.exists() {
+    let (writer, presence) = if job.resume && job.output.exists() && !torn_own_header(job)? {
         let (w, p) = FfzWriter::resume(&job.output, &job.meta, job.writer.clone())?;
         (w, Some(p))
     } else {
-        (FfzWriter::create(&job.output, &job.meta, job.writer.clone())?, None)
+        (
+            FfzWriter::create(&job.output, &job.meta, job.writer.clone())?,
+            None,
+        )
     };
     let mut todo = Vec::new();
     let mut skipped = Vec::new();
@@ -233,8 +255,41 @@ pub fn prepare(job: &crate::service::ComputeJob, min_batch: usize) -> Result<(Ff
     Ok((writer, plan, present))
 }
 
+/// True when the file to resume is a strict prefix of the meta block this run would
+/// write: the run that made it was killed while writing its header, so no row can be in
+/// it and starting afresh loses nothing. Any other content goes to `resume`, which
+/// checks it properly.
+fn torn_own_header(job: &crate::service::ComputeJob) -> Result<bool, ServiceError> {
+    let io = |e: std::io::Error| FfzError::Io {
+        path: job.output.clone(),
+        op: "read for resume".into(),
+        source: e,
+    };
+    let len = std::fs::metadata(&job.output).map_err(io)?.len();
+    let ours = crate::ffz::encode_meta(&job.meta, job.writer.zstd_level)?;
+    if len >= ours.len() as u64 {
+        return Ok(false);
+    }
+    let have = std::fs::read(&job.output).map_err(io)?;
+    let torn = ours.starts_with(&have);
+    if torn {
+        eprintln!(
+            "ffstream: warning: {} holds only {} bytes of its {}-byte header (killed while starting): starting afresh",
+            job.output.display(),
+            len,
+            ours.len()
+        );
+    }
+    Ok(torn)
+}
+
 /// Turn what the master saw into the run's report.
-pub fn report(job: &crate::service::ComputeJob, plan: &MasterPlan, present: u64, outcome: MasterOutcome) -> crate::service::ComputeReport {
+pub fn report(
+    job: &crate::service::ComputeJob,
+    plan: &MasterPlan,
+    present: u64,
+    outcome: MasterOutcome,
+) -> crate::service::ComputeReport {
     crate::service::ComputeReport {
         n: job.patches.len(),
         rows_computed: outcome.rows_received,

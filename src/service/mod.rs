@@ -15,8 +15,8 @@
 //! its throughput is bounded by the disk, not by its CPU.
 
 pub mod embedded;
-pub mod gather;
 pub mod error;
+pub mod gather;
 pub mod job;
 pub mod link;
 pub mod master;

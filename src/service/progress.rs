@@ -48,10 +48,13 @@ impl Progress {
         let msg = self.message(disk, raw);
         if self.is_terminal {
             let bar = self.bar.get_or_insert_with(|| {
-                let bar = ProgressBar::with_draw_target(Some(self.total), ProgressDrawTarget::stderr());
+                let bar =
+                    ProgressBar::with_draw_target(Some(self.total), ProgressDrawTarget::stderr());
                 bar.set_style(
-                    ProgressStyle::with_template("{bar:30} {pos}/{len} rows {per_sec} ETA {eta} {msg}")
-                        .unwrap_or_else(|_| ProgressStyle::default_bar()),
+                    ProgressStyle::with_template(
+                        "{bar:30} {pos}/{len} rows {per_sec} ETA {eta} {msg}",
+                    )
+                    .unwrap_or_else(|_| ProgressStyle::default_bar()),
                 );
                 bar
             });
@@ -64,14 +67,22 @@ impl Progress {
     }
 
     fn message(&self, disk: u64, raw: u64) -> String {
-        let ratio = if disk > 0 { raw as f64 / disk as f64 } else { 0.0 };
+        let ratio = if disk > 0 {
+            raw as f64 / disk as f64
+        } else {
+            0.0
+        };
         format!("{:.1} MB written, ratio {:.2}", disk as f64 / 1e6, ratio)
     }
 
     fn line(&self, disk: u64, raw: u64) -> String {
         let secs = self.start.elapsed().as_secs_f64();
         let rate = self.done as f64 / secs.max(1e-9);
-        let eta = if rate > 0.0 { (self.total.saturating_sub(self.done)) as f64 / rate } else { f64::NAN };
+        let eta = if rate > 0.0 {
+            (self.total.saturating_sub(self.done)) as f64 / rate
+        } else {
+            f64::NAN
+        };
         format!(
             "progress: {}/{} rows ({:.1}%), {:.1} rows/s, ETA {:.0} s, {}",
             self.done,

@@ -23,7 +23,9 @@ impl std::str::FromStr for Schedule {
         match s {
             "dynamic" => Ok(Schedule::Dynamic),
             "folded" => Ok(Schedule::Folded),
-            _ => Err(format!("unknown schedule '{s}' (expected dynamic or folded)")),
+            _ => Err(format!(
+                "unknown schedule '{s}' (expected dynamic or folded)"
+            )),
         }
     }
 }
@@ -80,7 +82,13 @@ impl DynamicQueue {
     /// `min_batch` is usually the compute threads per worker, so one request keeps
     /// every thread of a worker busy.
     pub fn new(rows: Vec<u32>, workers: usize, min_batch: usize, max_batch: usize) -> Self {
-        DynamicQueue { rows, next: 0, workers: workers.max(1), min_batch: min_batch.max(1), max_batch: max_batch.max(1) }
+        DynamicQueue {
+            rows,
+            next: 0,
+            workers: workers.max(1),
+            min_batch: min_batch.max(1),
+            max_batch: max_batch.max(1),
+        }
     }
 
     pub fn remaining(&self) -> usize {
@@ -90,7 +98,9 @@ impl DynamicQueue {
     /// Next batch: a quarter of the per-worker remainder, clamped; empty when done.
     pub fn next_batch(&mut self) -> Vec<u32> {
         let remaining = self.remaining();
-        let size = (remaining / (4 * self.workers)).clamp(self.min_batch, self.max_batch).min(remaining);
+        let size = (remaining / (4 * self.workers))
+            .clamp(self.min_batch, self.max_batch)
+            .min(remaining);
         let batch = self.rows[self.next..self.next + size].to_vec();
         self.next += size;
         batch
@@ -112,14 +122,25 @@ mod tests {
         let n = 1000u32;
         let rows: Vec<u32> = (0..n).collect();
         for workers in 1..6 {
-            let mut all: Vec<u32> = (0..workers).flat_map(|w| folded_share(&rows, workers, w)).collect();
+            let mut all: Vec<u32> = (0..workers)
+                .flat_map(|w| folded_share(&rows, workers, w))
+                .collect();
             all.sort_unstable();
             assert_eq!(all, rows, "workers = {workers}");
             // Upper-half cost of row i is n - i: shares must be within one pair's cost.
-            let costs: Vec<u64> =
-                (0..workers).map(|w| folded_share(&rows, workers, w).iter().map(|&i| (n - i) as u64).sum()).collect();
+            let costs: Vec<u64> = (0..workers)
+                .map(|w| {
+                    folded_share(&rows, workers, w)
+                        .iter()
+                        .map(|&i| (n - i) as u64)
+                        .sum()
+                })
+                .collect();
             let spread = costs.iter().max().unwrap() - costs.iter().min().unwrap();
-            assert!(spread <= (n + 1) as u64, "workers = {workers}: costs {costs:?}");
+            assert!(
+                spread <= (n + 1) as u64,
+                "workers = {workers}: costs {costs:?}"
+            );
         }
     }
 

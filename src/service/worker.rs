@@ -57,7 +57,9 @@ pub fn run_worker(
     static_rows: Option<Vec<u32>>,
 ) -> Result<WorkerStats, ServiceError> {
     let _span = tracing::info_span!("worker", rank = cfg.rank, threads = cfg.threads).entered();
-    let fail_row: Option<u32> = std::env::var(FAIL_ROW_ENV).ok().and_then(|v| v.parse().ok());
+    let fail_row: Option<u32> = std::env::var(FAIL_ROW_ENV)
+        .ok()
+        .and_then(|v| v.parse().ok());
     let threads = cfg.threads.max(1);
     let (jobs_tx, jobs_rx) = unbounded::<u32>();
     let (out_tx, out_rx) = bounded::<FromCompute>(2 * threads);
@@ -69,11 +71,19 @@ pub fn run_worker(
         for t in 0..threads {
             let jobs_rx = jobs_rx.clone();
             let out_tx = out_tx.clone();
-            let counters = Counters { computed: &computed, busy_nanos: &busy_nanos, stop: &stop };
+            let counters = Counters {
+                computed: &computed,
+                busy_nanos: &busy_nanos,
+                stop: &stop,
+            };
             std::thread::Builder::new()
                 .name(format!("compute-{t}"))
-                .spawn_scoped(s, move || compute_thread(engine, cfg, fail_row, &jobs_rx, &out_tx, counters))
-                .map_err(|e| ServiceError::Transport(format!("cannot start a compute thread: {e}")))?;
+                .spawn_scoped(s, move || {
+                    compute_thread(engine, cfg, fail_row, &jobs_rx, &out_tx, counters)
+                })
+                .map_err(|e| {
+                    ServiceError::Transport(format!("cannot start a compute thread: {e}"))
+                })?;
         }
         drop(out_tx);
         // `out_rx` moves into the driver and is dropped when it returns: on an error the
@@ -118,7 +128,8 @@ fn drive(
     }
     loop {
         if let Some(tx) = &jobs_tx {
-            if !requested && assigned.saturating_sub(computed.load(Ordering::Relaxed)) <= low_water {
+            if !requested && assigned.saturating_sub(computed.load(Ordering::Relaxed)) <= low_water
+            {
                 link.request()?;
                 requested = true;
             }
@@ -140,7 +151,11 @@ fn drive(
             Ok(FromCompute::Chunk(chunk)) => link.send_chunk(chunk)?,
             Ok(FromCompute::Failed { row, message }) => {
                 link.failed(row, &message)?;
-                return Err(ServiceError::WorkerFailed { rank: cfg.rank, row, message });
+                return Err(ServiceError::WorkerFailed {
+                    rank: cfg.rank,
+                    row,
+                    message,
+                });
             }
             Err(RecvTimeoutError::Timeout) => {}
             Err(RecvTimeoutError::Disconnected) => return Ok(()), // every thread finished
@@ -166,7 +181,11 @@ fn compute_thread(
     out: &Sender<FromCompute>,
     counters: Counters<'_>,
 ) {
-    let Counters { computed, busy_nanos, stop } = counters;
+    let Counters {
+        computed,
+        busy_nanos,
+        stop,
+    } = counters;
     let mut scratch = Scratch::default();
     let mut pending: Vec<Row> = Vec::new();
     let mut pending_bytes = 0usize;
@@ -199,7 +218,10 @@ fn compute_thread(
                     computed.fetch_add(1, Ordering::Relaxed);
                 }
                 Err(message) => {
-                    let _ = out.send(FromCompute::Failed { row: i as i64, message });
+                    let _ = out.send(FromCompute::Failed {
+                        row: i as i64,
+                        message,
+                    });
                     return;
                 }
             }
@@ -208,7 +230,10 @@ fn compute_thread(
         if !pending.is_empty() && (finished || due || pending_bytes >= cfg.chunk_bytes) {
             let msg = match encode_chunk(&pending, cfg.layout, cfg.n, cfg.zstd_level) {
                 Ok(chunk) => FromCompute::Chunk(chunk),
-                Err(e) => FromCompute::Failed { row: pending[0].index as i64, message: e.to_string() },
+                Err(e) => FromCompute::Failed {
+                    row: pending[0].index as i64,
+                    message: e.to_string(),
+                },
             };
             pending.clear();
             pending_bytes = 0;

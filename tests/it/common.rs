@@ -11,14 +11,22 @@ pub fn exe() -> PathBuf {
 
 /// `ffstream ARGS...` with stdin closed; panics with the output if it cannot start.
 pub fn ffstream(args: &[&str]) -> Output {
-    Command::new(exe()).args(args).env_remove("FFSTREAM_FAIL_ROW").output().expect("cannot start ffstream")
+    Command::new(exe())
+        .args(args)
+        .env_remove("FFSTREAM_FAIL_ROW")
+        .output()
+        .expect("cannot start ffstream")
 }
 
 /// Like [`ffstream`] but asserts success and returns stderr.
 pub fn ok(args: &[&str]) -> String {
     let out = ffstream(args);
     let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
-    assert!(out.status.success(), "ffstream {args:?} failed: {}\nstderr:\n{stderr}", out.status);
+    assert!(
+        out.status.success(),
+        "ffstream {args:?} failed: {}\nstderr:\n{stderr}",
+        out.status
+    );
     stderr
 }
 
@@ -39,7 +47,10 @@ pub fn mpirun(ranks: usize, args: &[&str]) -> Command {
 
 /// True when mpirun is on PATH and the binary was built with MPI.
 pub fn mpi_available() -> bool {
-    let has_mpirun = Command::new("mpirun").arg("--version").output().is_ok_and(|o| o.status.success());
+    let has_mpirun = Command::new("mpirun")
+        .arg("--version")
+        .output()
+        .is_ok_and(|o| o.status.success());
     has_mpirun && cfg!(feature = "mpi")
 }
 

@@ -14,7 +14,14 @@ use ffstream::ffz::FfzReader;
 use crate::common::{mpi_available, mpirun, ok, path_str};
 use crate::service::assert_same_rows;
 
-const CUBE: &[&str] = &["builtin:cube", "--max-edge", "0.25", "--quiet", "--threads", "1"];
+const CUBE: &[&str] = &[
+    "builtin:cube",
+    "--max-edge",
+    "0.25",
+    "--quiet",
+    "--threads",
+    "1",
+];
 
 fn need_mpi() -> bool {
     if mpi_available() {
@@ -66,7 +73,10 @@ fn rows_are_identical_for_2_3_5_ranks_and_embedded() {
         let out = mpi_compute(ranks, &f, &["--chunk-kib", "8"]);
         assert_ok(&out, &format!("mpirun -n {ranks}"));
         let stderr = String::from_utf8_lossy(&out.stderr);
-        assert!(stderr.contains("worker rank"), "rank 0 reports each worker: {stderr}");
+        assert!(
+            stderr.contains("worker rank"),
+            "rank 0 reports each worker: {stderr}"
+        );
         assert_same_rows(&reference, &f);
     }
 }
@@ -79,7 +89,10 @@ fn folded_schedule_and_gather_baseline_give_the_same_rows() {
     let dir = tempfile::tempdir().unwrap();
     let reference = embedded_reference(dir.path());
     let folded = dir.path().join("folded.ffz");
-    assert_ok(&mpi_compute(3, &folded, &["--schedule", "folded"]), "folded");
+    assert_ok(
+        &mpi_compute(3, &folded, &["--schedule", "folded"]),
+        "folded",
+    );
     assert_same_rows(&reference, &folded);
     let gather = dir.path().join("gather.ffz");
     assert_ok(&mpi_compute(3, &gather, &["--gather"]), "gather");
@@ -97,10 +110,16 @@ fn worker_failure_is_named_file_stays_readable_and_resume_completes_it() {
     let mut args = vec!["compute"];
     args.extend_from_slice(CUBE);
     args.extend_from_slice(&["-o", path_str(&f), "--chunk-kib", "4"]);
-    let out = mpirun(3, &args).env("FFSTREAM_FAIL_ROW", "50").output().unwrap();
+    let out = mpirun(3, &args)
+        .env("FFSTREAM_FAIL_ROW", "50")
+        .output()
+        .unwrap();
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success(), "the job must fail");
-    assert!(stderr.contains("row 50") && stderr.contains("rank "), "rank and row named: {stderr}");
+    assert!(
+        stderr.contains("row 50") && stderr.contains("rank "),
+        "rank and row named: {stderr}"
+    );
     let r = FfzReader::open(&f).expect("the file written so far is readable");
     assert!(r.row(50).unwrap().is_none());
     drop(r);
@@ -118,14 +137,26 @@ fn a_rank_with_a_different_scene_is_named_before_computing() {
     let mut args = vec!["compute"];
     args.extend_from_slice(CUBE);
     args.extend_from_slice(&["-o", path_str(&f)]);
-    let out = mpirun(3, &args).env("FFSTREAM_TEST_SCENE_RANK", "2:builtin:plates").output().unwrap();
+    let out = mpirun(3, &args)
+        .env("FFSTREAM_TEST_SCENE_RANK", "2:builtin:plates")
+        .output()
+        .unwrap();
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success());
-    assert!(stderr.contains("rank 2") && stderr.contains("scene differs"), "{stderr}");
-    let out = mpirun(3, &args).env("FFSTREAM_TEST_SCENE_RANK", "1:/nonexistent/scene.obj").output().unwrap();
+    assert!(
+        stderr.contains("rank 2") && stderr.contains("scene differs"),
+        "{stderr}"
+    );
+    let out = mpirun(3, &args)
+        .env("FFSTREAM_TEST_SCENE_RANK", "1:/nonexistent/scene.obj")
+        .output()
+        .unwrap();
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success());
-    assert!(stderr.contains("rank 1") && stderr.contains("nonexistent"), "{stderr}");
+    assert!(
+        stderr.contains("rank 1") && stderr.contains("nonexistent"),
+        "{stderr}"
+    );
 }
 
 #[test]
@@ -134,7 +165,16 @@ fn killed_mpi_run_resumes_to_the_same_rows() {
         return;
     }
     let dir = tempfile::tempdir().unwrap();
-    let scene = ["builtin:cube", "--max-edge", "0.1", "--quiet", "--threads", "1", "--samples", "8"];
+    let scene = [
+        "builtin:cornell",
+        "--patches",
+        "800",
+        "--quiet",
+        "--threads",
+        "1",
+        "--samples",
+        "8",
+    ];
     let full = dir.path().join("full.ffz");
     let mut args = vec!["compute"];
     args.extend_from_slice(&scene);
@@ -143,11 +183,20 @@ fn killed_mpi_run_resumes_to_the_same_rows() {
     let part = dir.path().join("part.ffz");
     let mut args = vec!["compute"];
     args.extend_from_slice(&scene);
-    args.extend_from_slice(&["-o", path_str(&part), "--chunk-kib", "16", "--flush-seconds", "0.05"]);
+    args.extend_from_slice(&[
+        "-o",
+        path_str(&part),
+        "--chunk-kib",
+        "16",
+        "--flush-seconds",
+        "0.05",
+    ]);
     let mut child = mpirun(3, &args).spawn().unwrap();
     let target = std::fs::metadata(&full).unwrap().len() / 3;
     let t0 = Instant::now();
-    while std::fs::metadata(&part).map_or(0, |m| m.len()) < target && t0.elapsed() < Duration::from_secs(60) {
+    while std::fs::metadata(&part).map_or(0, |m| m.len()) < target
+        && t0.elapsed() < Duration::from_secs(60)
+    {
         std::thread::sleep(Duration::from_millis(5));
     }
     child.kill().unwrap(); // SIGKILL to mpirun: Open MPI then kills every rank

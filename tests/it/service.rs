@@ -16,13 +16,33 @@ pub fn assert_same_rows(a: &Path, b: &Path) {
     let rb = FfzReader::open(b).expect("open b");
     assert_eq!(ra.n(), rb.n(), "n differs");
     for i in 0..ra.n() as u32 {
-        let x = ra.row(i).expect("read a").unwrap_or_else(|| panic!("{}: row {i} missing", a.display()));
-        let y = rb.row(i).expect("read b").unwrap_or_else(|| panic!("{}: row {i} missing", b.display()));
-        assert_eq!(x.values, y.values, "row {i} differs between {} and {}", a.display(), b.display());
-        assert_eq!(x.dropped.to_bits(), y.dropped.to_bits(), "dropped mass of row {i} differs");
+        let x = ra
+            .row(i)
+            .expect("read a")
+            .unwrap_or_else(|| panic!("{}: row {i} missing", a.display()));
+        let y = rb
+            .row(i)
+            .expect("read b")
+            .unwrap_or_else(|| panic!("{}: row {i} missing", b.display()));
+        assert_eq!(
+            x.values,
+            y.values,
+            "row {i} differs between {} and {}",
+            a.display(),
+            b.display()
+        );
+        assert_eq!(
+            x.dropped.to_bits(),
+            y.dropped.to_bits(),
+            "dropped mass of row {i} differs"
+        );
     }
     let out = ffstream(&["verify", path_str(a), "--against", path_str(b)]);
-    assert!(out.status.success(), "verify --against disagrees: {}", String::from_utf8_lossy(&out.stdout));
+    assert!(
+        out.status.success(),
+        "verify --against disagrees: {}",
+        String::from_utf8_lossy(&out.stdout)
+    );
 }
 
 const CUBE: &[&str] = &["builtin:cube", "--max-edge", "0.25", "--quiet"];
@@ -66,16 +86,41 @@ fn injected_worker_failure_names_the_row_keeps_the_file_and_resume_completes_it(
     let part = dir.path().join("part.ffz");
     compute(CUBE, &full, &["--threads", "2"]);
     let out = std::process::Command::new(crate::common::exe())
-        .args(["compute", CUBE[0], CUBE[1], CUBE[2], "--quiet", "-o", path_str(&part), "--threads", "2", "--chunk-kib", "8"])
+        .args([
+            "compute",
+            CUBE[0],
+            CUBE[1],
+            CUBE[2],
+            "--quiet",
+            "-o",
+            path_str(&part),
+            "--threads",
+            "2",
+            "--chunk-kib",
+            "8",
+        ])
         .env("FFSTREAM_FAIL_ROW", "40")
         .output()
         .unwrap();
     let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(!out.status.success(), "an injected failure must fail the run");
-    assert!(stderr.contains("row 40"), "the error must name the row: {stderr}");
-    assert_eq!(stderr.lines().filter(|l| l.contains("error")).count(), 1, "one-line cause expected: {stderr}");
+    assert!(
+        !out.status.success(),
+        "an injected failure must fail the run"
+    );
+    assert!(
+        stderr.contains("row 40"),
+        "the error must name the row: {stderr}"
+    );
+    assert_eq!(
+        stderr.lines().filter(|l| l.contains("error")).count(),
+        1,
+        "one-line cause expected: {stderr}"
+    );
     let r = FfzReader::open(&part).expect("a failed run leaves a readable file");
-    assert!(r.row(40).unwrap().is_none(), "the failed row cannot be present");
+    assert!(
+        r.row(40).unwrap().is_none(),
+        "the failed row cannot be present"
+    );
     drop(r);
     compute(CUBE, &part, &["--threads", "2", "--resume"]);
     assert_same_rows(&full, &part);
@@ -86,20 +131,32 @@ fn killed_run_resumes_to_the_same_rows() {
     let dir = tempfile::tempdir().unwrap();
     let full = dir.path().join("full.ffz");
     let part = dir.path().join("part.ffz");
-    // Enough work to be killed mid-way; small chunks flushed often.
-    let scene = ["builtin:cube", "--max-edge", "0.1", "--quiet"];
+    // Enough work (occluded pairs cast rays) to be killed mid-way; small chunks
+    // flushed often.
+    let scene = ["builtin:cornell", "--patches", "800", "--quiet"];
     let extra = ["--threads", "2", "--samples", "8"];
     compute(&scene, &full, &extra);
     let mut child = std::process::Command::new(crate::common::exe())
-        .args(["compute", scene[0], scene[1], scene[2], "--quiet", "-o", path_str(&part)])
+        .args([
+            "compute",
+            scene[0],
+            scene[1],
+            scene[2],
+            "--quiet",
+            "-o",
+            path_str(&part),
+        ])
         .args(extra)
         .args(["--chunk-kib", "16", "--flush-seconds", "0.05"])
         .spawn()
         .unwrap();
-    // Kill once some chunks are on disk (header + patch table come first).
+    // Kill once about a third of the file is on disk (the header and patch table come
+    // first, then chunks).
     let t0 = Instant::now();
-    let header_len = std::fs::metadata(&full).map(|m| m.len() / 20).unwrap_or(4096);
-    while std::fs::metadata(&part).map_or(0, |m| m.len()) < header_len && t0.elapsed() < Duration::from_secs(60) {
+    let target = std::fs::metadata(&full).unwrap().len() / 3;
+    while std::fs::metadata(&part).map_or(0, |m| m.len()) < target
+        && t0.elapsed() < Duration::from_secs(60)
+    {
         std::thread::sleep(Duration::from_millis(5));
     }
     child.kill().unwrap(); // SIGKILL
@@ -113,7 +170,11 @@ fn killed_run_resumes_to_the_same_rows() {
     } else {
         assert!(missing > 0, "a killed run should have missing rows");
     }
-    let stderr = compute(&scene, &part, &[extra[0], extra[1], extra[2], extra[3], "--resume"]);
+    let stderr = compute(
+        &scene,
+        &part,
+        &[extra[0], extra[1], extra[2], extra[3], "--resume"],
+    );
     eprintln!("{stderr}");
     assert_same_rows(&full, &part);
 }
@@ -128,7 +189,11 @@ fn rows_needed_skips_inert_patches_and_says_so_in_the_file() {
     let f = dir.path().join("needed.ffz");
     let all = dir.path().join("all.ffz");
     compute(&[path_str(&obj), "--max-edge", "0.5", "--quiet"], &all, &[]);
-    compute(&[path_str(&obj), "--max-edge", "0.5", "--quiet"], &f, &["--rows", "needed"]);
+    compute(
+        &[path_str(&obj), "--max-edge", "0.5", "--quiet"],
+        &f,
+        &["--rows", "needed"],
+    );
     let ra = FfzReader::open(&all).unwrap();
     let rn = FfzReader::open(&f).unwrap();
     let patches = &rn.meta().patches;
@@ -136,10 +201,18 @@ fn rows_needed_skips_inert_patches_and_says_so_in_the_file() {
     for i in 0..rn.n() as u32 {
         let row = rn.row(i).unwrap().expect("every row is present or skipped");
         if patches.patches[i as usize].is_inert() {
-            assert_eq!(row.values, RowValues::Skipped, "inert patch {i} must be skipped");
+            assert_eq!(
+                row.values,
+                RowValues::Skipped,
+                "inert patch {i} must be skipped"
+            );
             skipped += 1;
         } else {
-            assert_eq!(Some(row), ra.row(i).unwrap(), "needed row {i} must equal the full run's");
+            assert_eq!(
+                Some(row),
+                ra.row(i).unwrap(),
+                "needed row {i} must equal the full run's"
+            );
         }
     }
     // Face x0 at --max-edge 0.5 is 2 x 2 patches.
@@ -199,13 +272,24 @@ fn cornell_box_default_patch_count_end_to_end_and_floor_under_blocks_is_dark() {
     let dir = tempfile::tempdir().unwrap();
     let f = dir.path().join("cornell.ffz");
     let stderr = compute(&["builtin:cornell"], &f, &["--quiet"]);
-    assert!(stderr.contains("patches"), "the chosen patch count is printed: {stderr}");
+    assert!(
+        stderr.contains("patches"),
+        "the chosen patch count is printed: {stderr}"
+    );
     let r = FfzReader::open(&f).unwrap();
     let n = r.n();
-    assert!((1500..=2600).contains(&n), "default should give about 2000 patches, got {n}");
+    assert!(
+        (1500..=2600).contains(&n),
+        "default should give about 2000 patches, got {n}"
+    );
     // Block footprints on the floor (from the published Cornell box data).
     let short = [(290.0, 114.0), (240.0, 272.0), (82.0, 225.0), (130.0, 65.0)];
-    let tall = [(423.0, 247.0), (265.0, 296.0), (314.0, 456.0), (472.0, 406.0)];
+    let tall = [
+        (423.0, 247.0),
+        (265.0, 296.0),
+        (314.0, 456.0),
+        (472.0, 406.0),
+    ];
     let patches = &r.meta().patches;
     let mut under = 0;
     for (i, p) in patches.patches.iter().enumerate() {
@@ -218,8 +302,14 @@ fn cornell_box_default_patch_count_end_to_end_and_floor_under_blocks_is_dark() {
             let row = r.row(i as u32).unwrap().expect("row present");
             let mut nonzero = 0;
             row.for_each_nonzero(|_, _| nonzero += 1);
-            assert_eq!(nonzero, 0, "floor patch {i} lies under a block: its row must be all zero");
+            assert_eq!(
+                nonzero, 0,
+                "floor patch {i} lies under a block: its row must be all zero"
+            );
         }
     }
-    assert!(under > 10, "expected floor patches under the blocks, found {under}");
+    assert!(
+        under > 10,
+        "expected floor patches under the blocks, found {under}"
+    );
 }

@@ -19,7 +19,10 @@ use crate::service::{ComputeJob, ComputeReport, ServiceError};
 ///
 /// # Errors
 /// File errors at rank 0; a malformed row message.
-pub fn run_gather(ctx: &MpiContext, job: &ComputeJob) -> Result<Option<ComputeReport>, ServiceError> {
+pub fn run_gather(
+    ctx: &MpiContext,
+    job: &ComputeJob,
+) -> Result<Option<ComputeReport>, ServiceError> {
     let start = std::time::Instant::now();
     let n = job.patches.len();
     let all: Vec<u32> = (0..n as u32).collect();
@@ -33,24 +36,42 @@ pub fn run_gather(ctx: &MpiContext, job: &ComputeJob) -> Result<Option<ComputeRe
             for (k, x) in row.iter().enumerate() {
                 buf[4 + 8 * k..12 + 8 * k].copy_from_slice(&x.to_le_bytes());
             }
-            world.process_at_rank(0).send_with_tag(&buf[..], p::GATHER_ROW);
+            world
+                .process_at_rank(0)
+                .send_with_tag(&buf[..], p::GATHER_ROW);
         });
         return Ok(None);
     }
     let _span = tracing::info_span!("gather_master", n).entered();
     let mut matrix = vec![0f64; n * n];
-    compute_rows_f64(job, &mine, |i, row| matrix[i as usize * n..(i as usize + 1) * n].copy_from_slice(row));
+    compute_rows_f64(job, &mine, |i, row| {
+        matrix[i as usize * n..(i as usize + 1) * n].copy_from_slice(row)
+    });
     let mut buf = vec![0u8; 4 + 8 * n];
     let t_wait = std::time::Instant::now();
     for _ in 0..n - mine.len() {
-        let status = world.any_process().receive_into_with_tag(&mut buf[..], p::GATHER_ROW);
+        let status = world
+            .any_process()
+            .receive_into_with_tag(&mut buf[..], p::GATHER_ROW);
         let i = u32::from_le_bytes([buf[0], buf[1], buf[2], buf[3]]) as usize;
         if i >= n {
-            return Err(ServiceError::Transport(format!("rank {} sent row {i} of {n}", status.source_rank())));
+            return Err(ServiceError::Transport(format!(
+                "rank {} sent row {i} of {n}",
+                status.source_rank()
+            )));
         }
         for (k, x) in matrix[i * n..(i + 1) * n].iter_mut().enumerate() {
             let o = 4 + 8 * k;
-            *x = f64::from_le_bytes([buf[o], buf[o + 1], buf[o + 2], buf[o + 3], buf[o + 4], buf[o + 5], buf[o + 6], buf[o + 7]]);
+            *x = f64::from_le_bytes([
+                buf[o],
+                buf[o + 1],
+                buf[o + 2],
+                buf[o + 3],
+                buf[o + 4],
+                buf[o + 5],
+                buf[o + 6],
+                buf[o + 7],
+            ]);
         }
     }
     let receive_seconds = t_wait.elapsed().as_secs_f64();

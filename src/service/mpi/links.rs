@@ -32,21 +32,43 @@ impl MpiMasterLink<'_> {
         let worker = (rank - 1) as usize;
         let tag = status.tag();
         if tag == p::ASSIGN || tag == p::GATHER_ROW {
-            return Err(ServiceError::Transport(format!("unexpected message tag {tag} from rank {rank}")));
+            return Err(ServiceError::Transport(format!(
+                "unexpected message tag {tag} from rank {rank}"
+            )));
         }
         let count = status.count(u8::equivalent_datatype()) as usize;
         let mut buf = vec![0u8; count];
         msg.matched_receive_into(&mut buf[..]);
         Ok(Some(match tag {
             p::REQUEST => ToMaster::Request { worker },
-            p::CHUNK => ToMaster::Chunk { worker, chunk: p::decode_chunk_message(buf, rank)? },
+            p::CHUNK => ToMaster::Chunk {
+                worker,
+                chunk: p::decode_chunk_message(buf, rank)?,
+            },
             p::FAILED => {
                 let (row, message) = p::decode_failed(&buf, rank)?;
-                ToMaster::Failed { worker, rank, row, message }
+                ToMaster::Failed {
+                    worker,
+                    rank,
+                    row,
+                    message,
+                }
             }
-            p::DONE => ToMaster::Done { worker, stats: p::decode_done(&buf, rank)? },
-            p::SETUP => ToMaster::Failed { worker, rank, row: -1, message: String::from_utf8_lossy(&buf).into_owned() },
-            _ => return Err(ServiceError::Transport(format!("unknown message tag {tag} from rank {rank}"))),
+            p::DONE => ToMaster::Done {
+                worker,
+                stats: p::decode_done(&buf, rank)?,
+            },
+            p::SETUP => ToMaster::Failed {
+                worker,
+                rank,
+                row: -1,
+                message: String::from_utf8_lossy(&buf).into_owned(),
+            },
+            _ => {
+                return Err(ServiceError::Transport(format!(
+                    "unknown message tag {tag} from rank {rank}"
+                )))
+            }
         }))
     }
 }
@@ -73,7 +95,9 @@ impl MasterLink for MpiMasterLink<'_> {
 
     fn assign(&mut self, worker: usize, rows: Vec<u32>) -> Result<(), ServiceError> {
         let msg = p::encode_assign(&rows);
-        self.world.process_at_rank(worker as i32 + 1).send_with_tag(&msg[..], p::ASSIGN);
+        self.world
+            .process_at_rank(worker as i32 + 1)
+            .send_with_tag(&msg[..], p::ASSIGN);
         Ok(())
     }
 }
@@ -85,12 +109,18 @@ pub struct MpiWorkerLink<'a> {
 impl WorkerLink for MpiWorkerLink<'_> {
     fn request(&mut self) -> Result<(), ServiceError> {
         let me = [self.world.rank() as u32];
-        self.world.process_at_rank(0).send_with_tag(&me[..], p::REQUEST);
+        self.world
+            .process_at_rank(0)
+            .send_with_tag(&me[..], p::REQUEST);
         Ok(())
     }
 
     fn try_assignment(&mut self) -> Result<Option<Vec<u32>>, ServiceError> {
-        let Some((msg, status)) = self.world.process_at_rank(0).immediate_matched_probe_with_tag(p::ASSIGN) else {
+        let Some((msg, status)) = self
+            .world
+            .process_at_rank(0)
+            .immediate_matched_probe_with_tag(p::ASSIGN)
+        else {
             return Ok(None);
         };
         let count = status.count(u32::equivalent_datatype()) as usize;
@@ -101,19 +131,25 @@ impl WorkerLink for MpiWorkerLink<'_> {
 
     fn send_chunk(&mut self, chunk: EncodedChunk) -> Result<(), ServiceError> {
         let msg = p::encode_chunk_message(chunk);
-        self.world.process_at_rank(0).send_with_tag(&msg[..], p::CHUNK);
+        self.world
+            .process_at_rank(0)
+            .send_with_tag(&msg[..], p::CHUNK);
         Ok(())
     }
 
     fn failed(&mut self, row: i64, message: &str) -> Result<(), ServiceError> {
         let msg = p::encode_failed(row, message);
-        self.world.process_at_rank(0).send_with_tag(&msg[..], p::FAILED);
+        self.world
+            .process_at_rank(0)
+            .send_with_tag(&msg[..], p::FAILED);
         Ok(())
     }
 
     fn done(&mut self, stats: WorkerStats) -> Result<(), ServiceError> {
         let msg = p::encode_done(&stats);
-        self.world.process_at_rank(0).send_with_tag(&msg[..], p::DONE);
+        self.world
+            .process_at_rank(0)
+            .send_with_tag(&msg[..], p::DONE);
         Ok(())
     }
 }

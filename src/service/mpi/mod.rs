@@ -20,7 +20,7 @@ mod gather;
 pub mod links;
 pub mod protocol;
 
-use mpi::collective::{CommunicatorCollectives, Root};
+use mpi::collective::Root;
 use mpi::environment::Universe;
 use mpi::point_to_point::{Destination, Source};
 use mpi::topology::{Communicator, SimpleCommunicator};
@@ -37,9 +37,15 @@ use crate::service::{ComputeJob, ComputeReport, ServiceError};
 /// True when this process was started by an MPI launcher (mpirun/mpiexec/srun). Without
 /// one, ffstream does not initialise MPI at all and runs embedded.
 pub fn launched_by_mpi() -> bool {
-    ["OMPI_COMM_WORLD_SIZE", "PMI_SIZE", "PMIX_RANK", "PMI_RANK", "MPI_LOCALNRANKS"]
-        .iter()
-        .any(|v| std::env::var_os(v).is_some())
+    [
+        "OMPI_COMM_WORLD_SIZE",
+        "PMI_SIZE",
+        "PMIX_RANK",
+        "PMI_RANK",
+        "MPI_LOCALNRANKS",
+    ]
+    .iter()
+    .any(|v| std::env::var_os(v).is_some())
 }
 
 /// An initialised MPI environment (finalised on drop).
@@ -63,7 +69,10 @@ impl MpiContext {
             )));
         }
         let world = universe.world();
-        Ok(MpiContext { _universe: universe, world })
+        Ok(MpiContext {
+            _universe: universe,
+            world,
+        })
     }
 
     pub fn rank(&self) -> i32 {
@@ -85,7 +94,10 @@ impl MpiContext {
 ///
 /// # Errors
 /// Names the first rank that failed or disagrees.
-pub fn agree_on_job(ctx: &MpiContext, job: Result<ComputeJob, String>) -> Result<ComputeJob, ServiceError> {
+pub fn agree_on_job(
+    ctx: &MpiContext,
+    job: Result<ComputeJob, String>,
+) -> Result<ComputeJob, ServiceError> {
     let world = &ctx.world;
     let root = world.process_at_rank(0);
     let mine: [u64; 3] = match &job {
@@ -96,12 +108,20 @@ pub fn agree_on_job(ctx: &MpiContext, job: Result<ComputeJob, String>) -> Result
     if ctx.rank() == 0 {
         let mut all = vec![0u64; 3 * ctx.size() as usize];
         root.gather_into_root(&mine[..], &mut all[..]);
-        let mut problem: Option<ServiceError> = job.as_ref().err().map(|m| ServiceError::Setup { rank: 0, message: m.clone() });
+        let mut problem: Option<ServiceError> = job.as_ref().err().map(|m| ServiceError::Setup {
+            rank: 0,
+            message: m.clone(),
+        });
         for (rank, s) in all.chunks_exact(3).enumerate().skip(1) {
             let rank = rank as i32;
             let e = if s[0] == 0 {
-                let (bytes, _) = world.process_at_rank(rank).receive_vec_with_tag::<u8>(protocol::SETUP);
-                Some(ServiceError::Setup { rank, message: String::from_utf8_lossy(&bytes).into_owned() })
+                let (bytes, _) = world
+                    .process_at_rank(rank)
+                    .receive_vec_with_tag::<u8>(protocol::SETUP);
+                Some(ServiceError::Setup {
+                    rank,
+                    message: String::from_utf8_lossy(&bytes).into_owned(),
+                })
             } else if s[1] != mine[1] || s[2] != mine[2] {
                 Some(ServiceError::Setup {
                     rank,
@@ -121,7 +141,10 @@ pub fn agree_on_job(ctx: &MpiContext, job: Result<ComputeJob, String>) -> Result
         root.broadcast_into(&mut verdict[..]);
         match problem {
             Some(e) => Err(e),
-            None => job.map_err(|m| ServiceError::Setup { rank: 0, message: m }),
+            None => job.map_err(|m| ServiceError::Setup {
+                rank: 0,
+                message: m,
+            }),
         }
     } else {
         root.gather_into(&mine[..]);
@@ -131,8 +154,14 @@ pub fn agree_on_job(ctx: &MpiContext, job: Result<ComputeJob, String>) -> Result
         root.broadcast_into(&mut verdict[..]);
         match (verdict[0], job) {
             (1, Ok(j)) => Ok(j),
-            (_, Err(m)) => Err(ServiceError::Setup { rank: ctx.rank(), message: m }),
-            (_, Ok(_)) => Err(ServiceError::Setup { rank: ctx.rank(), message: "stopped: another rank failed to set up (rank 0 says which)".into() }),
+            (_, Err(m)) => Err(ServiceError::Setup {
+                rank: ctx.rank(),
+                message: m,
+            }),
+            (_, Ok(_)) => Err(ServiceError::Setup {
+                rank: ctx.rank(),
+                message: "stopped: another rank failed to set up (rank 0 says which)".into(),
+            }),
         }
     }
 }
@@ -147,7 +176,9 @@ pub fn run(ctx: &MpiContext, job: &ComputeJob) -> Result<Option<ComputeReport>, 
     let root = world.process_at_rank(0);
     let workers = (ctx.size() - 1) as usize;
     if workers == 0 {
-        return Err(ServiceError::Config("mpirun with one rank has no worker: use -n 2 or more, or run without mpirun".into()));
+        return Err(ServiceError::Config(
+            "mpirun with one rank has no worker: use -n 2 or more, or run without mpirun".into(),
+        ));
     }
     if ctx.rank() == 0 {
         let prepared = prepare(job, job.threads.max(1));
@@ -155,7 +186,11 @@ pub fn run(ctx: &MpiContext, job: &ComputeJob) -> Result<Option<ComputeReport>, 
         let mut head = [0u32; 2];
         if let Ok((_, plan, _)) = &prepared {
             head[0] = 1;
-            head[1] = if plan.schedule == Schedule::Folded { plan.todo.len() as u32 } else { 0 };
+            head[1] = if plan.schedule == Schedule::Folded {
+                plan.todo.len() as u32
+            } else {
+                0
+            };
         }
         root.broadcast_into(&mut head[..]);
         let (writer, plan, present) = prepared?;
@@ -170,7 +205,10 @@ pub fn run(ctx: &MpiContext, job: &ComputeJob) -> Result<Option<ComputeReport>, 
         let mut head = [0u32; 2];
         root.broadcast_into(&mut head[..]);
         if head[0] == 0 {
-            return Err(ServiceError::Setup { rank: ctx.rank(), message: "stopped: rank 0 could not open the output file".into() });
+            return Err(ServiceError::Setup {
+                rank: ctx.rank(),
+                message: "stopped: rank 0 could not open the output file".into(),
+            });
         }
         let static_rows = if job.schedule == Schedule::Folded {
             let mut todo = vec![0u32; head[1] as usize];

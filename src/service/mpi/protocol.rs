@@ -71,11 +71,22 @@ pub fn decode_chunk_message(mut v: Vec<u8>, rank: i32) -> Result<EncodedChunk, S
     let u32_at = |o: usize| u32::from_le_bytes([v[o], v[o + 1], v[o + 2], v[o + 3]]);
     let (rows, skipped) = (u32_at(len - 8) as usize, u32_at(len - 4) as usize);
     let raw_len = u64::from(u32_at(len - 16)) | (u64::from(u32_at(len - 12)) << 32);
-    let ids_bytes = rows.checked_add(skipped).and_then(|c| c.checked_mul(4)).ok_or_else(bad)?;
+    let ids_bytes = rows
+        .checked_add(skipped)
+        .and_then(|c| c.checked_mul(4))
+        .ok_or_else(bad)?;
     let ids_start = (len - 16).checked_sub(ids_bytes).ok_or_else(bad)?;
-    let ids: Vec<u32> = v[ids_start..len - 16].chunks_exact(4).map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect();
+    let ids: Vec<u32> = v[ids_start..len - 16]
+        .chunks_exact(4)
+        .map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+        .collect();
     v.truncate(ids_start);
-    Ok(EncodedChunk { row_ids: ids[..rows].to_vec(), skipped: ids[rows..].to_vec(), bytes: v, raw_len })
+    Ok(EncodedChunk {
+        row_ids: ids[..rows].to_vec(),
+        skipped: ids[rows..].to_vec(),
+        bytes: v,
+        raw_len,
+    })
 }
 
 pub fn encode_failed(row: i64, message: &str) -> Vec<u8> {
@@ -105,7 +116,18 @@ pub fn decode_done(v: &[u8], rank: i32) -> Result<WorkerStats, ServiceError> {
     if v.len() != 28 {
         return Err(malformed("DONE", rank));
     }
-    let u64_at = |o: usize| u64::from_le_bytes([v[o], v[o + 1], v[o + 2], v[o + 3], v[o + 4], v[o + 5], v[o + 6], v[o + 7]]);
+    let u64_at = |o: usize| {
+        u64::from_le_bytes([
+            v[o],
+            v[o + 1],
+            v[o + 2],
+            v[o + 3],
+            v[o + 4],
+            v[o + 5],
+            v[o + 6],
+            v[o + 7],
+        ])
+    };
     Ok(WorkerStats {
         rank,
         rows: u64_at(0),
@@ -121,7 +143,12 @@ mod tests {
 
     #[test]
     fn chunk_message_round_trip_keeps_bytes_and_ids() {
-        let chunk = EncodedChunk { row_ids: vec![7, 70_000, 3], skipped: vec![9], bytes: vec![1, 2, 3, 4, 5], raw_len: 1 << 40 | 1234 };
+        let chunk = EncodedChunk {
+            row_ids: vec![7, 70_000, 3],
+            skipped: vec![9],
+            bytes: vec![1, 2, 3, 4, 5],
+            raw_len: 1 << 40 | 1234,
+        };
         let back = decode_chunk_message(encode_chunk_message(chunk.clone()), 1).unwrap();
         assert_eq!(back.row_ids, chunk.row_ids);
         assert_eq!(back.skipped, chunk.skipped);
@@ -131,7 +158,12 @@ mod tests {
 
     #[test]
     fn truncated_chunk_message_is_an_error_not_a_panic() {
-        let msg = encode_chunk_message(EncodedChunk { row_ids: vec![1, 2], skipped: vec![], bytes: vec![9; 3], raw_len: 5 });
+        let msg = encode_chunk_message(EncodedChunk {
+            row_ids: vec![1, 2],
+            skipped: vec![],
+            bytes: vec![9; 3],
+            raw_len: 5,
+        });
         for cut in 0..msg.len() {
             let _ = decode_chunk_message(msg[cut..].to_vec(), 2);
         }
@@ -142,10 +174,22 @@ mod tests {
     #[test]
     fn assign_and_done_round_trip() {
         assert_eq!(decode_assign(&encode_assign(&[5, 6])).unwrap(), vec![5, 6]);
-        assert_eq!(decode_assign(&encode_assign(&[])).unwrap(), Vec::<u32>::new());
+        assert_eq!(
+            decode_assign(&encode_assign(&[])).unwrap(),
+            Vec::<u32>::new()
+        );
         assert!(decode_assign(&[3, 1]).is_err());
-        let s = WorkerStats { rank: 4, rows: 9, busy_seconds: 1.5, threads: 2, peak_rss: 77 };
+        let s = WorkerStats {
+            rank: 4,
+            rows: 9,
+            busy_seconds: 1.5,
+            threads: 2,
+            peak_rss: 77,
+        };
         let d = decode_done(&encode_done(&s), 4).unwrap();
-        assert_eq!((d.rows, d.busy_seconds, d.threads, d.peak_rss), (9, 1.5, 2, 77));
+        assert_eq!(
+            (d.rows, d.busy_seconds, d.threads, d.peak_rss),
+            (9, 1.5, 2, 77)
+        );
     }
 }
