@@ -102,7 +102,8 @@ pub fn build_job(
     o: &ComputeOptions,
     announce: bool,
 ) -> anyhow::Result<ComputeJob> {
-    let scene = load_scene(&input.scene)?;
+    let setup_start = std::time::Instant::now();
+    let scene = tracing::info_span!("load_scene").in_scope(|| load_scene(&input.scene))?;
     if announce {
         for w in &scene.warnings {
             eprintln!("ffstream: warning: {w}");
@@ -113,7 +114,8 @@ pub fn build_job(
         Some(l) => bail!("--max-edge must be a positive length, got {l}"),
         None => default_max_edge(&scene, input.patches),
     };
-    let patches = Arc::new(subdivide(&scene, max_edge));
+    let patches =
+        Arc::new(tracing::info_span!("subdivide").in_scope(|| subdivide(&scene, max_edge)));
     if announce {
         let how = if input.max_edge.is_some() {
             "given"
@@ -144,8 +146,19 @@ pub fn build_job(
         Some(0) => bail!("--top-k must be at least 1"),
         k => k,
     };
-    let occluders = Arc::new(Occluders::new(scene.triangles().collect()));
-    let engine = RowEngine::new(Arc::clone(&patches), occluders, cfg.clone());
+    let occluders = Arc::new(
+        tracing::info_span!("build_bvh").in_scope(|| Occluders::new(scene.triangles().collect())),
+    );
+    let engine = tracing::info_span!("prepare_engine")
+        .in_scope(|| RowEngine::new(Arc::clone(&patches), occluders, cfg.clone()));
+    if announce {
+        // Every MPI rank does this set-up itself; this is its cost (README: why ranks
+        // load the scene rather than receive it).
+        eprintln!(
+            "ffstream: set-up (load, subdivide, Bvh, engine) took {:.3} s",
+            setup_start.elapsed().as_secs_f64()
+        );
+    }
     let layout = match cfg.top_k {
         Some(k) => Layout::TopK { k },
         None => Layout::Dense,
