@@ -17,6 +17,7 @@ pub struct Progress {
     last_line: Instant,
     log_every: Duration,
     is_terminal: bool,
+    lines: u64,
 }
 
 impl Progress {
@@ -32,6 +33,7 @@ impl Progress {
             last_line: now,
             log_every: Duration::from_secs(10),
             is_terminal: std::io::stderr().is_terminal(),
+            lines: 0,
         }
     }
 
@@ -60,7 +62,10 @@ impl Progress {
             });
             bar.set_position(self.done);
             bar.set_message(msg);
-        } else if self.last_line.elapsed() >= self.log_every {
+        } else if self.lines == 0 || self.last_line.elapsed() >= self.log_every {
+            // Not a terminal (batch job, log file): a first line after a second, then one
+            // line every `log_every`.
+            self.lines += 1;
             self.last_line = Instant::now();
             eprintln!("{}", self.line(disk, raw));
         }

@@ -11,6 +11,7 @@ mod ffz_tools;
 mod formfactor;
 mod mpi;
 mod render;
+mod run;
 mod scene;
 mod service;
 mod solve;
