@@ -98,6 +98,7 @@ fn cornell_box_run_renders_a_recognisable_picture() {
     let (fx, fy) = at(DVec3::new(344.0, 150.0, 271.5)); // faces -z (the camera)
     let side = mean_rgb(&img, sx, sy, 2);
     let front = mean_rgb(&img, fx, fy, 2);
+    eprintln!("bleeding: side {side:?} front {front:?}; red {red:?} green {green:?}");
     assert!(
         side[0] / side[1] > front[0] / front[1],
         "red bleeding onto the tall block: side {side:?}, front {front:?}"
