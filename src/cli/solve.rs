@@ -53,6 +53,8 @@ pub struct SolveOptions {
     pub no_renormalize: bool,
 }
 
+type Rgb = [f32; 3];
+
 /// Reflectance and emission of the file's patches taken from `scene` instead: each patch
 /// keeps the index of the face it was cut from, which must exist in `scene`, carry the
 /// same group name and contain the patch.
@@ -60,7 +62,7 @@ fn materials_from_scene(
     patches: &PatchSet,
     scene: &Scene,
     spec: &str,
-) -> anyhow::Result<(Vec<[f32; 3]>, Vec<[f32; 3]>)> {
+) -> anyhow::Result<(Vec<Rgb>, Vec<Rgb>)> {
     let (lo, hi) = scene.bounds();
     let tol = 1e-6 * (hi - lo).length().max(f64::MIN_POSITIVE);
     let mut rho = Vec::with_capacity(patches.len());

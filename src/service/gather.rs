@@ -49,7 +49,7 @@ pub fn compute_rows_f64(job: &ComputeJob, rows: &[u32], mut sink: impl FnMut(u32
 /// File errors.
 pub fn write_dense(job: &ComputeJob, matrix: &[f64]) -> Result<ComputeReport, ServiceError> {
     let n = job.patches.len();
-    let mut writer = FfzWriter::create(&job.output, &job.meta, job.writer.clone())?;
+    let mut writer = FfzWriter::create(&job.output, &job.meta, job.writer)?;
     for i in 0..n {
         let vals: Vec<f32> = matrix[i * n..(i + 1) * n]
             .iter()

@@ -219,13 +219,10 @@ pub fn prepare(
     use crate::service::RowSelection;
     let n = job.patches.len() as u32;
     let (writer, presence) = if job.resume && job.output.exists() && !torn_own_header(job)? {
-        let (w, p) = FfzWriter::resume(&job.output, &job.meta, job.writer.clone())?;
+        let (w, p) = FfzWriter::resume(&job.output, &job.meta, job.writer)?;
         (w, Some(p))
     } else {
-        (
-            FfzWriter::create(&job.output, &job.meta, job.writer.clone())?,
-            None,
-        )
+        (FfzWriter::create(&job.output, &job.meta, job.writer)?, None)
     };
     let mut todo = Vec::new();
     let mut skipped = Vec::new();

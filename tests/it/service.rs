@@ -15,7 +15,7 @@ pub fn assert_same_rows(a: &Path, b: &Path) {
     let ra = FfzReader::open(a).expect("open a");
     let rb = FfzReader::open(b).expect("open b");
     assert_eq!(ra.n(), rb.n(), "n differs");
-    for i in 0..ra.n() as u32 {
+    for i in 0..ra.n() {
         let x = ra
             .row(i)
             .expect("read a")
@@ -198,7 +198,7 @@ fn rows_needed_skips_inert_patches_and_says_so_in_the_file() {
     let rn = FfzReader::open(&f).unwrap();
     let patches = &rn.meta().patches;
     let mut skipped = 0;
-    for i in 0..rn.n() as u32 {
+    for i in 0..rn.n() {
         let row = rn.row(i).unwrap().expect("every row is present or skipped");
         if patches.patches[i as usize].is_inert() {
             assert_eq!(
