@@ -10,6 +10,7 @@ mod ffz_roundtrip;
 mod ffz_tools;
 mod formfactor;
 mod mpi;
+mod pipeline;
 mod render;
 mod run;
 mod scene;
