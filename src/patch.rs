@@ -77,6 +77,28 @@ impl PatchSet {
         self.patches.is_empty()
     }
 
+    /// Bounding box of all (finite) patch corners; `None` when there is none.
+    pub fn bounds(&self) -> Option<(DVec3, DVec3)> {
+        let mut lo = DVec3::splat(f64::INFINITY);
+        let mut hi = DVec3::splat(f64::NEG_INFINITY);
+        for c in self
+            .patches
+            .iter()
+            .flat_map(|p| p.corners())
+            .filter(|c| c.is_finite())
+        {
+            lo = lo.min(*c);
+            hi = hi.max(*c);
+        }
+        (lo.x <= hi.x).then_some((lo, hi))
+    }
+
+    /// Length of the bounding box diagonal (0 for an empty or degenerate set): the
+    /// scene size that relative tolerances scale with.
+    pub fn diagonal(&self) -> f64 {
+        self.bounds().map_or(0.0, |(lo, hi)| (hi - lo).length())
+    }
+
     /// Name of the group of patch `i`.
     pub fn group_name(&self, i: usize) -> &str {
         &self.groups[self.patches[i].group as usize]

@@ -94,7 +94,7 @@ impl Camera {
         } else {
             1.0
         };
-        let Some((lo, hi)) = bounds(patches) else {
+        let Some((lo, hi)) = patches.bounds() else {
             return Self {
                 eye: DVec3::new(0.0, 0.0, -3.0),
                 target: DVec3::ZERO,
@@ -252,19 +252,6 @@ impl Camera {
         }
         Some(view.to_screen(c))
     }
-}
-
-/// Bounding box of all patch corners, `None` when there are none (or none finite).
-fn bounds(patches: &PatchSet) -> Option<(DVec3, DVec3)> {
-    let mut lo = DVec3::splat(f64::INFINITY);
-    let mut hi = DVec3::splat(f64::NEG_INFINITY);
-    for p in &patches.patches {
-        for c in p.corners().iter().filter(|c| c.is_finite()) {
-            lo = lo.min(*c);
-            hi = hi.max(*c);
-        }
-    }
-    (lo.x <= hi.x).then_some((lo, hi))
 }
 
 /// `"ex,ey,ez,tx,ty,tz,ux,uy,uz,fov"`: eye, target, up and the vertical field of view

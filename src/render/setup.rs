@@ -161,16 +161,8 @@ pub fn setup(
 /// Near plane: a small fixed fraction of the scene size (positive even for an empty or
 /// degenerate scene).
 fn near_distance(patches: &PatchSet) -> f64 {
-    let mut lo = DVec3::splat(f64::INFINITY);
-    let mut hi = DVec3::splat(f64::NEG_INFINITY);
-    for p in &patches.patches {
-        for c in p.corners() {
-            lo = lo.min(*c);
-            hi = hi.max(*c);
-        }
-    }
-    let diag = (hi - lo).length();
-    if diag.is_finite() && diag > 0.0 {
+    let diag = patches.diagonal();
+    if diag > 0.0 {
         diag * NEAR_FRACTION
     } else {
         1e-9

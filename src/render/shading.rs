@@ -98,16 +98,8 @@ pub fn vertex_colours(patches: &PatchSet, radiosity: &[[f32; 3]]) -> CornerColou
 /// Weld quantum: a fixed fraction of the bounding box diagonal (1 for an empty or
 /// degenerate scene).
 fn weld_quantum(patches: &PatchSet) -> f64 {
-    let mut lo = DVec3::splat(f64::INFINITY);
-    let mut hi = DVec3::splat(f64::NEG_INFINITY);
-    for p in &patches.patches {
-        for c in p.corners() {
-            lo = lo.min(*c);
-            hi = hi.max(*c);
-        }
-    }
-    let diag = (hi - lo).length();
-    if diag.is_finite() && diag > 0.0 {
+    let diag = patches.diagonal();
+    if diag > 0.0 {
         diag * WELD_FRACTION
     } else {
         1.0

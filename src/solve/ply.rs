@@ -109,7 +109,7 @@ pub struct VertexMesh {
 
 /// Weld the patch corners and average the radiosity at each vertex (module docs).
 pub fn vertex_radiosity(patches: &PatchSet, radiosity: &[[f64; 3]]) -> VertexMesh {
-    let (lo, hi) = bounds(patches);
+    let (lo, hi) = patches.bounds().unwrap_or((DVec3::ZERO, DVec3::ZERO));
     let diag = (hi - lo).length();
     let step = if diag > 0.0 { diag * 1e-7 } else { 1.0 };
     let mut cells: HashMap<[i64; 3], Vec<u32>> = HashMap::new();
@@ -168,22 +168,6 @@ fn neighbours(key: [i64; 3]) -> impl Iterator<Item = [i64; 3]> {
     (-1..=1).flat_map(move |dx| {
         (-1..=1).flat_map(move |dy| (-1..=1).map(move |dz| [key[0] + dx, key[1] + dy, key[2] + dz]))
     })
-}
-
-fn bounds(patches: &PatchSet) -> (DVec3, DVec3) {
-    let mut lo = DVec3::splat(f64::INFINITY);
-    let mut hi = DVec3::splat(f64::NEG_INFINITY);
-    for p in &patches.patches {
-        for &c in p.corners() {
-            lo = lo.min(c);
-            hi = hi.max(c);
-        }
-    }
-    if lo.x > hi.x {
-        (DVec3::ZERO, DVec3::ZERO)
-    } else {
-        (lo, hi)
-    }
 }
 
 /// Write the lit mesh as a binary PLY with the robust tone mapping.
