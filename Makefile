@@ -27,10 +27,16 @@ demo: deps build
 demo-mpi: deps build
 	mpirun -n 3 --oversubscribe ./target/release/ffstream run builtin:cornell -o out/cornell-mpi
 
+# The Python reader is also checked against `ffstream export` of a real computed file
+# (the Cornell box at 300 patches), through FFZ_FILE/FFZ_MTX/FFZ_CSV.
 test: deps
 	$(CARGO) test
 	$(CARGO) bench --no-run --quiet
-	$(PYTHON) -m pytest -q formats
+	@tmp=$$(mktemp -d) && \
+	./target/debug/ffstream compute builtin:cornell --patches 300 --quiet -o $$tmp/c.ffz && \
+	./target/debug/ffstream export $$tmp/c.ffz --matrix $$tmp/c.mtx --patches $$tmp/c.csv && \
+	FFZ_FILE=$$tmp/c.ffz FFZ_MTX=$$tmp/c.mtx FFZ_CSV=$$tmp/c.csv $(PYTHON) -m pytest -q -p no:cacheprovider formats; \
+	status=$$?; rm -rf $$tmp; exit $$status
 
 build:
 	$(CARGO) build --release
