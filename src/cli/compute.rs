@@ -13,7 +13,7 @@ use ffstream::formfactor::{FormFactorConfig, Method, RowEngine};
 use ffstream::geometry::bvh::Occluders;
 use ffstream::geometry::subdivide::{default_max_edge, subdivide};
 use ffstream::scene::{self, Scene};
-use ffstream::service::{ComputeJob, ComputeReport, RowSelection, Schedule};
+use ffstream::service::{ComputeJob, ComputeReport, RowSelection, Schedule, ServiceError};
 
 use super::SceneInput;
 
@@ -66,6 +66,10 @@ pub struct ComputeOptions {
     /// Complete a partial file (after a crash or kill): compute only the missing rows.
     #[arg(long)]
     pub resume: bool,
+    /// Overwrite the output file if it exists (without it, an existing file is an error
+    /// so that a rerun cannot destroy a long computation by accident).
+    #[arg(long, conflicts_with = "resume")]
+    pub force: bool,
     /// The paper's design, as a baseline: every rank computes, rank 0 gathers the dense
     /// f64 matrix in memory and writes it at the end.
     #[arg(long)]
@@ -190,6 +194,7 @@ pub fn build_job(
         patches,
         engine: Arc::new(engine),
         resume: o.resume,
+        overwrite: o.force,
         schedule: o.schedule.parse::<Schedule>().map_err(anyhow::Error::msg)?,
         rows: o
             .rows
@@ -291,14 +296,22 @@ fn execute_mpi(input: &SceneInput, output: PathBuf, o: &ComputeOptions) -> anyho
         Err(e) if rank == 0 => {
             // Rank 0 has finished the file with what it had; stop every rank.
             eprintln!("ffstream: error: {e}");
-            eprintln!(
-                "ffstream: rows written so far are kept: rerun with --resume to complete the file"
-            );
+            if matches!(
+                e,
+                ServiceError::WorkerFailed { .. } | ServiceError::Transport(_)
+            ) {
+                eprintln!("ffstream: rows written so far are kept: rerun with --resume to complete the file");
+            }
             ctx.abort(1)
         }
         Err(e) => {
             // Rank 0 names the failure and aborts the job; wait for it in MPI_Finalize.
-            eprintln!("ffstream: rank {rank}: {e}");
+            match e {
+                ServiceError::Setup { .. } | ServiceError::WorkerFailed { .. } => {
+                    eprintln!("ffstream: {e}")
+                }
+                _ => eprintln!("ffstream: rank {rank}: {e}"),
+            }
             drop(ctx);
             std::process::exit(1)
         }

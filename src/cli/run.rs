@@ -38,6 +38,8 @@ pub fn run(mut a: RunArgs) -> anyhow::Result<ExitCode> {
     std::fs::create_dir_all(&dir)
         .map_err(|e| anyhow::anyhow!("cannot create {}: {e}", dir.display()))?;
     let ffz = dir.join("form_factors.ffz");
+    // `run` owns its directory: a rerun recomputes unless --resume is given.
+    a.compute.force |= !a.compute.resume;
     // A gathering solve never reads rows of patches that neither reflect nor emit.
     a.compute.rows.get_or_insert_with(|| "needed".to_string());
     let report = match execute(&a.input, ffz.clone(), &a.compute)? {

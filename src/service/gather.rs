@@ -49,6 +49,12 @@ pub fn compute_rows_f64(job: &ComputeJob, rows: &[u32], mut sink: impl FnMut(u32
 /// File errors.
 pub fn write_dense(job: &ComputeJob, matrix: &[f64]) -> Result<ComputeReport, ServiceError> {
     let n = job.patches.len();
+    if !job.overwrite && job.output.exists() {
+        return Err(ServiceError::Config(format!(
+            "{} already exists: add --force to overwrite it",
+            job.output.display()
+        )));
+    }
     let mut writer = FfzWriter::create(&job.output, &job.meta, job.writer)?;
     for i in 0..n {
         let vals: Vec<f32> = matrix[i * n..(i + 1) * n]

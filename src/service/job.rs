@@ -39,6 +39,9 @@ pub struct ComputeJob {
     pub patches: Arc<PatchSet>,
     pub engine: Arc<RowEngine>,
     pub resume: bool,
+    /// Replace an existing output file. Without it (and without `resume`) an existing
+    /// file is an error, so a rerun cannot destroy a long computation by accident.
+    pub overwrite: bool,
     pub schedule: Schedule,
     pub rows: RowSelection,
     /// Compute threads per process (embedded) or per worker rank (MPI).

@@ -218,6 +218,12 @@ pub fn prepare(
     use crate::ffz::RowState;
     use crate::service::RowSelection;
     let n = job.patches.len() as u32;
+    if !job.resume && !job.overwrite && job.output.exists() {
+        return Err(ServiceError::Config(format!(
+            "{} already exists: add --resume to complete it (only missing rows are computed), or --force to overwrite it",
+            job.output.display()
+        )));
+    }
     let (writer, presence) = if job.resume && job.output.exists() && !torn_own_header(job)? {
         let (w, p) = FfzWriter::resume(&job.output, &job.meta, job.writer)?;
         (w, Some(p))

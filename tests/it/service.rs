@@ -313,3 +313,31 @@ fn cornell_box_default_patch_count_end_to_end_and_floor_under_blocks_is_dark() {
         "expected floor patches under the blocks, found {under}"
     );
 }
+
+#[test]
+fn an_existing_file_is_never_overwritten_without_force() {
+    let dir = tempfile::tempdir().unwrap();
+    let f = dir.path().join("keep.ffz");
+    compute(CUBE, &f, &[]);
+    let before = std::fs::read(&f).unwrap();
+    let mut args = vec!["compute"];
+    args.extend_from_slice(CUBE);
+    args.extend_from_slice(&["-o", path_str(&f), "--seed", "7"]);
+    let out = ffstream(&args);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains("already exists")
+            && stderr.contains("--resume")
+            && stderr.contains("--force"),
+        "{stderr}"
+    );
+    assert_eq!(
+        std::fs::read(&f).unwrap(),
+        before,
+        "the existing file must be untouched"
+    );
+    args.push("--force");
+    ok(&args);
+    assert_ne!(std::fs::read(&f).unwrap(), before, "--force replaces it");
+}
