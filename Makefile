@@ -11,8 +11,8 @@ SHELL := /bin/bash
 CARGO ?= cargo
 PYTHON ?= python3
 SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
-APT_PACKAGES := libopenmpi-dev openmpi-bin libclang-dev pkg-config python3-pip
-PY_PACKAGES := numpy scipy zstandard pytest
+APT_PACKAGES := libopenmpi-dev openmpi-bin libclang-dev pkg-config python3-pip time
+PY_PACKAGES := numpy scipy zstandard pytest matplotlib
 # Open MPI refuses root without these; harmless otherwise. --oversubscribe is passed
 # by the tests and by demo-mpi (this may be a 2-core machine).
 export OMPI_ALLOW_RUN_AS_ROOT := 1
@@ -37,6 +37,8 @@ test: deps
 	./target/debug/ffstream export $$tmp/c.ffz --matrix $$tmp/c.mtx --patches $$tmp/c.csv && \
 	FFZ_FILE=$$tmp/c.ffz FFZ_MTX=$$tmp/c.mtx FFZ_CSV=$$tmp/c.csv $(PYTHON) -m pytest -q -p no:cacheprovider formats; \
 	status=$$?; rm -rf $$tmp; exit $$status
+	$(CARGO) build --release
+	$(PYTHON) bench/run.py --quick
 
 build:
 	$(CARGO) build --release
@@ -54,11 +56,12 @@ sys-deps:
 	fi
 
 py-deps:
-	@$(PYTHON) -c "import numpy, scipy, zstandard, pytest" 2>/dev/null || { \
+	@$(PYTHON) -c "import numpy, scipy, zstandard, pytest, matplotlib" 2>/dev/null || { \
 	  echo "==> installing Python packages: $(PY_PACKAGES)"; \
 	  $(PYTHON) -m pip install -q $(PY_PACKAGES) || $(PYTHON) -m pip install -q --break-system-packages $(PY_PACKAGES); }
 
 bench: deps build
+	-$(PYTHON) -m pip install -q pyviewfactor
 	$(PYTHON) bench/run.py
 
 bench-quick: deps build

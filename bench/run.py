@@ -80,6 +80,10 @@ class Runner:
         """Run one command. poll=True (not with mpi): sample /proc/PID/status every 20 ms
         for the largest RssAnon (heap, anonymous maps) and RssFile (file-backed pages, e.g.
         the memory-mapped .ffz) the process reached."""
+        if args[:1] == ["compute"] and "--resume" not in args and "--force" not in args:
+            # Benchmarks rewrite their scratch files: say so (compute refuses to
+            # overwrite an existing file without --force).
+            args = args + ["--force"]
         cmd = [self.binary] + args
         env = dict(os.environ)
         env.setdefault("RUST_LOG", "warn")
