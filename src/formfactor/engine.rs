@@ -28,7 +28,7 @@ use std::sync::Arc;
 use glam::DVec3;
 
 use super::contour::{area_form_factor_edges, ContourParams};
-use super::farfield::{self, far_order, PatchPoints, MAX_FAR_ORDER};
+use super::farfield::{self, far_order, FarTable, PatchPoints, MAX_FAR_ORDER};
 use super::polygon::{EdgeSet, Polygon};
 use super::quadrature::{gauss_table, GaussTable};
 use super::sampling::{pair_seed, PatchMap, SplitMix64};
@@ -118,13 +118,12 @@ impl Scratch {
         q: usize,
         g: &PatchGeom,
         gauss: &GaussTable,
-    ) -> PatchPoints {
+    ) -> &PatchPoints {
         if self.far_row != Some((engine, i)) {
             self.far_row = Some((engine, i));
             self.far_points = [None; MAX_FAR_ORDER + 1];
         }
-        *self.far_points[q]
-            .get_or_insert_with(|| PatchPoints::new(g.poly.verts(), g.area, q, gauss))
+        self.far_points[q].get_or_insert_with(|| PatchPoints::new(g.poly.verts(), g.area, q, gauss))
     }
 }
 
@@ -203,6 +202,8 @@ pub struct RowEngine {
     occluders: Arc<Occluders>,
     cfg: FormFactorConfig,
     geom: Vec<PatchGeom>,
+    /// Far-field Gauss points of every patch (the j side of far pairs).
+    far: FarTable,
     valid: Vec<bool>,
     gauss: &'static GaussTable,
     params: ContourParams,
@@ -229,6 +230,7 @@ impl RowEngine {
             (hi - lo).length()
         };
         let params = cfg.contour_params();
+        let far = FarTable::new(geom.iter().map(|g| (g.poly.verts(), g.area)), gauss_table());
         static NEXT_ID: AtomicU64 = AtomicU64::new(0);
         RowEngine {
             id: NEXT_ID.fetch_add(1, Ordering::Relaxed),
@@ -236,6 +238,7 @@ impl RowEngine {
             occluders,
             cfg,
             geom,
+            far,
             valid,
             gauss: gauss_table(),
             params,
@@ -332,8 +335,8 @@ impl RowEngine {
         };
         match self.cfg.method {
             Method::Mc => mc::pair(i, j, gi, gj, &self.occluders, &self.cfg, scratch),
-            _ => match self.contour_unoccluded(i, gi, gj, extent, scratch) {
-                Some(u) => u.f * self.contour_visibility(i, j, gi, gj, &u, scratch),
+            _ => match self.contour_unoccluded((i, ju), gi, gj, extent, scratch) {
+                Some(u) => u.f * self.contour_visibility(i, j, &u, scratch),
                 None => 0.0,
             },
         }
@@ -380,14 +383,28 @@ impl RowEngine {
     /// ([`super::farfield`]), else by the double contour integral. None when ≤ 0.
     fn contour_unoccluded(
         &self,
-        i: u32,
+        (i, j): (u32, usize),
         gi: &PatchGeom,
         gj: &PatchGeom,
         extent: (f64, f64),
         scratch: &mut Scratch,
     ) -> Option<Unoccluded> {
         let clip = extent.0 < -self.tol || extent.1 < -self.tol;
-        let (pi, pj) = self.clipped(gi, gj, extent);
+        // Clipped copies only when needed (copying two polygons per pair showed up in
+        // profiles at 8.5k patches).
+        let (ci, cj);
+        let pi = if extent.0 < -self.tol {
+            ci = gi.poly.clip_front(gj.normal, gj.offset, self.tol);
+            &ci
+        } else {
+            &gi.poly
+        };
+        let pj = if extent.1 < -self.tol {
+            cj = gj.poly.clip_front(gi.normal, gi.offset, self.tol);
+            &cj
+        } else {
+            &gj.poly
+        };
         let distance = (gi.centroid - gj.centroid).length();
         let gap = distance - gi.radius - gj.radius;
         let far = if clip {
@@ -398,21 +415,23 @@ impl RowEngine {
         let af = if let Some(q) = far {
             scratch.counters.pairs_far_field += 1;
             let pts_i = scratch.far_points_of(self.id, i, q, gi, self.gauss);
-            let pts_j = PatchPoints::new(gj.poly.verts(), gj.area, q, self.gauss);
-            farfield::area_form_factor(&pts_i, gi.normal, &pts_j, gj.normal)
+            farfield::area_form_factor_soa(pts_i, gi.normal, self.far.get(j, q), gj.normal)
         } else {
+            let (ei, ej);
             let ei = if extent.0 < -self.tol {
-                EdgeSet::from_polygon(&pi)
+                ei = EdgeSet::from_polygon(pi);
+                &ei
             } else {
-                gi.edges
+                &gi.edges
             };
             let ej = if extent.1 < -self.tol {
-                EdgeSet::from_polygon(&pj)
+                ej = EdgeSet::from_polygon(pj);
+                &ej
             } else {
-                gj.edges
+                &gj.edges
             };
             let r_ref = distance.max(gi.size).max(gj.size);
-            area_form_factor_edges(&ei, &ej, r_ref, self.gauss, self.params)
+            area_form_factor_edges(ei, ej, r_ref, self.gauss, self.params)
         };
         let f = af / gi.area;
         if f.is_nan() || f <= 0.0 {
@@ -425,41 +444,18 @@ impl RowEngine {
             gj.normal,
             (gi.face, gj.face),
         );
-        Some(Unoccluded {
-            f,
-            pi,
-            pj,
-            needs_rays,
-        })
+        Some(Unoccluded { f, needs_rays })
     }
 
     /// `contour`, visibility fraction of a pair (1 without rays when nothing can come
     /// between the polygons).
-    fn contour_visibility(
-        &self,
-        i: u32,
-        j: u32,
-        gi: &PatchGeom,
-        gj: &PatchGeom,
-        u: &Unoccluded,
-        scratch: &mut Scratch,
-    ) -> f64 {
+    fn contour_visibility(&self, i: u32, j: u32, u: &Unoccluded, scratch: &mut Scratch) -> f64 {
         if !u.needs_rays {
             scratch.counters.pairs_unoccludable += 1;
             scratch.counters.rays_skipped += self.cfg.samples as u64;
             return 1.0;
         }
-        visibility::fraction(
-            i,
-            j,
-            gi,
-            gj,
-            &u.pi,
-            &u.pj,
-            &self.occluders,
-            &self.cfg,
-            scratch,
-        )
+        self.visibility_of(i, j, scratch)
     }
 
     /// Top-k row of the `contour` method with a sampled tail ([`TopKTail::Sampled`]).
@@ -494,7 +490,7 @@ impl RowEngine {
                 let Some(extent) = self.facing(gi, gj, scratch) else {
                     continue;
                 };
-                if let Some(u) = self.contour_unoccluded(i, gi, gj, extent, scratch) {
+                if let Some(u) = self.contour_unoccluded((i, j), gi, gj, extent, scratch) {
                     f0[j] = u.f;
                     rays[j] = u.needs_rays;
                     if !u.needs_rays {
@@ -615,8 +611,6 @@ impl RowEngine {
 /// Unoccluded part of a `contour` pair.
 struct Unoccluded {
     f: f64,
-    pi: Polygon,
-    pj: Polygon,
     needs_rays: bool,
 }
 

@@ -20,10 +20,92 @@ use glam::DVec3;
 
 use super::quadrature::GaussTable;
 
-/// Largest order per dimension used for far pairs (q⁴ = 81 kernel evaluations, about
-/// half the cost of the contour integral of two quads; at q = 4 the tensor rule would
-/// cost more than the contour integral).
-pub const MAX_FAR_ORDER: usize = 3;
+/// Largest order per dimension used for far pairs. q = 4 is q⁴ = 256 kernel
+/// evaluations; with the j side precomputed per patch ([`FarTable`]) and the inner
+/// loop over j's points in SIMD lanes ([`area_form_factor_soa`]), measured on the
+/// 8.5k-patch room that is still ~4× cheaper than the contour integral of two quads
+/// (~1.3 µs with its logarithms and arc tangents).
+pub const MAX_FAR_ORDER: usize = 4;
+
+/// Lanes of the inner loop of [`area_form_factor_soa`] (point counts padded to it).
+pub const LANES: usize = 4;
+
+/// Points of orders 1..=MAX_FAR_ORDER of one patch, each order padded to [`LANES`].
+const fn padded(q: usize) -> usize {
+    (q * q).div_ceil(LANES) * LANES
+}
+
+/// Offset of order q within one patch's block of a [`FarTable`].
+const fn order_offset(q: usize) -> usize {
+    let mut off = 0;
+    let mut k = 1;
+    while k < q {
+        off += padded(k);
+        k += 1;
+    }
+    off
+}
+
+/// Points per patch in a [`FarTable`] (all orders, padded).
+const PER_PATCH: usize = order_offset(MAX_FAR_ORDER + 1);
+
+/// Far-field Gauss points of every patch for every order, structure-of-arrays (x, y,
+/// z, area weight; padding has weight 0), computed once per engine so that a far pair
+/// costs only its kernel evaluations. Memory: [`PER_PATCH`] × 32 bytes per patch
+/// (1 KiB; 100 MB at 100k patches).
+#[derive(Clone, Debug, Default)]
+pub struct FarTable {
+    x: Vec<f64>,
+    y: Vec<f64>,
+    z: Vec<f64>,
+    w: Vec<f64>,
+}
+
+/// One patch's points of one order in a [`FarTable`].
+#[derive(Clone, Copy)]
+pub struct FarSlice<'a> {
+    pub x: &'a [f64],
+    pub y: &'a [f64],
+    pub z: &'a [f64],
+    pub w: &'a [f64],
+}
+
+impl FarTable {
+    /// The table for patches given as (corners, area).
+    pub fn new<'a>(patches: impl Iterator<Item = (&'a [DVec3], f64)>, gauss: &GaussTable) -> Self {
+        let mut t = FarTable::default();
+        for (corners, area) in patches {
+            for q in 1..=MAX_FAR_ORDER {
+                let p = PatchPoints::new(corners, area, q, gauss);
+                for k in 0..padded(q) {
+                    let (pt, w) = if k < p.n {
+                        (p.p[k], p.w[k])
+                    } else {
+                        (p.p[0], 0.0)
+                    };
+                    t.x.push(pt.x);
+                    t.y.push(pt.y);
+                    t.z.push(pt.z);
+                    t.w.push(w);
+                }
+            }
+        }
+        t
+    }
+
+    /// Points of `patch` for order `q` (1..=MAX_FAR_ORDER).
+    #[inline]
+    pub fn get(&self, patch: usize, q: usize) -> FarSlice<'_> {
+        let start = patch * PER_PATCH + order_offset(q);
+        let r = start..start + padded(q);
+        FarSlice {
+            x: &self.x[r.clone()],
+            y: &self.y[r.clone()],
+            z: &self.z[r.clone()],
+            w: &self.w[r],
+        }
+    }
+}
 
 /// Constant in front of the error bound ρ^(−2q) (see [`far_order`]). The kernel has
 /// double poles, which put a factor growing with q in front of ρ^(−2q); measured on
@@ -112,6 +194,54 @@ pub fn area_form_factor(pi: &PatchPoints, ni: DVec3, pj: &PatchPoints, nj: DVec3
     sum / std::f64::consts::PI
 }
 
+/// As [`area_form_factor`] with the j side from a [`FarTable`]: the inner loop runs
+/// over j's points in [`LANES`] independent partial sums (a fixed order, so the
+/// result is the same on every machine), which the compiler turns into SIMD.
+///
+/// On x86-64 with AVX2 the same code is compiled a second time for 4-wide vectors and
+/// chosen at run time. Only AVX2, not FMA: every operation is the same IEEE
+/// multiply, add or divide in the same order, so both versions give bitwise equal
+/// results (rows stay identical across machines and ranks).
+pub fn area_form_factor_soa(pi: &PatchPoints, ni: DVec3, pj: FarSlice<'_>, nj: DVec3) -> f64 {
+    #[cfg(target_arch = "x86_64")]
+    {
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU supports AVX2 (checked just above).
+            return unsafe { soa_avx2(pi, ni, pj, nj) };
+        }
+    }
+    soa_body(pi, ni, pj, nj)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn soa_avx2(pi: &PatchPoints, ni: DVec3, pj: FarSlice<'_>, nj: DVec3) -> f64 {
+    soa_body(pi, ni, pj, nj)
+}
+
+#[inline(always)]
+fn soa_body(pi: &PatchPoints, ni: DVec3, pj: FarSlice<'_>, nj: DVec3) -> f64 {
+    let mut sum = 0.0;
+    let m = pj.w.len();
+    debug_assert!(m % LANES == 0);
+    for a in 0..pi.n {
+        let x = pi.p[a];
+        let mut acc = [0.0f64; LANES];
+        for c in (0..m).step_by(LANES) {
+            for l in 0..LANES {
+                let k = c + l;
+                let (dx, dy, dz) = (pj.x[k] - x.x, pj.y[k] - x.y, pj.z[k] - x.z);
+                let r2 = dx * dx + dy * dy + dz * dz;
+                let ci = ni.x * dx + ni.y * dy + ni.z * dz;
+                let cj = nj.x * dx + nj.y * dy + nj.z * dz;
+                acc[l] -= pj.w[k] * ci * cj / (r2 * r2);
+            }
+        }
+        sum += pi.w[a] * ((acc[0] + acc[1]) + (acc[2] + acc[3]));
+    }
+    sum / std::f64::consts::PI
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -138,6 +268,35 @@ mod tests {
             assert!((t.w[..t.n].iter().sum::<f64>() - 2f64.sqrt()).abs() < 1e-14);
             let u = PatchPoints::new(&quad, 2.5, q, gauss_table());
             assert!((u.w[..u.n].iter().sum::<f64>() - 2.5).abs() < 1e-14);
+        }
+    }
+
+    #[test]
+    fn table_rule_equals_direct_rule() {
+        let quad = [
+            dvec3(0.0, 0.0, 0.0),
+            dvec3(1.0, 0.0, 0.0),
+            dvec3(1.0, 1.0, 0.2),
+            dvec3(0.0, 1.0, 0.2),
+        ];
+        let tri = [
+            dvec3(0.3, 0.2, 5.0),
+            dvec3(1.2, 0.5, 4.8),
+            dvec3(0.4, 1.1, 5.3),
+        ];
+        let nq = (quad[1] - quad[0]).cross(quad[3] - quad[0]).normalize();
+        let nt = (tri[1] - tri[0]).cross(tri[2] - tri[0]).normalize();
+        let aq = (quad[1] - quad[0]).cross(quad[3] - quad[0]).length();
+        let at = 0.5 * (tri[1] - tri[0]).cross(tri[2] - tri[0]).length();
+        let table = FarTable::new([(&quad[..], aq), (&tri[..], at)].into_iter(), gauss_table());
+        for q in 1..=MAX_FAR_ORDER {
+            let pq = PatchPoints::new(&quad, aq, q, gauss_table());
+            let pt = PatchPoints::new(&tri, at, q, gauss_table());
+            let direct = area_form_factor(&pq, nq, &pt, nt);
+            let soa = area_form_factor_soa(&pq, nq, table.get(1, q), nt);
+            assert!((direct - soa).abs() <= 1e-14 * direct.abs(), "q {q}");
+            let back = area_form_factor_soa(&pt, nt, table.get(0, q), nq);
+            assert!((area_form_factor(&pt, nt, &pq, nq) - back).abs() <= 1e-14 * back.abs());
         }
     }
 
@@ -208,8 +367,14 @@ mod calibrate {
 
     /// The bound behind [`far_order`], checked on every pair of a cube corner patch
     /// (18 × 18 per face) with the patches of the adjacent and the opposite face:
-    /// actual relative error ≤ SAFETY · ρ^(−2q) for q = 1..=3 (or below 1e-12, the
-    /// accuracy of the contour reference for far pairs).
+    /// actual relative error ≤ SAFETY · ρ^(−2q) for q = 1..=MAX_FAR_ORDER (or below
+    /// REFERENCE_FLOOR, the accuracy of the contour reference for far pairs: at gap /
+    /// radius ≈ 20–40 its edge-pair terms are O(r_ref²) and cancel down to F ~ 1e-6, which
+    /// leaves a few 1e-9 relative, measured here), and order q agrees with order q − 1
+    /// within the bound of q − 1 (a check that does not depend on the contour
+    /// reference).
+    const REFERENCE_FLOOR: f64 = 1e-8;
+
     #[test]
     fn error_bound_holds_on_cube_pairs() {
         let m = 18;
@@ -242,6 +407,7 @@ mod calibrate {
                     );
                     let b = gap / r;
                     let rho = b + (b * b + 1.0).sqrt();
+                    let mut prev = f64::NAN;
                     for (q, w) in worst.iter_mut().enumerate().skip(1) {
                         let v = area_form_factor(
                             &PatchPoints::new(&pi, h * h, q, gauss_table()),
@@ -250,8 +416,16 @@ mod calibrate {
                             nj,
                         );
                         let rel = ((v - exact) / exact).abs();
-                        let bound = (SAFETY * rho.powi(-2 * q as i32)).max(1e-12);
+                        let bound = (SAFETY * rho.powi(-2 * q as i32)).max(REFERENCE_FLOOR);
                         *w = w.max(rel / bound);
+                        // Independent of the contour reference: order q agrees with
+                        // order q − 1 within the latter's bound.
+                        if q > 1 {
+                            let step = ((v - prev) / exact).abs();
+                            let prev_bound = SAFETY * rho.powi(-2 * (q as i32 - 1)) + 1e-13;
+                            *w = w.max(step / prev_bound);
+                        }
+                        prev = v;
                     }
                 }
             }

@@ -25,7 +25,6 @@ use std::time::Duration;
 // UVec2 is named (unqualified) by obvhs' traverse! macro expansion.
 use glam::{DVec3, UVec2, Vec3A};
 use obvhs::{
-    aabb::Aabb,
     cwbvh::{builder::build_cwbvh_from_tris, CwBvh},
     ray::Ray,
     triangle::Triangle,
@@ -139,6 +138,106 @@ impl ShearedRay {
             sy: dir[ky] / dir[kz],
             sz: 1.0 / dir[kz],
         }
+    }
+}
+
+/// Most side axes of [`HullAxes`] (edges of two polygons of up to 8 vertices).
+const MAX_HULL_AXES: usize = 16;
+
+/// Candidate separating axes between the convex hull H of two polygons a, b and a
+/// triangle, with H's extent along each (normalized units).
+///
+/// Every segment from a to b lies in H, so a plane that has the whole triangle on one
+/// side and all of H on the other proves that no such segment can be blocked
+/// (separating axis theorem; any axis that separates is a proof, so testing a subset
+/// of the axes is conservative). The axes used here are e × c for every edge e of a
+/// and of b, with c the direction between the polygons' vertex means: for two
+/// polygons seen across a distance these approximate the side faces of H, which the
+/// bounding box and the planes of the triangle, a and b (the other tests of
+/// [`Occluders::any_between`]) miss, so a box in the bounding box of a long thin H
+/// but beside it no longer costs rays.
+struct HullAxes {
+    axes: [DVec3; MAX_HULL_AXES],
+    lo: [f64; MAX_HULL_AXES],
+    hi: [f64; MAX_HULL_AXES],
+    n: usize,
+}
+
+impl HullAxes {
+    /// `pts`: the vertices of a (first `na`) then of b (next `nb`), normalized.
+    fn new(pts: &[DVec3], na: usize, nb: usize) -> Self {
+        let mut h = HullAxes {
+            axes: [DVec3::ZERO; MAX_HULL_AXES],
+            lo: [0.0; MAX_HULL_AXES],
+            hi: [0.0; MAX_HULL_AXES],
+            n: 0,
+        };
+        if na == 0 || nb == 0 || na + nb > pts.len() {
+            return h;
+        }
+        let (a, b) = (&pts[..na], &pts[na..na + nb]);
+        let mean = |p: &[DVec3]| p.iter().sum::<DVec3>() / p.len() as f64;
+        let c = mean(b) - mean(a);
+        for poly in [a, b] {
+            for k in 0..poly.len() {
+                if h.n == MAX_HULL_AXES {
+                    break;
+                }
+                let e = poly[(k + 1) % poly.len()] - poly[k];
+                let axis = e.cross(c);
+                let len = axis.length();
+                // Edges (nearly) along c give no useful axis.
+                if !(len > 1e-12 * e.length() * c.length()) || !len.is_finite() {
+                    continue;
+                }
+                let axis = axis / len;
+                // Opposite edges of a parallelogram, and the aligned edges of grid
+                // patches, give the same axis: test it once.
+                if h.axes[..h.n]
+                    .iter()
+                    .any(|b| b.dot(axis).abs() > 1.0 - 1e-12)
+                {
+                    continue;
+                }
+                let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+                for p in pts {
+                    let s = axis.dot(*p);
+                    lo = lo.min(s);
+                    hi = hi.max(s);
+                }
+                h.axes[h.n] = axis;
+                h.lo[h.n] = lo;
+                h.hi[h.n] = hi;
+                h.n += 1;
+            }
+        }
+        h
+    }
+
+    /// True when one of the axes separates the box [lo, hi] from the hull (beyond
+    /// [`PLANE_TOLERANCE`]).
+    #[inline]
+    fn separates_box(&self, lo: DVec3, hi: DVec3) -> bool {
+        let c = 0.5 * (lo + hi);
+        let h = 0.5 * (hi - lo);
+        (0..self.n).any(|k| {
+            let a = self.axes[k];
+            let mid = a.dot(c);
+            let r = a.abs().dot(h);
+            mid + r < self.lo[k] - PLANE_TOLERANCE || mid - r > self.hi[k] + PLANE_TOLERANCE
+        })
+    }
+
+    /// True when one of the axes separates the triangle from the hull (beyond
+    /// [`PLANE_TOLERANCE`], so a triangle touching H is not separated).
+    #[inline]
+    fn separates(&self, v: &[DVec3; 3]) -> bool {
+        (0..self.n).any(|k| {
+            let a = self.axes[k];
+            let (s0, s1, s2) = (a.dot(v[0]), a.dot(v[1]), a.dot(v[2]));
+            s0.max(s1).max(s2) < self.lo[k] - PLANE_TOLERANCE
+                || s0.min(s1).min(s2) > self.hi[k] + PLANE_TOLERANCE
+        })
     }
 }
 
@@ -285,11 +384,20 @@ impl Occluders {
     }
 
     /// Calls `visit` with the index of every triangle whose hierarchy leaf box
-    /// overlaps the box [lo, hi] (normalized units), until it returns `true` ("stop").
-    /// Returns whether a visit stopped the traversal.
-    fn for_each_in_box(&self, lo: DVec3, hi: DVec3, mut visit: impl FnMut(usize) -> bool) -> bool {
+    /// overlaps the box [lo, hi] (normalized units) and is not separated from `hull`
+    /// by one of its axes, until `visit` returns `true` ("stop"). Returns whether a
+    /// visit stopped the traversal.
+    fn for_each_in_hull(
+        &self,
+        lo: DVec3,
+        hi: DVec3,
+        hull: &HullAxes,
+        mut visit: impl FnMut(usize) -> bool,
+    ) -> bool {
         let Some(bvh) = &self.bvh else { return false };
-        let aabb = Aabb::new(lo.as_vec3a(), hi.as_vec3a());
+        // Child boxes are decoded in f32 (one rounding of min·e + p), so they are
+        // widened by BOX_SLACK before the exact tests.
+        const BOX_SLACK: f64 = 1e-6;
         let mut state = bvh.new_traversal(Vec3A::ONE);
         let mut node;
         let mut stopped = false;
@@ -298,7 +406,28 @@ impl Occluders {
                 bvh,
                 node,
                 state,
-                node.intersect_aabb(&aabb, state.oct_inv4),
+                {
+                    let (child_bits8, bit_index8) = node.get_child_and_index_bits(state.oct_inv4);
+                    let mut mask = 0u32;
+                    for child in 0..8 {
+                        if node.is_child_empty(child) {
+                            continue;
+                        }
+                        let b = node.child_aabb(child);
+                        let bmin = b.min.as_dvec3() - DVec3::splat(BOX_SLACK);
+                        let bmax = b.max.as_dvec3() + DVec3::splat(BOX_SLACK);
+                        if bmax.cmplt(lo).any() || bmin.cmpgt(hi).any() {
+                            continue;
+                        }
+                        if hull.separates_box(bmin, bmax) {
+                            continue;
+                        }
+                        let child_bits = obvhs::cwbvh::node::extract_byte64(child_bits8, child);
+                        let bit_index = obvhs::cwbvh::node::extract_byte64(bit_index8, child);
+                        mask |= child_bits << bit_index;
+                    }
+                    mask
+                },
                 {
                     if visit(state.primitive_id as usize) {
                         stopped = true;
@@ -361,7 +490,9 @@ impl Occluders {
         let ob = nb.dot(self.to_norm(b[0]));
         let tris = &self.tris;
         let mut rejected = 0usize;
-        self.for_each_in_box(qlo, qhi, |k| {
+        let (na_len, nb_len) = (a.len().min(CAP), b.len().min(CAP - a.len().min(CAP)));
+        let hull = HullAxes::new(pts, na_len, nb_len);
+        self.for_each_in_hull(qlo, qhi, &hull, |k| {
             let t = &tris[k];
             if t.face == ignore.0 || t.face == ignore.1 {
                 return false;
@@ -388,7 +519,7 @@ impl Occluders {
             if behind(na, oa) || behind(nb, ob) {
                 return false;
             }
-            true
+            !hull.separates(&verts)
         })
     }
 
@@ -581,6 +712,47 @@ mod tests {
         ));
         let o = Occluders::new(t);
         assert!(o.occluded(dvec3(0.0, 0.0, 0.0), dvec3(0.0, 0.0, 0.5), (99, 99)));
+    }
+
+    #[test]
+    fn any_between_ignores_blockers_beside_a_slanted_pair() {
+        // Floor patch at x, y ∈ [0, 0.1], ceiling patch at x, y ∈ [0.9, 1]: their hull is
+        // a thin slanted prism along the diagonal. A small blocker in the corner
+        // (0.8, 0.1, 0.5) is inside their bounding box but beside the prism; one at the
+        // centre of the diagonal is inside it.
+        let floor = [
+            dvec3(0.0, 0.0, 0.0),
+            dvec3(0.1, 0.0, 0.0),
+            dvec3(0.1, 0.1, 0.0),
+            dvec3(0.0, 0.1, 0.0),
+        ];
+        let ceiling = [
+            dvec3(0.9, 0.9, 1.0),
+            dvec3(0.9, 1.0, 1.0),
+            dvec3(1.0, 1.0, 1.0),
+            dvec3(1.0, 0.9, 1.0),
+        ];
+        let n_up = dvec3(0.0, 0.0, 1.0);
+        let blocker_at = |c: DVec3| {
+            let mut t = quad(
+                7,
+                [
+                    c + dvec3(-0.05, -0.05, 0.0),
+                    c + dvec3(0.05, -0.05, 0.0),
+                    c + dvec3(0.05, 0.05, 0.0),
+                    c + dvec3(-0.05, 0.05, 0.0),
+                ],
+            );
+            t.extend(quad(8, floor));
+            t.extend(quad(9, ceiling));
+            Occluders::new(t)
+        };
+        let beside = blocker_at(dvec3(0.8, 0.1, 0.5));
+        assert!(!beside.any_between(&floor, n_up, &ceiling, -n_up, (8, 9)));
+        let inside = blocker_at(dvec3(0.5, 0.5, 0.5));
+        assert!(inside.any_between(&floor, n_up, &ceiling, -n_up, (8, 9)));
+        // And the ray test agrees: the centre blocker stops the centre ray.
+        assert!(inside.occluded(dvec3(0.05, 0.05, 0.0), dvec3(0.95, 0.95, 1.0), (8, 9)));
     }
 
     #[test]
