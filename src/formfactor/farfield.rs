@@ -222,19 +222,28 @@ fn soa_avx2(pi: &PatchPoints, ni: DVec3, pj: FarSlice<'_>, nj: DVec3) -> f64 {
 #[inline(always)]
 fn soa_body(pi: &PatchPoints, ni: DVec3, pj: FarSlice<'_>, nj: DVec3) -> f64 {
     let mut sum = 0.0;
-    let m = pj.w.len();
-    debug_assert!(m % LANES == 0);
+    debug_assert!(pj.w.len() % LANES == 0);
+    // Fixed-size chunks: no bounds checks inside, so the lane loop vectorizes.
+    let xs = pj.x.chunks_exact(LANES);
+    let ys = pj.y.chunks_exact(LANES);
+    let zs = pj.z.chunks_exact(LANES);
+    let ws = pj.w.chunks_exact(LANES);
     for a in 0..pi.n {
         let x = pi.p[a];
         let mut acc = [0.0f64; LANES];
-        for c in (0..m).step_by(LANES) {
+        for (((cx, cy), cz), cw) in xs.clone().zip(ys.clone()).zip(zs.clone()).zip(ws.clone()) {
+            let (cx, cy, cz, cw): (&[f64; LANES], &[f64; LANES], &[f64; LANES], &[f64; LANES]) = (
+                cx.try_into().unwrap_or(&[0.0; LANES]),
+                cy.try_into().unwrap_or(&[0.0; LANES]),
+                cz.try_into().unwrap_or(&[0.0; LANES]),
+                cw.try_into().unwrap_or(&[0.0; LANES]),
+            );
             for l in 0..LANES {
-                let k = c + l;
-                let (dx, dy, dz) = (pj.x[k] - x.x, pj.y[k] - x.y, pj.z[k] - x.z);
+                let (dx, dy, dz) = (cx[l] - x.x, cy[l] - x.y, cz[l] - x.z);
                 let r2 = dx * dx + dy * dy + dz * dz;
                 let ci = ni.x * dx + ni.y * dy + ni.z * dz;
                 let cj = nj.x * dx + nj.y * dy + nj.z * dz;
-                acc[l] -= pj.w[k] * ci * cj / (r2 * r2);
+                acc[l] -= cw[l] * ci * cj / (r2 * r2);
             }
         }
         sum += pi.w[a] * ((acc[0] + acc[1]) + (acc[2] + acc[3]));
