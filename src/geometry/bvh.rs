@@ -82,14 +82,14 @@ impl OccluderTriangle {
 
     /// Watertight two-sided ray/triangle test (Woop, Benthin & Wald, "Watertight
     /// Ray/Triangle Intersection", JCGT 2013) in f64: true when the ray hits the closed
-    /// triangle at a distance in [t0, t1]. Watertight: the edge functions of an edge
+    /// triangle at a distance in [t0, t1] (returned). Watertight: the edge functions of an edge
     /// shared by two triangles (with bit-identical vertices) are computed by the same
     /// operations with opposite signs, so a ray through the edge hits at least one of
     /// them. A test that is not (Möller–Trumbore) lets rays slip through the diagonal
     /// of a quad face, which on subdivided scenes happens for whole families of
     /// grid-aligned rays (regression test `ray_through_a_shared_diagonal_is_blocked`).
     #[inline]
-    fn hit(&self, ray: &ShearedRay, t0: f64, t1: f64) -> bool {
+    fn hit(&self, ray: &ShearedRay, t0: f64, t1: f64) -> Option<f64> {
         let [kx, ky, kz] = ray.axes;
         let a = self.v[0] - ray.origin;
         let b = self.v[1] - ray.origin;
@@ -102,14 +102,14 @@ impl OccluderTriangle {
         let w = bx * ay - by * ax;
         // Zero counts as inside (closed triangle), from either side.
         if (u < 0.0 || v < 0.0 || w < 0.0) && (u > 0.0 || v > 0.0 || w > 0.0) {
-            return false;
+            return None;
         }
         let det = u + v + w;
         if det == 0.0 {
-            return false;
+            return None;
         }
         let t = (u * (ray.sz * a[kz]) + v * (ray.sz * b[kz]) + w * (ray.sz * c[kz])) / det;
-        t >= t0 && t <= t1
+        (t >= t0 && t <= t1).then_some(t)
     }
 }
 
@@ -252,9 +252,29 @@ pub struct Occluders {
     /// Scene diagonal (world units): normalized = (world − center) / scale.
     scale: f64,
     inv_scale: f64,
+    /// Built from another mesh than the patches' (`--occluders`): face ids of the
+    /// patches mean nothing here, so self-occlusion is told apart by planes instead
+    /// (see [`Occluders::occluded_between_planes`]).
+    foreign: bool,
 }
 
 impl Occluders {
+    /// As [`Occluders::new`] for a mesh other than the one the patches come from (a
+    /// coarser occluder mesh of the same geometry): the `ignore` face ids of every
+    /// query are disregarded; [`Occluders::occluded_between_planes`] ignores hits on
+    /// the planes of the two patches instead, and [`Occluders::any_between`] already
+    /// rejects triangles lying on (or behind) them.
+    pub fn new_foreign(tris: Vec<(u32, [DVec3; 3])>) -> Self {
+        let mut o = Occluders::new(tris);
+        o.foreign = true;
+        o
+    }
+
+    /// Whether the triangles come from another mesh than the patches.
+    pub fn is_foreign(&self) -> bool {
+        self.foreign
+    }
+
     /// Builds the hierarchy over `(scene face, triangle)` pairs. Degenerate (zero
     /// area) or non-finite triangles are dropped: they cannot block anything.
     pub fn new(tris: Vec<(u32, [DVec3; 3])>) -> Self {
@@ -318,6 +338,7 @@ impl Occluders {
             center,
             scale: diag,
             inv_scale,
+            foreign: false,
         }
     }
 
@@ -329,6 +350,7 @@ impl Occluders {
             center: DVec3::ZERO,
             scale: 1.0,
             inv_scale: 1.0,
+            foreign: false,
         }
     }
 
@@ -356,7 +378,32 @@ impl Occluders {
     /// segment from `from` to `to`, ignoring hits within [`RAY_EPSILON`] × diagonal of
     /// either end.
     pub fn occluded(&self, from: DVec3, to: DVec3, ignore: (u32, u32)) -> bool {
+        self.occluded_between_planes(from, to, ignore, None)
+    }
+
+    /// As [`Occluders::occluded`] for a segment between two patches with planes
+    /// `planes` = ((normal, offset) of the source, of the target), world units, used
+    /// when the occluders are foreign ([`Occluders::new_foreign`]): a hit counts only
+    /// if its point lies farther than [`RAY_EPSILON`] × diagonal from both planes (a
+    /// coarse mesh of the same flat faces has triangles on those planes, which the
+    /// face ids of the fine patches cannot name). For native occluders the planes are
+    /// not needed and `ignore` works as in [`Occluders::occluded`].
+    pub fn occluded_between_planes(
+        &self,
+        from: DVec3,
+        to: DVec3,
+        ignore: (u32, u32),
+        planes: Option<[(DVec3, f64); 2]>,
+    ) -> bool {
         let Some(bvh) = &self.bvh else { return false };
+        let (ignore, planes) = if self.foreign {
+            // Offsets in the normalized frame: n·x' = (n·x − n·c) / d.
+            let p =
+                planes.map(|ps| ps.map(|(n, o)| (n, (o - n.dot(self.center)) * self.inv_scale)));
+            ((u32::MAX, u32::MAX), p)
+        } else {
+            (ignore, None)
+        };
         let f = self.to_norm(from);
         let t = self.to_norm(to);
         let d = t - f;
@@ -375,10 +422,20 @@ impl Occluders {
         // ray_traverse_miss stops at the first primitive whose returned t < tmax.
         !bvh.ray_traverse_miss(ray, |_, id| {
             let tri = &tris[id];
-            if tri.face != ignore.0 && tri.face != ignore.1 && tri.hit(&sheared, t0, t1) {
-                0.0
-            } else {
-                f32::INFINITY
+            if tri.face == ignore.0 || tri.face == ignore.1 {
+                return f32::INFINITY;
+            }
+            match tri.hit(&sheared, t0, t1) {
+                Some(t) => {
+                    if let Some(ps) = &planes {
+                        let x = f + dir * t;
+                        if ps.iter().any(|(n, o)| (n.dot(x) - o).abs() <= RAY_EPSILON) {
+                            return f32::INFINITY;
+                        }
+                    }
+                    0.0
+                }
+                None => f32::INFINITY,
             }
         })
     }
@@ -468,6 +525,12 @@ impl Occluders {
         if self.bvh.is_none() || a.is_empty() || b.is_empty() {
             return false;
         }
+        // Foreign occluders: triangles on the planes of a or b are rejected by test 3.
+        let ignore = if self.foreign {
+            (u32::MAX, u32::MAX)
+        } else {
+            ignore
+        };
         const CAP: usize = 16;
         let mut pts = [DVec3::ZERO; CAP];
         let mut np = 0;
@@ -753,6 +816,63 @@ mod tests {
         assert!(inside.any_between(&floor, n_up, &ceiling, -n_up, (8, 9)));
         // And the ray test agrees: the centre blocker stops the centre ray.
         assert!(inside.occluded(dvec3(0.05, 0.05, 0.0), dvec3(0.95, 0.95, 1.0), (8, 9)));
+    }
+
+    #[test]
+    fn foreign_occluders_ignore_the_endpoint_planes_not_blockers() {
+        // A coarse mesh whose floor lies 5e-7 above the fine floor z = 0 (within the
+        // plane skin), a ceiling at z = 1 and a blocker at z = 0.5 over [0.25, 0.75]².
+        let mut t = quad(
+            1,
+            [
+                dvec3(0.0, 0.0, 5e-7),
+                dvec3(1.0, 0.0, 5e-7),
+                dvec3(1.0, 1.0, 5e-7),
+                dvec3(0.0, 1.0, 5e-7),
+            ],
+        );
+        t.extend(quad(
+            2,
+            [
+                dvec3(0.0, 0.0, 1.0),
+                dvec3(0.0, 1.0, 1.0),
+                dvec3(1.0, 1.0, 1.0),
+                dvec3(1.0, 0.0, 1.0),
+            ],
+        ));
+        t.extend(quad(
+            3,
+            [
+                dvec3(0.25, 0.25, 0.5),
+                dvec3(0.75, 0.25, 0.5),
+                dvec3(0.75, 0.75, 0.5),
+                dvec3(0.25, 0.75, 0.5),
+            ],
+        ));
+        let occ = Occluders::new_foreign(t.clone());
+        assert!(occ.is_foreign());
+        let up = dvec3(0.0, 0.0, 1.0);
+        let floor = (up, 0.0);
+        // A shallow ray from the fine floor to a wall point: it crosses the coarse
+        // floor ~1e-5 along, past the end-point epsilon. Planes tell it apart; the
+        // patches' face ids (here 1, 2) mean nothing to a foreign mesh.
+        let (a, b) = (dvec3(0.1, 0.1, 0.0), dvec3(1.0, 1.0, 0.05));
+        let wall = (dvec3(-1.0, 0.0, 0.0), -1.0);
+        assert!(occ.occluded(a, b, (1, 2)));
+        assert!(!occ.occluded_between_planes(a, b, (1, 2), Some([floor, wall])));
+        // Floor to ceiling through the blocker: still blocked.
+        let ceiling = (-up, -1.0);
+        let (a, c) = (dvec3(0.5, 0.5, 0.0), dvec3(0.5, 0.5, 1.0));
+        assert!(occ.occluded_between_planes(a, c, (1, 3), Some([floor, ceiling])));
+        assert!(!occ.occluded_between_planes(
+            dvec3(0.1, 0.1, 0.0),
+            dvec3(0.1, 0.9, 1.0),
+            (1, 2),
+            Some([floor, ceiling])
+        ));
+        // The same mesh as native occluders honours the face ids.
+        let native = Occluders::new(t);
+        assert!(!native.occluded(a, c, (1, 3)));
     }
 
     #[test]
