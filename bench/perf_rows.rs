@@ -103,13 +103,23 @@ fn run_rows(engine: &RowEngine, which: &[u32], threads: usize) -> (Vec<Row>, Cou
     (rows, total.into_inner().unwrap(), wall)
 }
 
+/// Modes: `default` (accurate preset), `topkK` (accurate + top-k K, exact tail: what
+/// `--top-k K` does), `topkKs` (top-k K with the tail sampled from 32 pairs, so the
+/// bound skips rays), `fast`, `occluders` (the scene's faces as foreign occluders,
+/// i.e. `--occluders` with the scene's own OBJ), `fineocc` (occluders = the patches'
+/// own triangles, as if the OBJ were tessellated as finely as the patches).
 fn config_of(mode: &str) -> FormFactorConfig {
     let base = FormFactorConfig::accurate();
     match mode {
         m if m.starts_with("topk") => {
-            let k = m[4..].parse().unwrap_or(256);
-            base.with_top_k(Some(k))
-                .with_tail(ffstream::formfactor::TopKTail::Sampled(32))
+            let sampled = m.ends_with('s');
+            let k = m[4..].trim_end_matches('s').parse().unwrap_or(256);
+            let c = base.with_top_k(Some(k));
+            if sampled {
+                c.with_tail(ffstream::formfactor::TopKTail::Sampled(32))
+            } else {
+                c
+            }
         }
         "fast" => FormFactorConfig::fast(),
         _ => base,
@@ -175,12 +185,25 @@ fn main() {
     );
     for mode in &a.modes {
         let occ = if mode == "occluders" {
-            let path = a.occluders.as_deref().expect("--occluders FILE");
-            let coarse = ffstream::scene::open_scene(path).expect("coarse scene");
-            Arc::new(Occluders::new(coarse.triangles().collect()))
+            let coarse = match a.occluders.as_deref() {
+                Some(path) => ffstream::scene::open_scene(path).expect("coarse scene"),
+                None => scene.clone(),
+            };
+            Arc::new(Occluders::new_foreign(coarse.triangles().collect()))
+        } else if mode == "fineocc" {
+            let tris = patches
+                .patches
+                .iter()
+                .flat_map(|p| {
+                    let c = p.corners();
+                    (1..c.len() - 1).map(move |k| (p.face, [c[0], c[k], c[k + 1]]))
+                })
+                .collect();
+            Arc::new(Occluders::new(tris))
         } else {
             Arc::clone(&fine)
         };
+        let occ_tris = occ.len();
         let e = RowEngine::new(Arc::clone(&patches), occ, config_of(mode));
         let (_, c, wall) = run_rows(&e, &timed, a.threads);
         let scale = n as f64 / timed.len() as f64;
@@ -214,6 +237,10 @@ fn main() {
             sum_err,
             mean_abs
         );
-        println!("  counters (timed rows): {c:?}");
+        println!(
+            "  occluder triangles {occ_tris}; rays skipped by the top-k bound: {} of {} pairs needing rays; counters (timed rows): {c:?}",
+            c.pairs_topk_tail_skipped,
+            c.pairs_evaluated - c.pairs_unoccludable
+        );
     }
 }
