@@ -324,7 +324,7 @@ impl Occluders {
             .collect();
         let bvh = build_cwbvh_from_tris(
             &f32_tris,
-            BvhBuildParams::medium_build(),
+            BvhBuildParams::slow_build(),
             &mut Duration::default(),
         );
         let ordered: Vec<OccluderTriangle> = bvh
