@@ -13,8 +13,10 @@
 //!   --occluders F   coarse OBJ for the `occluders` mode
 //! ```
 //!
-//! Output: one line per mode (`mode wall_s_extrapolated rays ... err ...`), the format
-//! copied into bench/PERF.md.
+//! Output: one line per mode: wall and CPU seconds extrapolated to all rows, rays for
+//! all rows, % of evaluated pairs on the far-field path and needing no rays, top-k
+//! tail pairs whose rays the bound skipped (timed rows), and the errors against the
+//! reference rows (largest entry, largest row sum, mean per entry).
 
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
@@ -69,6 +71,25 @@ fn parse_args() -> Args {
         }
     }
     a
+}
+
+/// CPU seconds (user + system) of this process so far, from /proc/self/stat (Linux;
+/// 0 elsewhere). Under a loaded machine this is steadier than wall time.
+fn cpu_seconds() -> f64 {
+    let Ok(stat) = std::fs::read_to_string("/proc/self/stat") else {
+        return 0.0;
+    };
+    // Fields after the parenthesized command name; utime and stime are the 14th and
+    // 15th fields of the line, in clock ticks (100 per second on Linux).
+    let rest = stat.rsplit_once(')').map_or("", |(_, r)| r);
+    let f: Vec<f64> = rest
+        .split_whitespace()
+        .map(|x| x.parse().unwrap_or(0.0))
+        .collect();
+    if f.len() < 13 {
+        return 0.0;
+    }
+    (f[11] + f[12]) / 100.0
 }
 
 /// Rows `which` computed on `threads` threads; returns (rows by position, counters,
@@ -172,9 +193,10 @@ fn main() {
         rows.iter().map(|r| r.to_dense(n)).collect::<Vec<_>>()
     };
     println!(
-        "{:<10} {:>9} {:>12} {:>10} {:>10} {:>10} {:>10} {:>10} {:>10}",
+        "{:<10} {:>9} {:>9} {:>12} {:>10} {:>10} {:>10} {:>10} {:>10} {:>10}",
         "mode",
         "wall_s",
+        "cpu_s",
         "rays",
         "far%",
         "unoccl%",
@@ -205,7 +227,9 @@ fn main() {
         };
         let occ_tris = occ.len();
         let e = RowEngine::new(Arc::clone(&patches), occ, config_of(mode));
+        let cpu0 = cpu_seconds();
         let (_, c, wall) = run_rows(&e, &timed, a.threads);
+        let cpu = cpu_seconds() - cpu0;
         let scale = n as f64 / timed.len() as f64;
         let (mut max_abs, mut sum_err, mut mean_abs) = (0.0f64, 0.0f64, 0.0f64);
         if !reference.is_empty() {
@@ -226,9 +250,10 @@ fn main() {
         }
         let evaluated = c.pairs_evaluated.max(1) as f64;
         println!(
-            "{:<10} {:>9.2} {:>12.3e} {:>9.1}% {:>9.1}% {:>10} {:>10.2e} {:>10.2e} {:>10.2e}",
+            "{:<10} {:>9.2} {:>9.2} {:>12.3e} {:>9.1}% {:>9.1}% {:>10} {:>10.2e} {:>10.2e} {:>10.2e}",
             mode,
             wall * scale,
+            cpu * scale,
             c.rays_cast as f64 * scale,
             100.0 * c.pairs_far_field as f64 / evaluated,
             100.0 * c.pairs_unoccludable as f64 / evaluated,
