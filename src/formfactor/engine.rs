@@ -28,7 +28,7 @@ use std::sync::Arc;
 use glam::DVec3;
 
 use super::contour::{area_form_factor_edges, ContourParams};
-use super::farfield::{self, far_order, FarTable, PatchPoints, MAX_FAR_ORDER};
+use super::farfield::{self, far_order, PatchLanes, PatchPoints, MAX_FAR_ORDER};
 use super::polygon::{EdgeSet, Polygon};
 use super::quadrature::{gauss_table, GaussTable};
 use super::sampling::{pair_seed, PatchMap, SplitMix64};
@@ -202,8 +202,6 @@ pub struct RowEngine {
     occluders: Arc<Occluders>,
     cfg: FormFactorConfig,
     geom: Vec<PatchGeom>,
-    /// Far-field Gauss points of every patch (the j side of far pairs).
-    far: FarTable,
     valid: Vec<bool>,
     gauss: &'static GaussTable,
     params: ContourParams,
@@ -230,7 +228,6 @@ impl RowEngine {
             (hi - lo).length()
         };
         let params = cfg.contour_params();
-        let far = FarTable::new(geom.iter().map(|g| (g.poly.verts(), g.area)), gauss_table());
         static NEXT_ID: AtomicU64 = AtomicU64::new(0);
         RowEngine {
             id: NEXT_ID.fetch_add(1, Ordering::Relaxed),
@@ -238,7 +235,6 @@ impl RowEngine {
             occluders,
             cfg,
             geom,
-            far,
             valid,
             gauss: gauss_table(),
             params,
@@ -335,7 +331,7 @@ impl RowEngine {
         };
         match self.cfg.method {
             Method::Mc => mc::pair(i, j, gi, gj, &self.occluders, &self.cfg, scratch),
-            _ => match self.contour_unoccluded((i, ju), gi, gj, extent, scratch) {
+            _ => match self.contour_unoccluded(i, gi, gj, extent, scratch) {
                 Some(u) => u.f * self.contour_visibility(i, j, &u, scratch),
                 None => 0.0,
             },
@@ -383,7 +379,7 @@ impl RowEngine {
     /// ([`super::farfield`]), else by the double contour integral. None when ≤ 0.
     fn contour_unoccluded(
         &self,
-        (i, j): (u32, usize),
+        i: u32,
         gi: &PatchGeom,
         gj: &PatchGeom,
         extent: (f64, f64),
@@ -415,7 +411,11 @@ impl RowEngine {
         let af = if let Some(q) = far {
             scratch.counters.pairs_far_field += 1;
             let pts_i = scratch.far_points_of(self.id, i, q, gi, self.gauss);
-            farfield::area_form_factor_soa(pts_i, gi.normal, self.far.get(j, q), gj.normal)
+            {
+                let pts_j = PatchPoints::new(gj.poly.verts(), gj.area, q, self.gauss);
+                let lanes = PatchLanes::new(&pts_j);
+                farfield::area_form_factor_soa(pts_i, gi.normal, lanes.slice(), gj.normal)
+            }
         } else {
             let (ei, ej);
             let ei = if extent.0 < -self.tol {
@@ -490,7 +490,7 @@ impl RowEngine {
                 let Some(extent) = self.facing(gi, gj, scratch) else {
                     continue;
                 };
-                if let Some(u) = self.contour_unoccluded((i, j), gi, gj, extent, scratch) {
+                if let Some(u) = self.contour_unoccluded(i, gi, gj, extent, scratch) {
                     f0[j] = u.f;
                     rays[j] = u.needs_rays;
                     if !u.needs_rays {

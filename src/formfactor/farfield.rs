@@ -21,90 +21,69 @@ use glam::DVec3;
 use super::quadrature::GaussTable;
 
 /// Largest order per dimension used for far pairs. q = 4 is q⁴ = 256 kernel
-/// evaluations; with the j side precomputed per patch ([`FarTable`]) and the inner
-/// loop over j's points in SIMD lanes ([`area_form_factor_soa`]), measured on the
-/// 8.5k-patch room that is still ~4× cheaper than the contour integral of two quads
-/// (~1.3 µs with its logarithms and arc tangents).
+/// evaluations; with the inner loop over j's points in SIMD lanes
+/// ([`area_form_factor_soa`]) that is ~4k instructions, half of the contour integral
+/// of two quads (~8.6k with its logarithms and arc tangents; callgrind, 8.5k room).
 pub const MAX_FAR_ORDER: usize = 4;
 
 /// Lanes of the inner loop of [`area_form_factor_soa`] (point counts padded to it).
 pub const LANES: usize = 4;
 
-/// Points of orders 1..=MAX_FAR_ORDER of one patch, each order padded to [`LANES`].
-const fn padded(q: usize) -> usize {
-    (q * q).div_ceil(LANES) * LANES
+/// One patch's points of one order, structure-of-arrays (x, y, z, area weight),
+/// padded to a multiple of [`LANES`] with zero weights, for [`area_form_factor_soa`].
+/// Built per pair on the stack (a per-patch table of all orders would cost ~1 KiB per
+/// patch, 100 MB at 100k patches, for ~2 % of the time).
+#[derive(Clone, Copy)]
+pub struct PatchLanes {
+    x: [f64; MAX_FAR_ORDER * MAX_FAR_ORDER],
+    y: [f64; MAX_FAR_ORDER * MAX_FAR_ORDER],
+    z: [f64; MAX_FAR_ORDER * MAX_FAR_ORDER],
+    w: [f64; MAX_FAR_ORDER * MAX_FAR_ORDER],
+    len: usize,
 }
 
-/// Offset of order q within one patch's block of a [`FarTable`].
-const fn order_offset(q: usize) -> usize {
-    let mut off = 0;
-    let mut k = 1;
-    while k < q {
-        off += padded(k);
-        k += 1;
+impl PatchLanes {
+    pub fn new(p: &PatchPoints) -> Self {
+        let len = p.n.div_ceil(LANES) * LANES;
+        let mut out = PatchLanes {
+            x: [0.0; MAX_FAR_ORDER * MAX_FAR_ORDER],
+            y: [0.0; MAX_FAR_ORDER * MAX_FAR_ORDER],
+            z: [0.0; MAX_FAR_ORDER * MAX_FAR_ORDER],
+            w: [0.0; MAX_FAR_ORDER * MAX_FAR_ORDER],
+            len,
+        };
+        for k in 0..len {
+            // Padding repeats the first point with weight 0 (no division by zero).
+            let (pt, w) = if k < p.n {
+                (p.p[k], p.w[k])
+            } else {
+                (p.p[0], 0.0)
+            };
+            out.x[k] = pt.x;
+            out.y[k] = pt.y;
+            out.z[k] = pt.z;
+            out.w[k] = w;
+        }
+        out
     }
-    off
+
+    pub fn slice(&self) -> FarSlice<'_> {
+        FarSlice {
+            x: &self.x[..self.len],
+            y: &self.y[..self.len],
+            z: &self.z[..self.len],
+            w: &self.w[..self.len],
+        }
+    }
 }
 
-/// Points per patch in a [`FarTable`] (all orders, padded).
-const PER_PATCH: usize = order_offset(MAX_FAR_ORDER + 1);
-
-/// Far-field Gauss points of every patch for every order, structure-of-arrays (x, y,
-/// z, area weight; padding has weight 0), computed once per engine so that a far pair
-/// costs only its kernel evaluations. Memory: [`PER_PATCH`] × 32 bytes per patch
-/// (1 KiB; 100 MB at 100k patches).
-#[derive(Clone, Debug, Default)]
-pub struct FarTable {
-    x: Vec<f64>,
-    y: Vec<f64>,
-    z: Vec<f64>,
-    w: Vec<f64>,
-}
-
-/// One patch's points of one order in a [`FarTable`].
+/// Points of one patch and order as slices (length a multiple of [`LANES`]).
 #[derive(Clone, Copy)]
 pub struct FarSlice<'a> {
     pub x: &'a [f64],
     pub y: &'a [f64],
     pub z: &'a [f64],
     pub w: &'a [f64],
-}
-
-impl FarTable {
-    /// The table for patches given as (corners, area).
-    pub fn new<'a>(patches: impl Iterator<Item = (&'a [DVec3], f64)>, gauss: &GaussTable) -> Self {
-        let mut t = FarTable::default();
-        for (corners, area) in patches {
-            for q in 1..=MAX_FAR_ORDER {
-                let p = PatchPoints::new(corners, area, q, gauss);
-                for k in 0..padded(q) {
-                    let (pt, w) = if k < p.n {
-                        (p.p[k], p.w[k])
-                    } else {
-                        (p.p[0], 0.0)
-                    };
-                    t.x.push(pt.x);
-                    t.y.push(pt.y);
-                    t.z.push(pt.z);
-                    t.w.push(w);
-                }
-            }
-        }
-        t
-    }
-
-    /// Points of `patch` for order `q` (1..=MAX_FAR_ORDER).
-    #[inline]
-    pub fn get(&self, patch: usize, q: usize) -> FarSlice<'_> {
-        let start = patch * PER_PATCH + order_offset(q);
-        let r = start..start + padded(q);
-        FarSlice {
-            x: &self.x[r.clone()],
-            y: &self.y[r.clone()],
-            z: &self.z[r.clone()],
-            w: &self.w[r],
-        }
-    }
 }
 
 /// Constant in front of the error bound ρ^(−2q) (see [`far_order`]). The kernel has
@@ -281,7 +260,7 @@ mod tests {
     }
 
     #[test]
-    fn table_rule_equals_direct_rule() {
+    fn lane_rule_equals_direct_rule() {
         let quad = [
             dvec3(0.0, 0.0, 0.0),
             dvec3(1.0, 0.0, 0.0),
@@ -297,14 +276,13 @@ mod tests {
         let nt = (tri[1] - tri[0]).cross(tri[2] - tri[0]).normalize();
         let aq = (quad[1] - quad[0]).cross(quad[3] - quad[0]).length();
         let at = 0.5 * (tri[1] - tri[0]).cross(tri[2] - tri[0]).length();
-        let table = FarTable::new([(&quad[..], aq), (&tri[..], at)].into_iter(), gauss_table());
         for q in 1..=MAX_FAR_ORDER {
             let pq = PatchPoints::new(&quad, aq, q, gauss_table());
             let pt = PatchPoints::new(&tri, at, q, gauss_table());
             let direct = area_form_factor(&pq, nq, &pt, nt);
-            let soa = area_form_factor_soa(&pq, nq, table.get(1, q), nt);
+            let soa = area_form_factor_soa(&pq, nq, PatchLanes::new(&pt).slice(), nt);
             assert!((direct - soa).abs() <= 1e-14 * direct.abs(), "q {q}");
-            let back = area_form_factor_soa(&pt, nt, table.get(0, q), nq);
+            let back = area_form_factor_soa(&pt, nt, PatchLanes::new(&pq).slice(), nq);
             assert!((area_form_factor(&pt, nt, &pq, nq) - back).abs() <= 1e-14 * back.abs());
         }
     }
