@@ -294,6 +294,39 @@ impl RowEngine {
         row
     }
 
+    /// The compute side of `--symmetric` (reciprocity half, bench/PERF.md section 6):
+    /// F_ij for the columns j > i only, into `upper` as (j, F_ij), and the mirrored
+    /// entries of the rows j > i, into `mirrored` as (j, F_ji) with
+    /// F_ji = F_ij · A_i / A_j (reciprocity A_i F_ij = A_j F_ji, DESIGN.md §3). Row j
+    /// of the matrix is then its own upper half plus the mirrored entries that rows
+    /// i < j sent it. Each unordered pair is evaluated once (half the kernel work and
+    /// rays of two dense rows); entries that are 0 are left out. Values and seeds are
+    /// those of [`RowEngine::pair_value`] for (i, j), i < j.
+    ///
+    /// # Panics
+    /// If `i` is not a patch index.
+    pub fn half_row(
+        &self,
+        i: u32,
+        scratch: &mut Scratch,
+        upper: &mut Vec<(u32, f64)>,
+        mirrored: &mut Vec<(u32, f64)>,
+    ) {
+        let n = self.n();
+        assert!((i as usize) < n, "row {i} out of range (n = {n})");
+        upper.clear();
+        mirrored.clear();
+        scratch.counters.rows += 1;
+        let ai = self.geom[i as usize].area;
+        for j in i + 1..n as u32 {
+            let f = self.pair_value(i, j, scratch);
+            if f > 0.0 {
+                upper.push((j, f));
+                mirrored.push((j, f * ai / self.geom[j as usize].area));
+            }
+        }
+    }
+
     /// Row i in f64 (dense, before the f32 conversion and top-k), into `out`.
     ///
     /// # Panics
