@@ -187,7 +187,9 @@ impl HullAxes {
                 let axis = e.cross(c);
                 let len = axis.length();
                 // Edges (nearly) along c give no useful axis.
-                if !(len > 1e-12 * e.length() * c.length()) || !len.is_finite() {
+                // (Written so that NaN lengths are skipped too.)
+                let useful = len > 1e-12 * e.length() * c.length() && len.is_finite();
+                if !useful {
                     continue;
                 }
                 let axis = axis / len;

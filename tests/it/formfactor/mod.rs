@@ -802,12 +802,12 @@ fn half_rows_assemble_reciprocal_rows_with_half_the_pairs() {
     let half = s.counters();
     let mut d = Scratch::new();
     let mut row = Vec::new();
-    for i in 0..n {
+    for (i, full_row) in full.iter().enumerate() {
         e.row_values(i as u32, &mut d, &mut row);
         for j in i + 1..n {
-            assert_eq!(full[i][j], row[j], "upper entry ({i}, {j})");
+            assert_eq!(full_row[j], row[j], "upper entry ({i}, {j})");
         }
-        let sum: f64 = full[i].iter().sum();
+        let sum: f64 = full_row.iter().sum();
         let dense: f64 = row.iter().sum();
         assert!((sum - 1.0).abs() < TARGET, "row {i}: {sum}");
         assert!((sum - dense).abs() < 1e-7, "row {i}: {sum} vs {dense}");
@@ -815,9 +815,9 @@ fn half_rows_assemble_reciprocal_rows_with_half_the_pairs() {
     let dense = d.counters();
     assert_eq!(2 * half.pairs_evaluated, dense.pairs_evaluated);
     let area = |k: usize| b.patches.patches[k].area;
-    for i in 0..n {
-        for j in 0..n {
-            let (a, c) = (area(i) * full[i][j], area(j) * full[j][i]);
+    for (i, full_row) in full.iter().enumerate() {
+        for (j, &fij) in full_row.iter().enumerate() {
+            let (a, c) = (area(i) * fij, area(j) * full[j][i]);
             assert!((a - c).abs() <= 1e-15 * a.max(c), "({i}, {j}): {a} vs {c}");
         }
     }
