@@ -90,6 +90,10 @@ pub struct ComputeOptions {
     /// No progress display.
     #[arg(short, long)]
     pub quiet: bool,
+    /// Visibility against this mesh (OBJ, same geometry, usually coarser) instead of the
+    /// scene's own faces. Self-occlusion is then told apart by the patches' planes.
+    #[arg(long, value_name = "COARSE.obj")]
+    pub occluders: Option<PathBuf>,
 }
 
 /// Load a scene: an OBJ path, or builtin:NAME[:PARAM] (or a bare built-in name when no
@@ -150,9 +154,12 @@ pub fn build_job(
         Some(0) => bail!("--top-k must be at least 1"),
         k => k,
     };
-    let occluders = Arc::new(
-        tracing::info_span!("build_bvh").in_scope(|| Occluders::new(scene.triangles().collect())),
-    );
+    let occluders = Arc::new(tracing::info_span!("build_bvh").in_scope(|| -> anyhow::Result<Occluders> {
+        Ok(match &o.occluders {
+            Some(path) => Occluders::new_foreign(scene::load_obj(path)?.triangles().collect()),
+            None => Occluders::new(scene.triangles().collect()),
+        })
+    })?);
     let engine = tracing::info_span!("prepare_engine")
         .in_scope(|| RowEngine::new(Arc::clone(&patches), occluders, cfg.clone()));
     if announce {
@@ -171,9 +178,13 @@ pub fn build_job(
         layout,
         method: cfg.method.to_string(),
         params: format!(
-            "{} max_edge={max_edge} scene={}",
+            "{} max_edge={max_edge} scene={}{}",
             engine.describe(),
-            input.scene
+            input.scene,
+            match &o.occluders {
+                Some(p) => format!(" occluders={}", p.display()),
+                None => String::new(),
+            }
         ),
         scene_hash: patches.content_hash(),
         created: creation_info(),

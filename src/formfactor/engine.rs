@@ -28,7 +28,7 @@ use std::sync::Arc;
 use glam::DVec3;
 
 use super::contour::{area_form_factor_edges, ContourParams};
-use super::farfield::{self, far_order, PatchPoints, MAX_FAR_ORDER};
+use super::farfield::{self, far_order, PatchLanes, PatchPoints, MAX_FAR_ORDER};
 use super::polygon::{EdgeSet, Polygon};
 use super::quadrature::{gauss_table, GaussTable};
 use super::sampling::{pair_seed, PatchMap, SplitMix64};
@@ -118,13 +118,12 @@ impl Scratch {
         q: usize,
         g: &PatchGeom,
         gauss: &GaussTable,
-    ) -> PatchPoints {
+    ) -> &PatchPoints {
         if self.far_row != Some((engine, i)) {
             self.far_row = Some((engine, i));
             self.far_points = [None; MAX_FAR_ORDER + 1];
         }
-        *self.far_points[q]
-            .get_or_insert_with(|| PatchPoints::new(g.poly.verts(), g.area, q, gauss))
+        self.far_points[q].get_or_insert_with(|| PatchPoints::new(g.poly.verts(), g.area, q, gauss))
     }
 }
 
@@ -295,6 +294,39 @@ impl RowEngine {
         row
     }
 
+    /// The compute side of `--symmetric` (reciprocity half, bench/PERF.md section 6):
+    /// F_ij for the columns j > i only, into `upper` as (j, F_ij), and the mirrored
+    /// entries of the rows j > i, into `mirrored` as (j, F_ji) with
+    /// F_ji = F_ij · A_i / A_j (reciprocity A_i F_ij = A_j F_ji, DESIGN.md §3). Row j
+    /// of the matrix is then its own upper half plus the mirrored entries that rows
+    /// i < j sent it. Each unordered pair is evaluated once (half the kernel work and
+    /// rays of two dense rows); entries that are 0 are left out. Values and seeds are
+    /// those of [`RowEngine::pair_value`] for (i, j), i < j.
+    ///
+    /// # Panics
+    /// If `i` is not a patch index.
+    pub fn half_row(
+        &self,
+        i: u32,
+        scratch: &mut Scratch,
+        upper: &mut Vec<(u32, f64)>,
+        mirrored: &mut Vec<(u32, f64)>,
+    ) {
+        let n = self.n();
+        assert!((i as usize) < n, "row {i} out of range (n = {n})");
+        upper.clear();
+        mirrored.clear();
+        scratch.counters.rows += 1;
+        let ai = self.geom[i as usize].area;
+        for j in i + 1..n as u32 {
+            let f = self.pair_value(i, j, scratch);
+            if f > 0.0 {
+                upper.push((j, f));
+                mirrored.push((j, f * ai / self.geom[j as usize].area));
+            }
+        }
+    }
+
     /// Row i in f64 (dense, before the f32 conversion and top-k), into `out`.
     ///
     /// # Panics
@@ -333,7 +365,7 @@ impl RowEngine {
         match self.cfg.method {
             Method::Mc => mc::pair(i, j, gi, gj, &self.occluders, &self.cfg, scratch),
             _ => match self.contour_unoccluded(i, gi, gj, extent, scratch) {
-                Some(u) => u.f * self.contour_visibility(i, j, gi, gj, &u, scratch),
+                Some(u) => u.f * self.contour_visibility(i, j, &u, scratch),
                 None => 0.0,
             },
         }
@@ -387,7 +419,21 @@ impl RowEngine {
         scratch: &mut Scratch,
     ) -> Option<Unoccluded> {
         let clip = extent.0 < -self.tol || extent.1 < -self.tol;
-        let (pi, pj) = self.clipped(gi, gj, extent);
+        // Clipped copies only when needed (copying two polygons per pair showed up in
+        // profiles at 8.5k patches).
+        let (ci, cj);
+        let pi = if extent.0 < -self.tol {
+            ci = gi.poly.clip_front(gj.normal, gj.offset, self.tol);
+            &ci
+        } else {
+            &gi.poly
+        };
+        let pj = if extent.1 < -self.tol {
+            cj = gj.poly.clip_front(gi.normal, gi.offset, self.tol);
+            &cj
+        } else {
+            &gj.poly
+        };
         let distance = (gi.centroid - gj.centroid).length();
         let gap = distance - gi.radius - gj.radius;
         let far = if clip {
@@ -398,21 +444,27 @@ impl RowEngine {
         let af = if let Some(q) = far {
             scratch.counters.pairs_far_field += 1;
             let pts_i = scratch.far_points_of(self.id, i, q, gi, self.gauss);
-            let pts_j = PatchPoints::new(gj.poly.verts(), gj.area, q, self.gauss);
-            farfield::area_form_factor(&pts_i, gi.normal, &pts_j, gj.normal)
+            {
+                let pts_j = PatchPoints::new(gj.poly.verts(), gj.area, q, self.gauss);
+                let lanes = PatchLanes::new(&pts_j);
+                farfield::area_form_factor_soa(pts_i, gi.normal, lanes.slice(), gj.normal)
+            }
         } else {
+            let (ei, ej);
             let ei = if extent.0 < -self.tol {
-                EdgeSet::from_polygon(&pi)
+                ei = EdgeSet::from_polygon(pi);
+                &ei
             } else {
-                gi.edges
+                &gi.edges
             };
             let ej = if extent.1 < -self.tol {
-                EdgeSet::from_polygon(&pj)
+                ej = EdgeSet::from_polygon(pj);
+                &ej
             } else {
-                gj.edges
+                &gj.edges
             };
             let r_ref = distance.max(gi.size).max(gj.size);
-            area_form_factor_edges(&ei, &ej, r_ref, self.gauss, self.params)
+            area_form_factor_edges(ei, ej, r_ref, self.gauss, self.params)
         };
         let f = af / gi.area;
         if f.is_nan() || f <= 0.0 {
@@ -425,41 +477,18 @@ impl RowEngine {
             gj.normal,
             (gi.face, gj.face),
         );
-        Some(Unoccluded {
-            f,
-            pi,
-            pj,
-            needs_rays,
-        })
+        Some(Unoccluded { f, needs_rays })
     }
 
     /// `contour`, visibility fraction of a pair (1 without rays when nothing can come
     /// between the polygons).
-    fn contour_visibility(
-        &self,
-        i: u32,
-        j: u32,
-        gi: &PatchGeom,
-        gj: &PatchGeom,
-        u: &Unoccluded,
-        scratch: &mut Scratch,
-    ) -> f64 {
+    fn contour_visibility(&self, i: u32, j: u32, u: &Unoccluded, scratch: &mut Scratch) -> f64 {
         if !u.needs_rays {
             scratch.counters.pairs_unoccludable += 1;
             scratch.counters.rays_skipped += self.cfg.samples as u64;
             return 1.0;
         }
-        visibility::fraction(
-            i,
-            j,
-            gi,
-            gj,
-            &u.pi,
-            &u.pj,
-            &self.occluders,
-            &self.cfg,
-            scratch,
-        )
+        self.visibility_of(i, j, scratch)
     }
 
     /// Top-k row of the `contour` method with a sampled tail ([`TopKTail::Sampled`]).
@@ -615,8 +644,6 @@ impl RowEngine {
 /// Unoccluded part of a `contour` pair.
 struct Unoccluded {
     f: f64,
-    pi: Polygon,
-    pj: Polygon,
     needs_rays: bool,
 }
 

@@ -57,6 +57,9 @@ fn run_batch(
     scratch: &mut Scratch,
     out: &mut Batch,
 ) {
+    let planes = occ
+        .is_foreign()
+        .then_some([(gi.normal, gi.offset), (gj.normal, gj.offset)]);
     let mut rng = SplitMix64::new(pair_seed(cfg.seed, i, j, stream));
     latin_pairs(&mut rng, n, &mut scratch.perms, &mut scratch.samples);
     for q in &scratch.samples {
@@ -72,7 +75,7 @@ fn run_batch(
         let w = jx * jy * ci * cj / (r2 * r2);
         scratch.counters.rays_cast += 1;
         out.weight += w;
-        if occ.occluded(x, y, (gi.face, gj.face)) {
+        if occ.occluded_between_planes(x, y, (gi.face, gj.face), planes) {
             out.any_blocked = true;
         } else {
             out.any_free = true;
@@ -121,7 +124,15 @@ pub(crate) fn fraction(
         // Every sample fell where a cosine is not positive (a sliver in front): one
         // ray between the centres of the clipped parts decides.
         scratch.counters.rays_cast += 1;
-        if occ.occluded(pi.vertex_mean(), pj.vertex_mean(), (gi.face, gj.face)) {
+        let planes = occ
+            .is_foreign()
+            .then_some([(gi.normal, gi.offset), (gj.normal, gj.offset)]);
+        if occ.occluded_between_planes(
+            pi.vertex_mean(),
+            pj.vertex_mean(),
+            (gi.face, gj.face),
+            planes,
+        ) {
             0.0
         } else {
             1.0

@@ -25,7 +25,6 @@ use std::time::Duration;
 // UVec2 is named (unqualified) by obvhs' traverse! macro expansion.
 use glam::{DVec3, UVec2, Vec3A};
 use obvhs::{
-    aabb::Aabb,
     cwbvh::{builder::build_cwbvh_from_tris, CwBvh},
     ray::Ray,
     triangle::Triangle,
@@ -83,14 +82,14 @@ impl OccluderTriangle {
 
     /// Watertight two-sided ray/triangle test (Woop, Benthin & Wald, "Watertight
     /// Ray/Triangle Intersection", JCGT 2013) in f64: true when the ray hits the closed
-    /// triangle at a distance in [t0, t1]. Watertight: the edge functions of an edge
+    /// triangle at a distance in [t0, t1] (returned). Watertight: the edge functions of an edge
     /// shared by two triangles (with bit-identical vertices) are computed by the same
     /// operations with opposite signs, so a ray through the edge hits at least one of
     /// them. A test that is not (Möller–Trumbore) lets rays slip through the diagonal
     /// of a quad face, which on subdivided scenes happens for whole families of
     /// grid-aligned rays (regression test `ray_through_a_shared_diagonal_is_blocked`).
     #[inline]
-    fn hit(&self, ray: &ShearedRay, t0: f64, t1: f64) -> bool {
+    fn hit(&self, ray: &ShearedRay, t0: f64, t1: f64) -> Option<f64> {
         let [kx, ky, kz] = ray.axes;
         let a = self.v[0] - ray.origin;
         let b = self.v[1] - ray.origin;
@@ -103,14 +102,14 @@ impl OccluderTriangle {
         let w = bx * ay - by * ax;
         // Zero counts as inside (closed triangle), from either side.
         if (u < 0.0 || v < 0.0 || w < 0.0) && (u > 0.0 || v > 0.0 || w > 0.0) {
-            return false;
+            return None;
         }
         let det = u + v + w;
         if det == 0.0 {
-            return false;
+            return None;
         }
         let t = (u * (ray.sz * a[kz]) + v * (ray.sz * b[kz]) + w * (ray.sz * c[kz])) / det;
-        t >= t0 && t <= t1
+        (t >= t0 && t <= t1).then_some(t)
     }
 }
 
@@ -142,6 +141,108 @@ impl ShearedRay {
     }
 }
 
+/// Most side axes of [`HullAxes`] (edges of two polygons of up to 8 vertices).
+const MAX_HULL_AXES: usize = 16;
+
+/// Candidate separating axes between the convex hull H of two polygons a, b and a
+/// triangle, with H's extent along each (normalized units).
+///
+/// Every segment from a to b lies in H, so a plane that has the whole triangle on one
+/// side and all of H on the other proves that no such segment can be blocked
+/// (separating axis theorem; any axis that separates is a proof, so testing a subset
+/// of the axes is conservative). The axes used here are e × c for every edge e of a
+/// and of b, with c the direction between the polygons' vertex means: for two
+/// polygons seen across a distance these approximate the side faces of H, which the
+/// bounding box and the planes of the triangle, a and b (the other tests of
+/// [`Occluders::any_between`]) miss, so a box in the bounding box of a long thin H
+/// but beside it no longer costs rays.
+struct HullAxes {
+    axes: [DVec3; MAX_HULL_AXES],
+    lo: [f64; MAX_HULL_AXES],
+    hi: [f64; MAX_HULL_AXES],
+    n: usize,
+}
+
+impl HullAxes {
+    /// `pts`: the vertices of a (first `na`) then of b (next `nb`), normalized.
+    fn new(pts: &[DVec3], na: usize, nb: usize) -> Self {
+        let mut h = HullAxes {
+            axes: [DVec3::ZERO; MAX_HULL_AXES],
+            lo: [0.0; MAX_HULL_AXES],
+            hi: [0.0; MAX_HULL_AXES],
+            n: 0,
+        };
+        if na == 0 || nb == 0 || na + nb > pts.len() {
+            return h;
+        }
+        let (a, b) = (&pts[..na], &pts[na..na + nb]);
+        let mean = |p: &[DVec3]| p.iter().sum::<DVec3>() / p.len() as f64;
+        let c = mean(b) - mean(a);
+        for poly in [a, b] {
+            for k in 0..poly.len() {
+                if h.n == MAX_HULL_AXES {
+                    break;
+                }
+                let e = poly[(k + 1) % poly.len()] - poly[k];
+                let axis = e.cross(c);
+                let len = axis.length();
+                // Edges (nearly) along c give no useful axis.
+                // (Written so that NaN lengths are skipped too.)
+                let useful = len > 1e-12 * e.length() * c.length() && len.is_finite();
+                if !useful {
+                    continue;
+                }
+                let axis = axis / len;
+                // Opposite edges of a parallelogram, and the aligned edges of grid
+                // patches, give the same axis: test it once.
+                if h.axes[..h.n]
+                    .iter()
+                    .any(|b| b.dot(axis).abs() > 1.0 - 1e-12)
+                {
+                    continue;
+                }
+                let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+                for p in pts {
+                    let s = axis.dot(*p);
+                    lo = lo.min(s);
+                    hi = hi.max(s);
+                }
+                h.axes[h.n] = axis;
+                h.lo[h.n] = lo;
+                h.hi[h.n] = hi;
+                h.n += 1;
+            }
+        }
+        h
+    }
+
+    /// True when one of the axes separates the box [lo, hi] from the hull (beyond
+    /// [`PLANE_TOLERANCE`]).
+    #[inline]
+    fn separates_box(&self, lo: DVec3, hi: DVec3) -> bool {
+        let c = 0.5 * (lo + hi);
+        let h = 0.5 * (hi - lo);
+        (0..self.n).any(|k| {
+            let a = self.axes[k];
+            let mid = a.dot(c);
+            let r = a.abs().dot(h);
+            mid + r < self.lo[k] - PLANE_TOLERANCE || mid - r > self.hi[k] + PLANE_TOLERANCE
+        })
+    }
+
+    /// True when one of the axes separates the triangle from the hull (beyond
+    /// [`PLANE_TOLERANCE`], so a triangle touching H is not separated).
+    #[inline]
+    fn separates(&self, v: &[DVec3; 3]) -> bool {
+        (0..self.n).any(|k| {
+            let a = self.axes[k];
+            let (s0, s1, s2) = (a.dot(v[0]), a.dot(v[1]), a.dot(v[2]));
+            s0.max(s1).max(s2) < self.lo[k] - PLANE_TOLERANCE
+                || s0.min(s1).min(s2) > self.hi[k] + PLANE_TOLERANCE
+        })
+    }
+}
+
 /// Triangles that block light, in a hierarchy. Immutable after [`Occluders::new`], so
 /// it is `Send + Sync` and shared by all threads.
 #[derive(Clone, Debug)]
@@ -153,9 +254,29 @@ pub struct Occluders {
     /// Scene diagonal (world units): normalized = (world − center) / scale.
     scale: f64,
     inv_scale: f64,
+    /// Built from another mesh than the patches' (`--occluders`): face ids of the
+    /// patches mean nothing here, so self-occlusion is told apart by planes instead
+    /// (see [`Occluders::occluded_between_planes`]).
+    foreign: bool,
 }
 
 impl Occluders {
+    /// As [`Occluders::new`] for a mesh other than the one the patches come from (a
+    /// coarser occluder mesh of the same geometry): the `ignore` face ids of every
+    /// query are disregarded; [`Occluders::occluded_between_planes`] ignores hits on
+    /// the planes of the two patches instead, and [`Occluders::any_between`] already
+    /// rejects triangles lying on (or behind) them.
+    pub fn new_foreign(tris: Vec<(u32, [DVec3; 3])>) -> Self {
+        let mut o = Occluders::new(tris);
+        o.foreign = true;
+        o
+    }
+
+    /// Whether the triangles come from another mesh than the patches.
+    pub fn is_foreign(&self) -> bool {
+        self.foreign
+    }
+
     /// Builds the hierarchy over `(scene face, triangle)` pairs. Degenerate (zero
     /// area) or non-finite triangles are dropped: they cannot block anything.
     pub fn new(tris: Vec<(u32, [DVec3; 3])>) -> Self {
@@ -205,7 +326,7 @@ impl Occluders {
             .collect();
         let bvh = build_cwbvh_from_tris(
             &f32_tris,
-            BvhBuildParams::medium_build(),
+            BvhBuildParams::slow_build(),
             &mut Duration::default(),
         );
         let ordered: Vec<OccluderTriangle> = bvh
@@ -219,6 +340,7 @@ impl Occluders {
             center,
             scale: diag,
             inv_scale,
+            foreign: false,
         }
     }
 
@@ -230,6 +352,7 @@ impl Occluders {
             center: DVec3::ZERO,
             scale: 1.0,
             inv_scale: 1.0,
+            foreign: false,
         }
     }
 
@@ -257,7 +380,32 @@ impl Occluders {
     /// segment from `from` to `to`, ignoring hits within [`RAY_EPSILON`] × diagonal of
     /// either end.
     pub fn occluded(&self, from: DVec3, to: DVec3, ignore: (u32, u32)) -> bool {
+        self.occluded_between_planes(from, to, ignore, None)
+    }
+
+    /// As [`Occluders::occluded`] for a segment between two patches with planes
+    /// `planes` = ((normal, offset) of the source, of the target), world units, used
+    /// when the occluders are foreign ([`Occluders::new_foreign`]): a hit counts only
+    /// if its point lies farther than [`RAY_EPSILON`] × diagonal from both planes (a
+    /// coarse mesh of the same flat faces has triangles on those planes, which the
+    /// face ids of the fine patches cannot name). For native occluders the planes are
+    /// not needed and `ignore` works as in [`Occluders::occluded`].
+    pub fn occluded_between_planes(
+        &self,
+        from: DVec3,
+        to: DVec3,
+        ignore: (u32, u32),
+        planes: Option<[(DVec3, f64); 2]>,
+    ) -> bool {
         let Some(bvh) = &self.bvh else { return false };
+        let (ignore, planes) = if self.foreign {
+            // Offsets in the normalized frame: n·x' = (n·x − n·c) / d.
+            let p =
+                planes.map(|ps| ps.map(|(n, o)| (n, (o - n.dot(self.center)) * self.inv_scale)));
+            ((u32::MAX, u32::MAX), p)
+        } else {
+            (ignore, None)
+        };
         let f = self.to_norm(from);
         let t = self.to_norm(to);
         let d = t - f;
@@ -276,20 +424,39 @@ impl Occluders {
         // ray_traverse_miss stops at the first primitive whose returned t < tmax.
         !bvh.ray_traverse_miss(ray, |_, id| {
             let tri = &tris[id];
-            if tri.face != ignore.0 && tri.face != ignore.1 && tri.hit(&sheared, t0, t1) {
-                0.0
-            } else {
-                f32::INFINITY
+            if tri.face == ignore.0 || tri.face == ignore.1 {
+                return f32::INFINITY;
+            }
+            match tri.hit(&sheared, t0, t1) {
+                Some(t) => {
+                    if let Some(ps) = &planes {
+                        let x = f + dir * t;
+                        if ps.iter().any(|(n, o)| (n.dot(x) - o).abs() <= RAY_EPSILON) {
+                            return f32::INFINITY;
+                        }
+                    }
+                    0.0
+                }
+                None => f32::INFINITY,
             }
         })
     }
 
     /// Calls `visit` with the index of every triangle whose hierarchy leaf box
-    /// overlaps the box [lo, hi] (normalized units), until it returns `true` ("stop").
-    /// Returns whether a visit stopped the traversal.
-    fn for_each_in_box(&self, lo: DVec3, hi: DVec3, mut visit: impl FnMut(usize) -> bool) -> bool {
+    /// overlaps the box [lo, hi] (normalized units) and is not separated from `hull`
+    /// by one of its axes, until `visit` returns `true` ("stop"). Returns whether a
+    /// visit stopped the traversal.
+    fn for_each_in_hull(
+        &self,
+        lo: DVec3,
+        hi: DVec3,
+        hull: &HullAxes,
+        mut visit: impl FnMut(usize) -> bool,
+    ) -> bool {
         let Some(bvh) = &self.bvh else { return false };
-        let aabb = Aabb::new(lo.as_vec3a(), hi.as_vec3a());
+        // Child boxes are decoded in f32 (one rounding of min·e + p), so they are
+        // widened by BOX_SLACK before the exact tests.
+        const BOX_SLACK: f64 = 1e-6;
         let mut state = bvh.new_traversal(Vec3A::ONE);
         let mut node;
         let mut stopped = false;
@@ -298,7 +465,28 @@ impl Occluders {
                 bvh,
                 node,
                 state,
-                node.intersect_aabb(&aabb, state.oct_inv4),
+                {
+                    let (child_bits8, bit_index8) = node.get_child_and_index_bits(state.oct_inv4);
+                    let mut mask = 0u32;
+                    for child in 0..8 {
+                        if node.is_child_empty(child) {
+                            continue;
+                        }
+                        let b = node.child_aabb(child);
+                        let bmin = b.min.as_dvec3() - DVec3::splat(BOX_SLACK);
+                        let bmax = b.max.as_dvec3() + DVec3::splat(BOX_SLACK);
+                        if bmax.cmplt(lo).any() || bmin.cmpgt(hi).any() {
+                            continue;
+                        }
+                        if hull.separates_box(bmin, bmax) {
+                            continue;
+                        }
+                        let child_bits = obvhs::cwbvh::node::extract_byte64(child_bits8, child);
+                        let bit_index = obvhs::cwbvh::node::extract_byte64(bit_index8, child);
+                        mask |= child_bits << bit_index;
+                    }
+                    mask
+                },
                 {
                     if visit(state.primitive_id as usize) {
                         stopped = true;
@@ -339,6 +527,12 @@ impl Occluders {
         if self.bvh.is_none() || a.is_empty() || b.is_empty() {
             return false;
         }
+        // Foreign occluders: triangles on the planes of a or b are rejected by test 3.
+        let ignore = if self.foreign {
+            (u32::MAX, u32::MAX)
+        } else {
+            ignore
+        };
         const CAP: usize = 16;
         let mut pts = [DVec3::ZERO; CAP];
         let mut np = 0;
@@ -361,7 +555,9 @@ impl Occluders {
         let ob = nb.dot(self.to_norm(b[0]));
         let tris = &self.tris;
         let mut rejected = 0usize;
-        self.for_each_in_box(qlo, qhi, |k| {
+        let (na_len, nb_len) = (a.len().min(CAP), b.len().min(CAP - a.len().min(CAP)));
+        let hull = HullAxes::new(pts, na_len, nb_len);
+        self.for_each_in_hull(qlo, qhi, &hull, |k| {
             let t = &tris[k];
             if t.face == ignore.0 || t.face == ignore.1 {
                 return false;
@@ -388,7 +584,7 @@ impl Occluders {
             if behind(na, oa) || behind(nb, ob) {
                 return false;
             }
-            true
+            !hull.separates(&verts)
         })
     }
 
@@ -581,6 +777,104 @@ mod tests {
         ));
         let o = Occluders::new(t);
         assert!(o.occluded(dvec3(0.0, 0.0, 0.0), dvec3(0.0, 0.0, 0.5), (99, 99)));
+    }
+
+    #[test]
+    fn any_between_ignores_blockers_beside_a_slanted_pair() {
+        // Floor patch at x, y ∈ [0, 0.1], ceiling patch at x, y ∈ [0.9, 1]: their hull is
+        // a thin slanted prism along the diagonal. A small blocker in the corner
+        // (0.8, 0.1, 0.5) is inside their bounding box but beside the prism; one at the
+        // centre of the diagonal is inside it.
+        let floor = [
+            dvec3(0.0, 0.0, 0.0),
+            dvec3(0.1, 0.0, 0.0),
+            dvec3(0.1, 0.1, 0.0),
+            dvec3(0.0, 0.1, 0.0),
+        ];
+        let ceiling = [
+            dvec3(0.9, 0.9, 1.0),
+            dvec3(0.9, 1.0, 1.0),
+            dvec3(1.0, 1.0, 1.0),
+            dvec3(1.0, 0.9, 1.0),
+        ];
+        let n_up = dvec3(0.0, 0.0, 1.0);
+        let blocker_at = |c: DVec3| {
+            let mut t = quad(
+                7,
+                [
+                    c + dvec3(-0.05, -0.05, 0.0),
+                    c + dvec3(0.05, -0.05, 0.0),
+                    c + dvec3(0.05, 0.05, 0.0),
+                    c + dvec3(-0.05, 0.05, 0.0),
+                ],
+            );
+            t.extend(quad(8, floor));
+            t.extend(quad(9, ceiling));
+            Occluders::new(t)
+        };
+        let beside = blocker_at(dvec3(0.8, 0.1, 0.5));
+        assert!(!beside.any_between(&floor, n_up, &ceiling, -n_up, (8, 9)));
+        let inside = blocker_at(dvec3(0.5, 0.5, 0.5));
+        assert!(inside.any_between(&floor, n_up, &ceiling, -n_up, (8, 9)));
+        // And the ray test agrees: the centre blocker stops the centre ray.
+        assert!(inside.occluded(dvec3(0.05, 0.05, 0.0), dvec3(0.95, 0.95, 1.0), (8, 9)));
+    }
+
+    #[test]
+    fn foreign_occluders_ignore_the_endpoint_planes_not_blockers() {
+        // A coarse mesh whose floor lies 5e-7 above the fine floor z = 0 (within the
+        // plane skin), a ceiling at z = 1 and a blocker at z = 0.5 over [0.25, 0.75]².
+        let mut t = quad(
+            1,
+            [
+                dvec3(0.0, 0.0, 5e-7),
+                dvec3(1.0, 0.0, 5e-7),
+                dvec3(1.0, 1.0, 5e-7),
+                dvec3(0.0, 1.0, 5e-7),
+            ],
+        );
+        t.extend(quad(
+            2,
+            [
+                dvec3(0.0, 0.0, 1.0),
+                dvec3(0.0, 1.0, 1.0),
+                dvec3(1.0, 1.0, 1.0),
+                dvec3(1.0, 0.0, 1.0),
+            ],
+        ));
+        t.extend(quad(
+            3,
+            [
+                dvec3(0.25, 0.25, 0.5),
+                dvec3(0.75, 0.25, 0.5),
+                dvec3(0.75, 0.75, 0.5),
+                dvec3(0.25, 0.75, 0.5),
+            ],
+        ));
+        let occ = Occluders::new_foreign(t.clone());
+        assert!(occ.is_foreign());
+        let up = dvec3(0.0, 0.0, 1.0);
+        let floor = (up, 0.0);
+        // A shallow ray from the fine floor to a wall point: it crosses the coarse
+        // floor ~1e-5 along, past the end-point epsilon. Planes tell it apart; the
+        // patches' face ids (here 1, 2) mean nothing to a foreign mesh.
+        let (a, b) = (dvec3(0.1, 0.1, 0.0), dvec3(1.0, 1.0, 0.05));
+        let wall = (dvec3(-1.0, 0.0, 0.0), -1.0);
+        assert!(occ.occluded(a, b, (1, 2)));
+        assert!(!occ.occluded_between_planes(a, b, (1, 2), Some([floor, wall])));
+        // Floor to ceiling through the blocker: still blocked.
+        let ceiling = (-up, -1.0);
+        let (a, c) = (dvec3(0.5, 0.5, 0.0), dvec3(0.5, 0.5, 1.0));
+        assert!(occ.occluded_between_planes(a, c, (1, 3), Some([floor, ceiling])));
+        assert!(!occ.occluded_between_planes(
+            dvec3(0.1, 0.1, 0.0),
+            dvec3(0.1, 0.9, 1.0),
+            (1, 2),
+            Some([floor, ceiling])
+        ));
+        // The same mesh as native occluders honours the face ids.
+        let native = Occluders::new(t);
+        assert!(!native.occluded(a, c, (1, 3)));
     }
 
     #[test]

@@ -707,3 +707,118 @@ fn counters_and_describe() {
     total.add(&c);
     assert_eq!(total.pairs_evaluated, 64);
 }
+
+/// Top-k with occluders, both tails: each kept entry equals the dense row's entry
+/// bitwise (same (i, j)-seeded rays), the kept set is the K largest of the dense row
+/// (ties aside: nothing dropped is larger than anything kept), and the true row sum
+/// (kept + dropped) equals the dense row sum (exactly up to f32 rounding for the exact
+/// tail; for the sampled tail, unbiased over the rows).
+#[test]
+fn top_k_with_occluders_equals_k_largest_of_dense_row() {
+    let mut b = cube(6, false);
+    let (lo, s) = (dvec3(0.3, 0.3, 0.3), 0.4);
+    let (x, y, z) = (dvec3(s, 0.0, 0.0), dvec3(0.0, s, 0.0), dvec3(0.0, 0.0, s));
+    for (o, u, v) in [
+        (lo, y, x),
+        (lo + z, x, y),
+        (lo, z, y),
+        (lo + x, y, z),
+        (lo, x, z),
+        (lo + y, z, x),
+    ] {
+        b.blocker(o, u, v);
+    }
+    let k = 24u32;
+    let n = b.n();
+    let dense = all_rows(&b.engine(FormFactorConfig::accurate()));
+    for tail in [TopKTail::Exact, TopKTail::Sampled(16)] {
+        let cfg = FormFactorConfig {
+            top_k_tail: tail,
+            ..FormFactorConfig::accurate().with_top_k(Some(k))
+        };
+        let e = b.engine(cfg);
+        let mut scratch = Scratch::new();
+        let (mut sum_diff, mut sum_true) = (0.0f64, 0.0f64);
+        for d in &dense {
+            let r = e.compute_row(d.index, &mut scratch);
+            let RowValues::Sparse { cols, vals } = &r.values else {
+                panic!("expected a sparse row")
+            };
+            let dv = d.to_dense(n);
+            let nonzero = dv.iter().filter(|&&v| v > 0.0).count();
+            assert_eq!(cols.len(), nonzero.min(k as usize), "row {}", d.index);
+            for (&c, &v) in cols.iter().zip(vals) {
+                assert_eq!(v, dv[c as usize], "{tail} row {} col {c}", d.index);
+            }
+            let smallest_kept = vals.iter().cloned().fold(f32::INFINITY, f32::min);
+            let largest_dropped = (0..n)
+                .filter(|j| cols.binary_search(&(*j as u32)).is_err())
+                .map(|j| dv[j])
+                .fold(0.0f32, f32::max);
+            assert!(smallest_kept >= largest_dropped, "{tail} row {}", d.index);
+            let diff = r.true_sum() - d.true_sum();
+            if tail == TopKTail::Exact {
+                assert!(diff.abs() < 1e-6, "row {}: {diff}", d.index);
+            }
+            sum_diff += diff;
+            sum_true += d.true_sum();
+        }
+        let c = scratch.counters();
+        println!(
+            "top-{k} {tail}: mean row-sum deviation {:.2e}, rays cast {}, rays skipped {} ({:.1}% of budget), tail pairs skipped {}",
+            sum_diff / dense.len() as f64,
+            c.rays_cast,
+            c.rays_skipped,
+            100.0 * c.rays_skipped as f64 / (c.rays_cast + c.rays_skipped) as f64,
+            c.pairs_topk_tail_skipped
+        );
+        // The sampled tail is unbiased: the mean deviation is far below one row's
+        // tail mass.
+        assert!((sum_diff / sum_true).abs() < 2e-3, "{tail}: {sum_diff}");
+    }
+}
+
+/// `RowEngine::half_row` (the compute side of `--symmetric`): rows assembled from
+/// upper halves and mirrored entries are exactly reciprocal, evaluate half of the
+/// pairs of the dense rows, keep the upper entries of the dense rows bitwise, and in
+/// the closed unoccluded cube sum to 1 like the dense rows.
+#[test]
+fn half_rows_assemble_reciprocal_rows_with_half_the_pairs() {
+    let b = cube(4, false);
+    let e = b.engine(FormFactorConfig::accurate());
+    let n = e.n();
+    let mut full = vec![vec![0.0f64; n]; n];
+    let mut s = Scratch::new();
+    let (mut upper, mut mirrored) = (Vec::new(), Vec::new());
+    for i in 0..n as u32 {
+        e.half_row(i, &mut s, &mut upper, &mut mirrored);
+        for &(j, f) in &upper {
+            full[i as usize][j as usize] = f;
+        }
+        for &(j, f) in &mirrored {
+            full[j as usize][i as usize] = f;
+        }
+    }
+    let half = s.counters();
+    let mut d = Scratch::new();
+    let mut row = Vec::new();
+    for (i, full_row) in full.iter().enumerate() {
+        e.row_values(i as u32, &mut d, &mut row);
+        for j in i + 1..n {
+            assert_eq!(full_row[j], row[j], "upper entry ({i}, {j})");
+        }
+        let sum: f64 = full_row.iter().sum();
+        let dense: f64 = row.iter().sum();
+        assert!((sum - 1.0).abs() < TARGET, "row {i}: {sum}");
+        assert!((sum - dense).abs() < 1e-7, "row {i}: {sum} vs {dense}");
+    }
+    let dense = d.counters();
+    assert_eq!(2 * half.pairs_evaluated, dense.pairs_evaluated);
+    let area = |k: usize| b.patches.patches[k].area;
+    for (i, full_row) in full.iter().enumerate() {
+        for (j, &fij) in full_row.iter().enumerate() {
+            let (a, c) = (area(i) * fij, area(j) * full[j][i]);
+            assert!((a - c).abs() <= 1e-15 * a.max(c), "({i}, {j}): {a} vs {c}");
+        }
+    }
+}

@@ -1,0 +1,271 @@
+//! Row-engine benchmark on a real scene: wall time, rays and pair counters of a
+//! sample of rows (extrapolated to the whole matrix), and the form-factor error of
+//! each mode against the `reference` preset on a few random rows.
+//!
+//! Run (release build of the library, no MPI needed):
+//!
+//! ```text
+//! cargo bench --no-default-features --bench perf_rows -- SCENE PATCHES [options]
+//!   --modes default,topk256,occluders   modes to time (default: default)
+//!   --rows R        rows timed per mode, spread evenly over the matrix (default: all)
+//!   --threads T     threads (default: 2)
+//!   --ref-rows M    random rows compared against the reference preset (default: 0)
+//!   --occluders F   coarse OBJ for the `occluders` mode
+//! ```
+//!
+//! Output: one line per mode: wall and CPU seconds extrapolated to all rows, rays for
+//! all rows, % of evaluated pairs on the far-field path and needing no rays, top-k
+//! tail pairs whose rays the bound skipped (timed rows), and the errors against the
+//! reference rows (largest entry, largest row sum, mean per entry).
+
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::{Arc, Mutex};
+use std::time::Instant;
+
+use ffstream::formfactor::sampling::SplitMix64;
+use ffstream::formfactor::{Counters, FormFactorConfig, RowEngine, Scratch};
+use ffstream::geometry::bvh::Occluders;
+use ffstream::geometry::subdivide::{default_max_edge, subdivide};
+use ffstream::patch::PatchSet;
+use ffstream::rows::Row;
+
+struct Args {
+    scene: String,
+    patches: usize,
+    modes: Vec<String>,
+    rows: Option<usize>,
+    threads: usize,
+    ref_rows: usize,
+    occluders: Option<String>,
+}
+
+fn parse_args() -> Args {
+    let mut a = Args {
+        scene: "builtin:room".into(),
+        patches: 2000,
+        modes: vec!["default".into()],
+        rows: None,
+        threads: 2,
+        ref_rows: 0,
+        occluders: None,
+    };
+    let mut pos = 0;
+    let mut it = std::env::args().skip(1);
+    while let Some(s) = it.next() {
+        let mut val = || it.next().unwrap_or_default();
+        match s.as_str() {
+            "--bench" => {}
+            "--modes" => a.modes = val().split(',').map(str::to_string).collect(),
+            "--rows" => a.rows = val().parse().ok(),
+            "--threads" => a.threads = val().parse().unwrap_or(2),
+            "--ref-rows" => a.ref_rows = val().parse().unwrap_or(0),
+            "--occluders" => a.occluders = Some(val()),
+            _ => {
+                match pos {
+                    0 => a.scene = s,
+                    1 => a.patches = s.parse().unwrap_or(2000),
+                    _ => {}
+                }
+                pos += 1;
+            }
+        }
+    }
+    a
+}
+
+/// CPU seconds (user + system) of this process so far, from /proc/self/stat (Linux;
+/// 0 elsewhere). Under a loaded machine this is steadier than wall time.
+fn cpu_seconds() -> f64 {
+    let Ok(stat) = std::fs::read_to_string("/proc/self/stat") else {
+        return 0.0;
+    };
+    // Fields after the parenthesized command name; utime and stime are the 14th and
+    // 15th fields of the line, in clock ticks (100 per second on Linux).
+    let rest = stat.rsplit_once(')').map_or("", |(_, r)| r);
+    let f: Vec<f64> = rest
+        .split_whitespace()
+        .map(|x| x.parse().unwrap_or(0.0))
+        .collect();
+    if f.len() < 13 {
+        return 0.0;
+    }
+    (f[11] + f[12]) / 100.0
+}
+
+/// Rows `which` computed on `threads` threads; returns (rows by position, counters,
+/// wall seconds).
+fn run_rows(engine: &RowEngine, which: &[u32], threads: usize) -> (Vec<Row>, Counters, f64) {
+    let next = AtomicUsize::new(0);
+    let out: Mutex<Vec<Option<Row>>> = Mutex::new(vec![None; which.len()]);
+    let total = Mutex::new(Counters::default());
+    let t0 = Instant::now();
+    std::thread::scope(|s| {
+        for _ in 0..threads {
+            s.spawn(|| {
+                let mut scratch = Scratch::new();
+                let mut local = Vec::new();
+                loop {
+                    let k = next.fetch_add(1, Ordering::Relaxed);
+                    if k >= which.len() {
+                        break;
+                    }
+                    local.push((k, engine.compute_row(which[k], &mut scratch)));
+                }
+                let mut o = out.lock().unwrap();
+                for (k, r) in local {
+                    o[k] = Some(r);
+                }
+                total.lock().unwrap().add(&scratch.take_counters());
+            });
+        }
+    });
+    let wall = t0.elapsed().as_secs_f64();
+    let rows = out.into_inner().unwrap().into_iter().flatten().collect();
+    (rows, total.into_inner().unwrap(), wall)
+}
+
+/// Modes: `default` (accurate preset), `topkK` (accurate + top-k K, exact tail: what
+/// `--top-k K` does), `topkKs` (top-k K with the tail sampled from 32 pairs, so the
+/// bound skips rays), `fast`, `occluders` (the scene's faces as foreign occluders,
+/// i.e. `--occluders` with the scene's own OBJ), `fineocc` (occluders = the patches'
+/// own triangles, as if the OBJ were tessellated as finely as the patches).
+fn config_of(mode: &str) -> FormFactorConfig {
+    let base = FormFactorConfig::accurate();
+    match mode {
+        m if m.starts_with("topk") => {
+            let sampled = m.ends_with('s');
+            let k = m[4..].trim_end_matches('s').parse().unwrap_or(256);
+            let c = base.with_top_k(Some(k));
+            if sampled {
+                c.with_tail(ffstream::formfactor::TopKTail::Sampled(32))
+            } else {
+                c
+            }
+        }
+        "fast" => FormFactorConfig::fast(),
+        _ => base,
+    }
+}
+
+trait WithTail {
+    fn with_tail(self, t: ffstream::formfactor::TopKTail) -> Self;
+}
+impl WithTail for FormFactorConfig {
+    fn with_tail(mut self, t: ffstream::formfactor::TopKTail) -> Self {
+        self.top_k_tail = t;
+        self
+    }
+}
+
+fn main() {
+    let a = parse_args();
+    let scene = ffstream::scene::open_scene(&a.scene).expect("scene");
+    let max_edge = default_max_edge(&scene, a.patches);
+    let patches: Arc<PatchSet> = Arc::new(subdivide(&scene, max_edge));
+    let n = patches.len();
+    let fine = Arc::new(Occluders::new(scene.triangles().collect()));
+    println!(
+        "scene {} patches {n} occluder triangles {} threads {}",
+        a.scene,
+        fine.len(),
+        a.threads
+    );
+    let timed: Vec<u32> = match a.rows {
+        Some(r) if r < n => (0..r).map(|k| (k * n / r) as u32).collect(),
+        _ => (0..n as u32).collect(),
+    };
+    let mut rng = SplitMix64::new(12345);
+    let mut ref_idx: Vec<u32> = (0..a.ref_rows)
+        .map(|_| (rng.next_f64() * n as f64) as u32)
+        .collect();
+    ref_idx.sort_unstable();
+    ref_idx.dedup();
+    let reference = if ref_idx.is_empty() {
+        Vec::new()
+    } else {
+        let e = RowEngine::new(
+            Arc::clone(&patches),
+            Arc::clone(&fine),
+            FormFactorConfig::reference(),
+        );
+        let (rows, _, wall) = run_rows(&e, &ref_idx, a.threads);
+        println!("reference: {} rows in {wall:.1} s", rows.len());
+        rows.iter().map(|r| r.to_dense(n)).collect::<Vec<_>>()
+    };
+    println!(
+        "{:<10} {:>9} {:>9} {:>12} {:>10} {:>10} {:>10} {:>10} {:>10} {:>10}",
+        "mode",
+        "wall_s",
+        "cpu_s",
+        "rays",
+        "far%",
+        "unoccl%",
+        "tailskip",
+        "max_abs",
+        "rowsum_err",
+        "mean_abs"
+    );
+    for mode in &a.modes {
+        let occ = if mode == "occluders" {
+            let coarse = match a.occluders.as_deref() {
+                Some(path) => ffstream::scene::open_scene(path).expect("coarse scene"),
+                None => scene.clone(),
+            };
+            Arc::new(Occluders::new_foreign(coarse.triangles().collect()))
+        } else if mode == "fineocc" {
+            let tris = patches
+                .patches
+                .iter()
+                .flat_map(|p| {
+                    let c = p.corners();
+                    (1..c.len() - 1).map(move |k| (p.face, [c[0], c[k], c[k + 1]]))
+                })
+                .collect();
+            Arc::new(Occluders::new(tris))
+        } else {
+            Arc::clone(&fine)
+        };
+        let occ_tris = occ.len();
+        let e = RowEngine::new(Arc::clone(&patches), occ, config_of(mode));
+        let cpu0 = cpu_seconds();
+        let (_, c, wall) = run_rows(&e, &timed, a.threads);
+        let cpu = cpu_seconds() - cpu0;
+        let scale = n as f64 / timed.len() as f64;
+        let (mut max_abs, mut sum_err, mut mean_abs) = (0.0f64, 0.0f64, 0.0f64);
+        if !reference.is_empty() {
+            let (rows, _, _) = run_rows(&e, &ref_idx, a.threads);
+            for (r, want) in rows.iter().zip(&reference) {
+                let got = r.to_dense(n);
+                let mut s = 0.0;
+                for (g, w) in got.iter().zip(want) {
+                    let d = (*g as f64 - *w as f64).abs();
+                    max_abs = max_abs.max(d);
+                    s += d;
+                }
+                mean_abs += s / n as f64;
+                let ws: f64 = want.iter().map(|&x| x as f64).sum();
+                sum_err = sum_err.max((r.true_sum() - ws).abs());
+            }
+            mean_abs /= reference.len() as f64;
+        }
+        let evaluated = c.pairs_evaluated.max(1) as f64;
+        println!(
+            "{:<10} {:>9.2} {:>9.2} {:>12.3e} {:>9.1}% {:>9.1}% {:>10} {:>10.2e} {:>10.2e} {:>10.2e}",
+            mode,
+            wall * scale,
+            cpu * scale,
+            c.rays_cast as f64 * scale,
+            100.0 * c.pairs_far_field as f64 / evaluated,
+            100.0 * c.pairs_unoccludable as f64 / evaluated,
+            c.pairs_topk_tail_skipped,
+            max_abs,
+            sum_err,
+            mean_abs
+        );
+        println!(
+            "  occluder triangles {occ_tris}; rays skipped by the top-k bound: {} of {} pairs needing rays; counters (timed rows): {c:?}",
+            c.pairs_topk_tail_skipped,
+            c.pairs_evaluated - c.pairs_unoccludable
+        );
+    }
+}
