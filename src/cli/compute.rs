@@ -44,6 +44,10 @@ pub struct ComputeOptions {
     /// when the first rays agree).
     #[arg(long, value_name = "S")]
     pub samples: Option<u32>,
+    /// Rays cast for a pair before the adaptive early stop (when they all agree the
+    /// pair is done). Equal to --samples: no early stop. Default: from the preset.
+    #[arg(long, value_name = "B")]
+    pub first_batch: Option<u32>,
     /// Keep only the K largest entries of each row (the dropped mass is stored per row).
     #[arg(long, value_name = "K")]
     pub top_k: Option<u32>,
@@ -148,6 +152,12 @@ pub fn build_job(
             bail!("--samples must be at least 1");
         }
         cfg.samples = s;
+    }
+    if let Some(b) = o.first_batch {
+        if b == 0 {
+            bail!("--first-batch must be at least 1");
+        }
+        cfg.first_batch = b;
     }
     cfg.seed = o.seed;
     cfg.top_k = match o.top_k {
