@@ -52,9 +52,11 @@ pub fn patch_count(scene: &Scene, max_edge: f64) -> usize {
         .iter()
         .map(|f| {
             let (a, b) = grid(f, max_edge);
-            a * b
+            // Saturating: a tiny max_edge (user input) must give a huge count for the
+            // caller to refuse, not an overflow.
+            a.saturating_mul(b)
         })
-        .sum()
+        .fold(0usize, usize::saturating_add)
 }
 
 /// Cut every face of `scene` so that no patch edge is longer than `max_edge`.

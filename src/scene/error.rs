@@ -72,8 +72,10 @@ pub enum SceneError {
         value: f64,
     },
     /// No usable face at all.
-    #[error("{}: the scene has no faces (after dropping degenerate ones)", path.display())]
-    Empty { path: PathBuf },
+    /// `dropped` says how many degenerate faces were dropped and the first one's line
+    /// (empty when none were), so a file of only bad faces still points at a line.
+    #[error("{}: the scene has no faces{dropped}", path.display())]
+    Empty { path: PathBuf, dropped: String },
     /// `tobj` refused the file for a reason the loader's own checks did not catch.
     #[error("{}: OBJ/MTL parser: {message}", path.display())]
     Parser { path: PathBuf, message: String },
@@ -106,7 +108,7 @@ impl SceneError {
             | NoMaterial { path, .. }
             | Reflectance { path, .. }
             | Emission { path, .. }
-            | Empty { path }
+            | Empty { path, .. }
             | Parser { path, .. }
             | Write { path, .. } => Some(path),
             UnknownBuiltin { .. } | BadParam { .. } => None,

@@ -180,8 +180,19 @@ pub fn load_obj(path: &Path) -> Result<Scene, SceneError> {
     let p = path.display();
     tally.warn(&mut warnings, &p.to_string());
     if scene.faces.is_empty() {
+        let d = &tally.degenerate;
+        let dropped = if d.n == 0 {
+            String::new()
+        } else {
+            format!(
+                " (dropped {} degenerate face(s): zero area, collinear corners or an area \
+                 too large for f64; first at line {})",
+                d.n, d.first
+            )
+        };
         return Err(SceneError::Empty {
             path: path.to_owned(),
+            dropped,
         });
     }
     if !scene.has_emitter() {

@@ -14,3 +14,5 @@ mod render;
 mod scene;
 mod service;
 mod solve;
+mod stress_cli;
+mod stress_corrupt;
