@@ -187,10 +187,22 @@ pub fn default_max_edge(scene: &Scene, target_patches: usize) -> f64 {
         }
     }
     let (nl, nh) = (patch_count(scene, lo), patch_count(scene, hi));
+    // lo and hi sit within an ulp or so of a jump of the count (some edge length is an
+    // integer multiple of them), where rounding decides the count: the same scene in
+    // other units (scaled) would then get another patch count. Step 1e-6 (relative) into
+    // the chosen step when it is that wide, far beyond any rounding.
+    let inside = |x: f64, n: usize, toward: f64| {
+        let y = x * toward;
+        if patch_count(scene, y) == n {
+            y
+        } else {
+            x
+        }
+    };
     if nl - target_patches <= target_patches - nh {
-        lo
+        inside(lo, nl, 1.0 - 1e-6)
     } else {
-        hi
+        inside(hi, nh, 1.0 + 1e-6)
     }
 }
 

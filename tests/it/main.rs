@@ -16,3 +16,6 @@ mod service;
 mod solve;
 mod stress_cli;
 mod stress_corrupt;
+mod stress_geom;
+mod stress_numeric;
+mod stress_props;
