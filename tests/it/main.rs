@@ -16,6 +16,7 @@ mod service;
 mod solve;
 mod stress_cli;
 mod stress_corrupt;
+mod stress_faults;
 mod stress_geom;
 mod stress_numeric;
 mod stress_props;
