@@ -157,7 +157,8 @@ pub fn default_max_edge(scene: &Scene, target_patches: usize) -> f64 {
         .iter()
         .map(Face::longest_edge)
         .fold(0.0, f64::max);
-    if scene.faces.is_empty() || longest.is_nan() || longest <= 0.0 {
+    // (Not finite: the halving below could never reach the target.)
+    if scene.faces.is_empty() || !longest.is_finite() || longest <= 0.0 {
         return 1.0;
     }
     // One patch per face at `longest`; the count only grows as max_edge shrinks.

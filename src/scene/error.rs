@@ -30,8 +30,12 @@ pub enum SceneError {
         index: i64,
         count: usize,
     },
-    /// A vertex coordinate is NaN or infinite.
-    #[error("{}:{line}: non-finite vertex coordinate `{value}`", path.display())]
+    /// A vertex coordinate is NaN, infinite, or so large (|x| > 1e150) that lengths and
+    /// areas would overflow.
+    #[error(
+        "{}:{line}: vertex coordinate `{value}` is not finite or too large (|x| ≤ 1e150 keeps lengths and areas finite)",
+        path.display()
+    )]
     NonFinite {
         path: PathBuf,
         line: u32,

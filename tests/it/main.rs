@@ -17,6 +17,7 @@ mod solve;
 mod stress_cli;
 mod stress_corrupt;
 mod stress_faults;
+mod stress_fuzz;
 mod stress_geom;
 mod stress_numeric;
 mod stress_props;
