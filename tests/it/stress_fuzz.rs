@@ -202,12 +202,15 @@ fn golden(name: &str) -> Vec<u8> {
     .unwrap()
 }
 
+/// A file to mutate: name, bytes, and (n, layout) when its rows are known.
+type Base = (String, Vec<u8>, Option<(u32, Layout)>);
+
 #[test]
 fn ffz_reader_survives_mutated_files() {
     let dir = tempfile::tempdir().unwrap();
     // A file written here, whose rows are known, dense and top-k, several chunks.
     let n = 7;
-    let mut bases: Vec<(String, Vec<u8>, Option<(u32, Layout)>)> = Vec::new();
+    let mut bases: Vec<Base> = Vec::new();
     for (name, layout) in [("dense", Layout::Dense), ("topk", Layout::TopK { k: 3 })] {
         let p = dir.path().join(format!("{name}.ffz"));
         let m = meta(layout, patches(n, 11));

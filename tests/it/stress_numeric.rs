@@ -345,7 +345,7 @@ fn closed_scene_with_rho_near_one_converges_and_conserves_energy() {
                 max_iterations: 200_000,
                 ..SolveConfig::default()
             };
-            let sol = solve(&src, &[emission.clone()], &refl, &cfg).unwrap();
+            let sol = solve(&src, std::slice::from_ref(&emission), &refl, &cfg).unwrap();
             assert!(
                 sol.converged,
                 "{method} ρ={rho}: not converged ({})",
