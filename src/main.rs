@@ -15,8 +15,19 @@ fn main() -> ExitCode {
         Ok(code) => code,
         Err(e) => {
             // One line: the cause chain joined, outermost first.
-            let msg: Vec<String> = e.chain().map(|c| c.to_string()).collect();
-            eprintln!("ffstream: error: {}", msg.join(": "));
+            // Causes whose text the outer message already quotes (errors that both
+            // print and chain their source) are left out, so nothing is said twice.
+            let mut line = String::new();
+            for c in e.chain() {
+                let text = c.to_string();
+                if !line.contains(&text) {
+                    if !line.is_empty() {
+                        line += ": ";
+                    }
+                    line += &text;
+                }
+            }
+            eprintln!("ffstream: error: {line}");
             ExitCode::from(1)
         }
     }

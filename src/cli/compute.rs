@@ -11,11 +11,15 @@ use clap::Args;
 use ffstream::ffz::{FileMeta, Layout, WriterOptions};
 use ffstream::formfactor::{FormFactorConfig, Method, RowEngine};
 use ffstream::geometry::bvh::Occluders;
-use ffstream::geometry::subdivide::{default_max_edge, subdivide};
+use ffstream::geometry::subdivide::{default_max_edge, patch_count, subdivide};
 use ffstream::scene::{self, Scene};
 use ffstream::service::{ComputeJob, ComputeReport, RowSelection, Schedule, ServiceError};
 
 use super::SceneInput;
+
+/// Most patches a job may have: 2^26 (row ids are u32; the patch table alone is then
+/// about 10 GB, and a dense f32 row 256 MiB per compute thread).
+const MAX_PATCHES: usize = 1 << 26;
 
 #[derive(Args, Debug, Clone)]
 pub struct ComputeArgs {
@@ -126,6 +130,17 @@ pub fn build_job(
         Some(l) => bail!("--max-edge must be a positive length, got {l}"),
         None => default_max_edge(&scene, input.patches),
     };
+    // Refuse before allocating: a tiny --max-edge (or a huge --patches) would otherwise
+    // abort on a failed allocation instead of giving an error.
+    let count = patch_count(&scene, max_edge);
+    if count > MAX_PATCHES {
+        bail!(
+            "{}: max edge {max_edge:e} gives {count} patches, more than the {MAX_PATCHES} \
+             supported (row ids are 32-bit and the patch table is held in memory); \
+             use a larger --max-edge or a smaller --patches",
+            input.scene
+        );
+    }
     let patches =
         Arc::new(tracing::info_span!("subdivide").in_scope(|| subdivide(&scene, max_edge)));
     if announce {

@@ -125,7 +125,9 @@ pub fn read_index(file: &[u8], n: u32, meta_len: u64) -> Result<IndexData, spec:
         let pos = at(&r);
         let o = r.u64().ok_or_else(|| short(&r))?;
         let ok = o >= meta_len
-            && o + spec::CHUNK_HEADER_LEN as u64 <= f.index_offset
+            // checked: a damaged offset near u64::MAX must be an error, not an overflow
+            && o.checked_add(spec::CHUNK_HEADER_LEN as u64)
+                .is_some_and(|e| e <= f.index_offset)
             && prev.is_none_or(|p| o > p);
         if !ok {
             return Err((

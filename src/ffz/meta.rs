@@ -253,7 +253,9 @@ pub fn decode_meta(bytes: &[u8], header: &HeaderV1) -> Result<FileMeta, spec::Fa
     for (i, p) in patches.iter().enumerate() {
         if p.group >= n_groups {
             return Err((
-                base + (header.method_len + header.params_len + header.created_len) as u64
+                base + header.method_len as u64
+                    + header.params_len as u64
+                    + header.created_len as u64
                     + (i * spec::PATCH_RECORD_LEN) as u64
                     + 4,
                 format!("patch {i} refers to group {} of {n_groups}", p.group),

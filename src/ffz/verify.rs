@@ -463,6 +463,11 @@ pub fn compare(a: &FfzReader, b: &FfzReader, opts: VerifyOptions) -> Result<Comp
         ..Default::default()
     };
     let (ma, mb) = (a.meta(), b.meta());
+    if a.n() != b.n() {
+        // Say it first: with different n no row is compared at all.
+        rep.meta_differences
+            .push(format!("n {} vs {} (no rows compared)", a.n(), b.n()));
+    }
     if ma.scene_hash != mb.scene_hash {
         rep.meta_differences.push(format!(
             "scene hash {:#018x} vs {:#018x}",

@@ -52,9 +52,11 @@ pub fn patch_count(scene: &Scene, max_edge: f64) -> usize {
         .iter()
         .map(|f| {
             let (a, b) = grid(f, max_edge);
-            a * b
+            // Saturating: a tiny max_edge (user input) must give a huge count for the
+            // caller to refuse, not an overflow.
+            a.saturating_mul(b)
         })
-        .sum()
+        .fold(0usize, usize::saturating_add)
 }
 
 /// Cut every face of `scene` so that no patch edge is longer than `max_edge`.
@@ -155,7 +157,8 @@ pub fn default_max_edge(scene: &Scene, target_patches: usize) -> f64 {
         .iter()
         .map(Face::longest_edge)
         .fold(0.0, f64::max);
-    if scene.faces.is_empty() || longest.is_nan() || longest <= 0.0 {
+    // (Not finite: the halving below could never reach the target.)
+    if scene.faces.is_empty() || !longest.is_finite() || longest <= 0.0 {
         return 1.0;
     }
     // One patch per face at `longest`; the count only grows as max_edge shrinks.
@@ -185,10 +188,22 @@ pub fn default_max_edge(scene: &Scene, target_patches: usize) -> f64 {
         }
     }
     let (nl, nh) = (patch_count(scene, lo), patch_count(scene, hi));
+    // lo and hi sit within an ulp or so of a jump of the count (some edge length is an
+    // integer multiple of them), where rounding decides the count: the same scene in
+    // other units (scaled) would then get another patch count. Step 1e-6 (relative) into
+    // the chosen step when it is that wide, far beyond any rounding.
+    let inside = |x: f64, n: usize, toward: f64| {
+        let y = x * toward;
+        if patch_count(scene, y) == n {
+            y
+        } else {
+            x
+        }
+    };
     if nl - target_patches <= target_patches - nh {
-        lo
+        inside(lo, nl, 1.0 - 1e-6)
     } else {
-        hi
+        inside(hi, nh, 1.0 + 1e-6)
     }
 }
 

@@ -30,8 +30,12 @@ pub enum SceneError {
         index: i64,
         count: usize,
     },
-    /// A vertex coordinate is NaN or infinite.
-    #[error("{}:{line}: non-finite vertex coordinate `{value}`", path.display())]
+    /// A vertex coordinate is NaN, infinite, or so large (|x| > 1e150) that lengths and
+    /// areas would overflow.
+    #[error(
+        "{}:{line}: vertex coordinate `{value}` is not finite or too large (|x| ≤ 1e150 keeps lengths and areas finite)",
+        path.display()
+    )]
     NonFinite {
         path: PathBuf,
         line: u32,
@@ -72,8 +76,10 @@ pub enum SceneError {
         value: f64,
     },
     /// No usable face at all.
-    #[error("{}: the scene has no faces (after dropping degenerate ones)", path.display())]
-    Empty { path: PathBuf },
+    /// `dropped` says how many degenerate faces were dropped and the first one's line
+    /// (empty when none were), so a file of only bad faces still points at a line.
+    #[error("{}: the scene has no faces{dropped}", path.display())]
+    Empty { path: PathBuf, dropped: String },
     /// `tobj` refused the file for a reason the loader's own checks did not catch.
     #[error("{}: OBJ/MTL parser: {message}", path.display())]
     Parser { path: PathBuf, message: String },
@@ -106,7 +112,7 @@ impl SceneError {
             | NoMaterial { path, .. }
             | Reflectance { path, .. }
             | Emission { path, .. }
-            | Empty { path }
+            | Empty { path, .. }
             | Parser { path, .. }
             | Write { path, .. } => Some(path),
             UnknownBuiltin { .. } | BadParam { .. } => None,

@@ -18,6 +18,9 @@ use glam::DVec3;
 use super::polygon::{repair, Repair};
 use super::{Face, Material, Scene, SceneError};
 
+/// Largest vertex coordinate magnitude accepted (see the `v` statement check).
+const MAX_COORDINATE: f64 = 1e150;
+
 /// One face element (`f`, or `l` which `tobj` also returns as a face) in file order.
 struct Element {
     line: u32,
@@ -180,8 +183,19 @@ pub fn load_obj(path: &Path) -> Result<Scene, SceneError> {
     let p = path.display();
     tally.warn(&mut warnings, &p.to_string());
     if scene.faces.is_empty() {
+        let d = &tally.degenerate;
+        let dropped = if d.n == 0 {
+            String::new()
+        } else {
+            format!(
+                " (dropped {} degenerate face(s): zero area, collinear corners or an area \
+                 too large for f64; first at line {})",
+                d.n, d.first
+            )
+        };
         return Err(SceneError::Empty {
             path: path.to_owned(),
+            dropped,
         });
     }
     if !scene.has_emitter() {
@@ -334,7 +348,9 @@ fn prepass(path: &Path, text: &str) -> Result<PrePass, SceneError> {
                     } else {
                         vals[j]
                     };
-                    if !x.is_finite() {
+                    // Beyond 1e150 squares overflow: edge lengths and areas of the
+                    // faces would be infinite (and subdivision could not finish).
+                    if !x.is_finite() || x.abs() > MAX_COORDINATE {
                         return Err(SceneError::NonFinite {
                             path: path.to_owned(),
                             line,

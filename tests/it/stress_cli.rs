@@ -1,0 +1,258 @@
+//! Stress, bad input through the command line: every file of the corpus in
+//! `tests/data/bad/` (whose first line says what it breaks) given to `ffstream compute`
+//! and `ffstream run`, and impossible sizes. Each must end with exit code 1 and exactly
+//! one `ffstream: error: ...` line naming the file (and the line, where there is one),
+//! or load with the documented warning; never a panic (exit 101, "panicked at") or an
+//! abort. The library-level checks of the same corpus (error kinds) are in `scene.rs`.
+
+use std::path::{Path, PathBuf};
+use std::process::Output;
+
+use crate::common::{ffstream, path_str};
+
+pub fn bad(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/data/bad")
+        .join(name)
+}
+
+/// No panic, no abort, no signal: the process ended through `main`.
+pub fn assert_no_panic(out: &Output, what: &str) {
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !stderr.contains("panicked at") && !stderr.contains("RUST_BACKTRACE"),
+        "{what}: panic\n{stderr}"
+    );
+    let code = out.status.code();
+    assert!(
+        matches!(code, Some(0..=3)),
+        "{what}: exit status {:?} (101 = panic, none = signal)\n{stderr}",
+        out.status
+    );
+}
+
+/// Exit code 1 and exactly one error line, which contains every string in `names`.
+/// Returns the error line.
+pub fn assert_one_error(out: &Output, what: &str, names: &[&str]) -> String {
+    assert_no_panic(out, what);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{what}: {stderr}");
+    let errors: Vec<&str> = stderr
+        .lines()
+        .filter(|l| l.starts_with("ffstream: error: "))
+        .collect();
+    assert_eq!(errors.len(), 1, "{what}: one error line wanted:\n{stderr}");
+    for n in names {
+        assert!(
+            errors[0].contains(n),
+            "{what}: `{n}` not named in {}",
+            errors[0]
+        );
+    }
+    errors[0].to_string()
+}
+
+/// What each corpus file must give: an error naming (file, line), or a warning (the
+/// file loads; the text the warning must contain).
+enum Want {
+    Error(&'static str, Option<u32>),
+    Warning(&'static str),
+}
+
+fn expected(file: &str) -> Want {
+    use Want::*;
+    match file {
+        "all_degenerate.obj" => Error("all_degenerate.obj", None),
+        "big_index.obj" => Error("big_index.obj", Some(8)),
+        "collinear.obj" => Error("collinear.obj", None),
+        "degenerate.obj" => Warning("dropped 3 degenerate"),
+        "empty.obj" => Error("empty.obj", None),
+        "empty_file.obj" => Error("empty_file.obj", None),
+        "huge_coords.obj" => Error("huge_coords.obj", Some(4)),
+        "huge_coord_vertex.obj" => Error("huge_coord_vertex.obj", Some(5)),
+        "index_negative.obj" => Error("index_negative.obj", Some(16)),
+        "index_out_of_range.obj" => Error("index_out_of_range.obj", Some(16)),
+        "index_zero.obj" => Error("index_zero.obj", Some(16)),
+        "inf.obj" => Error("inf.obj", Some(9)),
+        "kd_high.obj" => Error("kd_high.mtl", Some(3)),
+        "kd_negative.obj" => Error("kd_negative.mtl", Some(6)),
+        "kd_short.obj" => Error("kd_short.mtl", Some(3)),
+        "ke_negative.obj" => Error("ke_negative.mtl", Some(6)),
+        "line_element.obj" => Warning("ignored 1 line element"),
+        "malformed.obj" => Error("malformed.obj", Some(5)),
+        "malformed_face.obj" => Error("malformed_face.obj", Some(13)),
+        "missing_material.obj" => Error("missing_material.obj", Some(15)),
+        "missing_mtl.obj" => Error("missing_mtl.obj", Some(2)),
+        "mtl_unreadable.obj" => Error("mtl_unreadable.obj", Some(2)),
+        "nan.obj" => Error("nan.obj", Some(7)),
+        "no_emitter.obj" => Warning("no face uses an emitting material"),
+        "no_material.obj" => Error("no_material.obj", Some(12)),
+        "nonplanar.obj" => Warning("non-planar"),
+        "overflow.obj" => Error("overflow.obj", Some(10)),
+        "short_face.obj" => Error("short_face.obj", Some(16)),
+        "short_vertex.obj" => Error("short_vertex.obj", Some(4)),
+        "tiny_coords.obj" => Error("tiny_coords.obj", None),
+        other => panic!("{other}: new corpus file, say here what it must give"),
+    }
+}
+
+/// Files whose only faces are dropped as degenerate: the error points at the first one.
+fn dropped_line(file: &str) -> Option<u32> {
+    match file {
+        "all_degenerate.obj" | "collinear.obj" | "tiny_coords.obj" => {
+            let text = std::fs::read_to_string(bad(file)).unwrap();
+            text.lines()
+                .position(|l| l.starts_with("f "))
+                .map(|i| i as u32 + 1)
+        }
+        _ => None,
+    }
+}
+
+#[test]
+fn every_corpus_file_gives_one_error_line_or_a_warning_through_compute_and_run() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut files: Vec<String> = std::fs::read_dir(bad(""))
+        .unwrap()
+        .map(|e| e.unwrap().file_name().into_string().unwrap())
+        .filter(|n| n.ends_with(".obj"))
+        .collect();
+    files.sort();
+    assert!(files.len() >= 29, "corpus shrank: {files:?}");
+    for file in &files {
+        let path = bad(file);
+        let out_ffz = dir.path().join("x.ffz");
+        let out_dir = dir.path().join("run");
+        let compute = ffstream(&[
+            "compute",
+            path_str(&path),
+            "-o",
+            path_str(&out_ffz),
+            "--patches",
+            "40",
+            "--quiet",
+        ]);
+        let run = ffstream(&[
+            "run",
+            path_str(&path),
+            "-o",
+            path_str(&out_dir),
+            "--patches",
+            "40",
+            "--quiet",
+        ]);
+        match expected(file) {
+            Want::Error(named, line) => {
+                for (cmd, out) in [("compute", &compute), ("run", &run)] {
+                    let what = format!("{cmd} {file}");
+                    let mut names = vec![named.to_string()];
+                    match (line, dropped_line(file)) {
+                        (Some(l), _) => names.push(format!(":{l}:")),
+                        (None, Some(l)) => names.push(format!("first at line {l}")),
+                        (None, None) => {}
+                    }
+                    let refs: Vec<&str> = names.iter().map(String::as_str).collect();
+                    assert_one_error(out, &what, &refs);
+                    // A load error stops everything before any output.
+                    assert_eq!(
+                        String::from_utf8_lossy(&out.stderr).lines().count(),
+                        1,
+                        "{what}: {}",
+                        String::from_utf8_lossy(&out.stderr)
+                    );
+                }
+            }
+            Want::Warning(text) => {
+                assert_no_panic(&compute, file);
+                let stderr = String::from_utf8_lossy(&compute.stderr);
+                assert!(compute.status.success(), "compute {file}: {stderr}");
+                let warning = stderr
+                    .lines()
+                    .find(|l| l.starts_with("ffstream: warning: "))
+                    .unwrap_or_else(|| panic!("{file}: no warning: {stderr}"));
+                assert!(
+                    warning.contains(text) && warning.contains(file),
+                    "{warning}"
+                );
+                if file == "no_emitter.obj" {
+                    // The solve must say that nothing emits.
+                    assert_one_error(&run, "run no_emitter.obj", &["nothing emits"]);
+                } else {
+                    assert_no_panic(&run, file);
+                    assert!(run.status.success(), "run {file}");
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn invalid_utf8_and_binary_garbage_are_errors_naming_the_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let f = dir.path().join("garbage.obj");
+    // A fixed pseudo-random byte string (xorshift), not valid UTF-8.
+    let mut x = 0x9E37_79B9_7F4A_7C15u64;
+    let bytes: Vec<u8> = (0..4096)
+        .map(|_| {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            (x >> 24) as u8 | 0x80
+        })
+        .collect();
+    std::fs::write(&f, &bytes).unwrap();
+    let out = ffstream(&["compute", path_str(&f), "-o", "/dev/null", "--quiet"]);
+    assert_one_error(&out, "garbage.obj", &["garbage.obj", "UTF-8"]);
+    // The same bytes as an .ffz file.
+    let out = ffstream(&["solve", path_str(&f), "-o", "/dev/null"]);
+    assert_one_error(&out, "solve garbage", &["garbage.obj", "not an .ffz file"]);
+}
+
+#[test]
+fn impossible_sizes_are_refused_before_allocating() {
+    for args in [
+        &["--max-edge", "1e-7"][..],
+        &["--max-edge", "1e-300"],
+        &["--patches", "4000000000"],
+    ] {
+        let mut a = vec!["compute", "builtin:cube", "-o", "/dev/null", "--quiet"];
+        a.extend_from_slice(args);
+        let out = ffstream(&a);
+        let line = assert_one_error(
+            &out,
+            &format!("{args:?}"),
+            &["builtin:cube", "patches", "supported"],
+        );
+        assert!(line.contains("--max-edge"), "{line}");
+    }
+    for v in ["0", "nan", "inf", "-inf"] {
+        let out = ffstream(&[
+            "compute",
+            "builtin:cube",
+            "-o",
+            "/dev/null",
+            "--quiet",
+            &format!("--max-edge={v}"),
+        ]);
+        assert_one_error(&out, v, &["--max-edge"]);
+    }
+}
+
+#[test]
+fn unreadable_and_unwritable_paths_name_the_path_once() {
+    let out = ffstream(&["compute", "/nonexistent/scene.obj", "-o", "/dev/null"]);
+    let line = assert_one_error(&out, "missing scene", &["/nonexistent/scene.obj"]);
+    // The OS message once, not repeated by the error chain.
+    assert_eq!(line.matches("No such file").count(), 1, "{line}");
+    let out = ffstream(&[
+        "compute",
+        "builtin:cube",
+        "--patches",
+        "20",
+        "-o",
+        "/nonexistent/dir/x.ffz",
+        "--quiet",
+    ]);
+    let line = assert_one_error(&out, "unwritable output", &["/nonexistent/dir/x.ffz"]);
+    assert_eq!(line.matches("No such file").count(), 1, "{line}");
+}

@@ -1,0 +1,195 @@
+//! Shared by the numerical stress tests: patch sets built directly (independent of the
+//! scene loader), Howell's formulas (REFERENCES.md) written out once more and checked
+//! against the tables, and small matrix helpers.
+
+use std::f64::consts::PI;
+use std::sync::Arc;
+
+use ffstream::formfactor::{FormFactorConfig, RowEngine, Scratch};
+use ffstream::geometry::bvh::Occluders;
+use ffstream::patch::{Patch, PatchSet};
+use glam::{DQuat, DVec3};
+
+/// Patches plus the occluder triangles of their faces.
+#[derive(Clone, Debug, Default)]
+pub struct Geo {
+    pub patches: PatchSet,
+    pub tris: Vec<(u32, [DVec3; 3])>,
+    faces: u32,
+}
+
+impl Geo {
+    /// The parallelogram origin + [0,1]·u + [0,1]·v (front normal u × v), one scene face
+    /// in a new group, cut into mu × mv quads.
+    pub fn para(&mut self, origin: DVec3, u: DVec3, v: DVec3, mu: usize, mv: usize) -> &mut Self {
+        let face = self.faces;
+        self.faces += 1;
+        let group = self.patches.groups.len() as u32;
+        self.patches.groups.push(format!("g{group}"));
+        let n = u.cross(v).normalize();
+        let at =
+            |a: usize, b: usize| origin + u * (a as f64 / mu as f64) + v * (b as f64 / mv as f64);
+        for b in 0..mv {
+            for a in 0..mu {
+                let c = [at(a, b), at(a + 1, b), at(a + 1, b + 1), at(a, b + 1)];
+                let area = 0.5
+                    * ((c[1] - c[0]).cross(c[2] - c[0]).length()
+                        + (c[2] - c[0]).cross(c[3] - c[0]).length());
+                self.patches.patches.push(Patch {
+                    corners: c,
+                    n_corners: 4,
+                    normal: n,
+                    area,
+                    group,
+                    face,
+                    rho: [0.5; 3],
+                    emission: [0.0; 3],
+                });
+            }
+        }
+        self.tris.push((face, [origin, origin + u, origin + u + v]));
+        self.tris.push((face, [origin, origin + u + v, origin + v]));
+        self
+    }
+
+    /// Closed box [0,a]×[0,b]×[0,c] with inward faces, each cut m × m.
+    pub fn closed_box(a: f64, b: f64, c: f64, m: usize) -> Geo {
+        let (x, y, z) = (DVec3::X * a, DVec3::Y * b, DVec3::Z * c);
+        let mut g = Geo::default();
+        g.para(DVec3::ZERO, x, y, m, m)
+            .para(z, y, x, m, m)
+            .para(DVec3::ZERO, z, x, m, m)
+            .para(y, x, z, m, m)
+            .para(DVec3::ZERO, y, z, m, m)
+            .para(x, z, y, m, m);
+        g
+    }
+
+    /// The same geometry moved by p ↦ s·R·p + t (areas scale by s²).
+    pub fn transformed(&self, s: f64, r: DQuat, t: DVec3) -> Geo {
+        let f = |p: DVec3| r * (p * s) + t;
+        let mut g = self.clone();
+        for p in &mut g.patches.patches {
+            for c in &mut p.corners {
+                *c = f(*c);
+            }
+            p.normal = (r * p.normal).normalize();
+            p.area *= s * s;
+        }
+        for (_, t) in &mut g.tris {
+            for c in t {
+                *c = f(*c);
+            }
+        }
+        g
+    }
+
+    pub fn engine(&self, cfg: FormFactorConfig) -> RowEngine {
+        RowEngine::new(
+            Arc::new(self.patches.clone()),
+            Arc::new(Occluders::new(self.tris.clone())),
+            cfg,
+        )
+    }
+
+    pub fn n(&self) -> usize {
+        self.patches.len()
+    }
+
+    pub fn area(&self, i: usize) -> f64 {
+        self.patches.patches[i].area
+    }
+}
+
+/// The full matrix in f64, row-major.
+pub fn matrix(e: &RowEngine) -> Vec<f64> {
+    let (mut s, mut row, mut out) = (Scratch::new(), Vec::new(), Vec::new());
+    for i in 0..e.n() as u32 {
+        e.row_values(i, &mut s, &mut row);
+        out.extend_from_slice(&row);
+    }
+    out
+}
+
+/// Group-to-group factor F_IJ = Σ_{i∈I} (A_i/A_I) Σ_{j∈J} F_ij.
+pub fn group_ff(g: &Geo, f: &[f64], gi: u32, gj: u32) -> f64 {
+    let n = g.n();
+    let p = &g.patches.patches;
+    let (mut num, mut den) = (0.0, 0.0);
+    for i in (0..n).filter(|&i| p[i].group == gi) {
+        den += p[i].area;
+        for j in (0..n).filter(|&j| p[j].group == gj) {
+            num += p[i].area * f[i * n + j];
+        }
+    }
+    num / den
+}
+
+/// Howell C-11: parallel directly opposed rectangles, X = a/c, Y = b/c.
+pub fn howell_c11(x: f64, y: f64) -> f64 {
+    let (x2, y2) = (x * x, y * y);
+    let ln = (((1.0 + x2) * (1.0 + y2)) / (1.0 + x2 + y2)).sqrt().ln();
+    2.0 / (PI * x * y)
+        * (ln
+            + x * (1.0 + y2).sqrt() * (x / (1.0 + y2).sqrt()).atan()
+            + y * (1.0 + x2).sqrt() * (y / (1.0 + x2).sqrt()).atan()
+            - x * x.atan()
+            - y * y.atan())
+}
+
+/// Howell C-14: perpendicular rectangles sharing an edge, W = w/l, H = h/l.
+pub fn howell_c14(w: f64, h: f64) -> f64 {
+    let (w2, h2) = (w * w, h * h);
+    let s = w2 + h2;
+    let a = (1.0 + w2) * (1.0 + h2) / (1.0 + s);
+    let b = (w2 * (1.0 + s) / ((1.0 + w2) * s)).powf(w2);
+    let c = (h2 * (1.0 + s) / ((1.0 + h2) * s)).powf(h2);
+    1.0 / (PI * w)
+        * (w * (1.0 / w).atan() + h * (1.0 / h).atan() - s.sqrt() * (1.0 / s.sqrt()).atan()
+            + 0.25 * (a * b * c).ln())
+}
+
+/// Differential area to a parallel rectangle a × b whose corner is straight above
+/// (below) it at distance c (Howell B-3 form): X = a/c, Y = b/c.
+pub fn howell_point_to_corner_rectangle(x: f64, y: f64) -> f64 {
+    let (sx, sy) = ((1.0 + x * x).sqrt(), (1.0 + y * y).sqrt());
+    (x / sx * (y / sx).atan() + y / sy * (x / sy).atan()) / (2.0 * PI)
+}
+
+#[test]
+fn formulas_reproduce_the_tables() {
+    for (x, f) in [
+        (0.5, 0.0685896),
+        (1.0, 0.1998249),
+        (2.0, 0.4152533),
+        (10.0, 0.8269945),
+    ] {
+        assert!((howell_c11(x, x) - f).abs() < 5e-8, "C-11 {x}");
+    }
+    assert!((howell_c11(1.0, 2.0) - 0.2858754).abs() < 5e-8);
+    for (w, h, f) in [
+        (1.0, 1.0, 0.2000438),
+        (0.5, 0.5, 0.2406360),
+        (2.0, 2.0, 0.1492998),
+        (1.0, 2.0, 0.2328526),
+        (2.0, 1.0, 0.1164263),
+    ] {
+        assert!((howell_c14(w, h) - f).abs() < 5e-8, "C-14 {w} {h}");
+    }
+    // Point below the corner of a 1 × 2 rectangle at distance 1, against the
+    // midpoint rule on cos θ_i cos θ_j / (π r²) = c² / (π r⁴) (independent of the formula).
+    let m = 2000;
+    let mut sum = 0.0;
+    for a in 0..m {
+        for b in 0..2 * m {
+            let (x, y) = ((a as f64 + 0.5) / m as f64, (b as f64 + 0.5) / m as f64);
+            let r2 = x * x + y * y + 1.0;
+            sum += 1.0 / (PI * r2 * r2);
+        }
+    }
+    let numeric = sum / (m * m) as f64;
+    let v = howell_point_to_corner_rectangle(1.0, 2.0);
+    assert!((v - numeric).abs() < 1e-7, "{v} vs {numeric}");
+    // An infinite plane takes everything.
+    assert!((4.0 * howell_point_to_corner_rectangle(1e9, 1e9) - 1.0).abs() < 1e-8);
+}
