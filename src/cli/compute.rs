@@ -179,12 +179,14 @@ pub fn build_job(
         Some(0) => bail!("--top-k must be at least 1"),
         k => k,
     };
-    let occluders = Arc::new(tracing::info_span!("build_bvh").in_scope(|| -> anyhow::Result<Occluders> {
-        Ok(match &o.occluders {
-            Some(path) => Occluders::new_foreign(scene::load_obj(path)?.triangles().collect()),
-            None => Occluders::new(scene.triangles().collect()),
-        })
-    })?);
+    let occluders = Arc::new(tracing::info_span!("build_bvh").in_scope(
+        || -> anyhow::Result<Occluders> {
+            Ok(match &o.occluders {
+                Some(path) => Occluders::new_foreign(scene::load_obj(path)?.triangles().collect()),
+                None => Occluders::new(scene.triangles().collect()),
+            })
+        },
+    )?);
     let engine = tracing::info_span!("prepare_engine")
         .in_scope(|| RowEngine::new(Arc::clone(&patches), occluders, cfg.clone()));
     if announce {

@@ -62,6 +62,9 @@ pub enum FfzError {
     )]
     DuplicateRow { path: PathBuf, row: u32, chunk: u64 },
     /// `resume` found a file written for something else.
+    #[error("{path}: another process is writing this file (it holds the writer's lock); wait for it to end, or stop it, then rerun")]
+    Locked { path: PathBuf },
+
     #[error("{path}: cannot resume: {what}")]
     ResumeMismatch { path: PathBuf, what: String },
     /// A row index at or past n.

@@ -77,6 +77,20 @@ pub struct FfzWriter {
     warnings: Vec<String>,
 }
 
+/// One writer per file: take an exclusive advisory lock (`flock`) for the lifetime of
+/// the writer (it is released when the file is closed, also when the process dies). A
+/// second writer, e.g. a `--resume` started while the killed job's rank 0 is still
+/// alive, gets [`FfzError::Locked`] instead of interleaving its chunks with the first's.
+fn lock_for_writing(path: &Path, file: &File) -> Result<()> {
+    match file.try_lock() {
+        Ok(()) => Ok(()),
+        Err(std::fs::TryLockError::WouldBlock) => Err(FfzError::Locked {
+            path: path.to_path_buf(),
+        }),
+        Err(std::fs::TryLockError::Error(e)) => Err(FfzError::io(path, "lock", e)),
+    }
+}
+
 impl FfzWriter {
     /// Create (or overwrite) `path` and write the meta block (spec §3, §4).
     ///
@@ -85,13 +99,21 @@ impl FfzWriter {
     pub fn create(path: impl AsRef<Path>, meta: &FileMeta, opts: WriterOptions) -> Result<Self> {
         let path = path.as_ref();
         let block = meta::encode_meta(meta, opts.zstd_level)?;
+        // Open without truncating, take the writer's lock, then truncate: a file another
+        // process is still writing is refused, never clobbered.
         let mut file = OpenOptions::new()
             .read(true)
             .write(true)
             .create(true)
-            .truncate(true)
+            .truncate(false)
             .open(path)
             .map_err(|e| FfzError::io(path, "create", e))?;
+        lock_for_writing(path, &file)?;
+        // (Only regular files have a length to cut; a device such as /dev/full has none.)
+        if file.metadata().is_ok_and(|m| m.is_file()) {
+            file.set_len(0)
+                .map_err(|e| FfzError::io(path, "truncate", e))?;
+        }
         file.write_all(&block)
             .map_err(|e| FfzError::io(path, "write header", e))?;
         let n = meta.n();
@@ -134,6 +156,7 @@ impl FfzWriter {
             .write(true)
             .open(path)
             .map_err(|e| FfzError::io(path, "open for resume", e))?;
+        lock_for_writing(path, &file)?;
         let (map, header, old) = map_and_meta(path, &file)?;
         let mismatch = |what: String| FfzError::ResumeMismatch {
             path: path.into(),

@@ -159,6 +159,52 @@ fn a_rank_with_a_different_scene_is_named_before_computing() {
     );
 }
 
+/// `pid` and all its descendants (Open MPI may put ranks in process groups of their own,
+/// so a group kill does not reach them).
+fn process_tree(pid: u32) -> Vec<u32> {
+    let mut all = vec![pid];
+    let mut k = 0;
+    while k < all.len() {
+        let out = std::process::Command::new("pgrep")
+            .args(["-P", &all[k].to_string()])
+            .output();
+        if let Ok(o) = out {
+            all.extend(
+                String::from_utf8_lossy(&o.stdout)
+                    .split_whitespace()
+                    .filter_map(|t| t.parse::<u32>().ok()),
+            );
+        }
+        k += 1;
+    }
+    all
+}
+
+/// SIGKILL mpirun and every rank, then wait (up to 30 s) until all are gone: only then
+/// may a resume open the file.
+fn kill_tree_and_wait(pid: u32) {
+    let pids = process_tree(pid);
+    let args: Vec<String> = std::iter::once("-KILL".to_string())
+        .chain(pids.iter().map(u32::to_string))
+        .collect();
+    let _ = std::process::Command::new("kill").args(&args).status();
+    let t0 = Instant::now();
+    let alive = |p: &u32| {
+        std::fs::read_to_string(format!("/proc/{p}/stat")).is_ok_and(|st| {
+            st.rsplit(") ")
+                .next()
+                .is_some_and(|rest| !rest.starts_with('Z'))
+        })
+    };
+    while pids.iter().any(alive) {
+        assert!(
+            t0.elapsed() < Duration::from_secs(30),
+            "processes {pids:?} still alive 30 s after SIGKILL"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
 #[test]
 fn killed_mpi_run_resumes_to_the_same_rows() {
     if !need_mpi() {
@@ -199,9 +245,10 @@ fn killed_mpi_run_resumes_to_the_same_rows() {
     {
         std::thread::sleep(Duration::from_millis(5));
     }
-    child.kill().unwrap(); // SIGKILL to mpirun: Open MPI then kills every rank
+    // SIGKILL the whole job (a SIGKILLed mpirun alone can leave ranks running: the
+    // file's writer lock would then, rightly, refuse the resume).
+    kill_tree_and_wait(child.id());
     let _ = child.wait();
-    std::thread::sleep(Duration::from_millis(300));
     let r = FfzReader::open(&part).expect("a killed run's file opens (by scan)");
     drop(r);
     args.push("--resume");

@@ -341,3 +341,41 @@ fn an_existing_file_is_never_overwritten_without_force() {
     ok(&args);
     assert_ne!(std::fs::read(&f).unwrap(), before, "--force replaces it");
 }
+
+#[test]
+fn a_second_writer_on_the_same_file_is_refused_and_does_not_clobber_it() {
+    use ffstream::ffz::{FfzError, FfzWriter};
+    let dir = tempfile::tempdir().unwrap();
+    let f = dir.path().join("busy.ffz");
+    compute(CUBE, &f, &[]);
+    let meta = FfzReader::open(&f).unwrap().meta().clone();
+    let before = std::fs::read(&f).unwrap();
+    let (first, _) = FfzWriter::resume(&f, &meta, Default::default()).unwrap();
+    // Both a resume and a create (--force) by a second writer are refused.
+    assert!(matches!(
+        FfzWriter::resume(&f, &meta, Default::default()),
+        Err(FfzError::Locked { .. })
+    ));
+    assert!(matches!(
+        FfzWriter::create(&f, &meta, Default::default()),
+        Err(FfzError::Locked { .. })
+    ));
+    let out = ffstream(&[
+        "compute",
+        CUBE[0],
+        CUBE[1],
+        CUBE[2],
+        "--quiet",
+        "-o",
+        path_str(&f),
+        "--force",
+    ]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("another process is writing"), "{stderr}");
+    drop(first);
+    // The first writer was dropped without finish: the rows are all still there.
+    let r = FfzReader::open(&f).unwrap();
+    assert!(r.presence().is_complete());
+    let _ = before;
+}

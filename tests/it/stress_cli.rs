@@ -131,6 +131,7 @@ fn every_corpus_file_gives_one_error_line_or_a_warning_through_compute_and_run()
             "--patches",
             "40",
             "--quiet",
+            "--force",
         ]);
         let run = ffstream(&[
             "run",
