@@ -201,7 +201,7 @@ fn soa_avx2(pi: &PatchPoints, ni: DVec3, pj: FarSlice<'_>, nj: DVec3) -> f64 {
 #[inline(always)]
 fn soa_body(pi: &PatchPoints, ni: DVec3, pj: FarSlice<'_>, nj: DVec3) -> f64 {
     let mut sum = 0.0;
-    debug_assert!(pj.w.len() % LANES == 0);
+    debug_assert!(pj.w.len().is_multiple_of(LANES));
     // Fixed-size chunks: no bounds checks inside, so the lane loop vectorizes.
     let xs = pj.x.chunks_exact(LANES);
     let ys = pj.y.chunks_exact(LANES);

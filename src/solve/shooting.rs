@@ -63,7 +63,7 @@ pub(crate) fn run(
     let converged = loop {
         // Relative unshot power per column; exact sums every n shots so that the
         // running update cannot drift.
-        if shots % n.max(1) == 0 {
+        if shots.is_multiple_of(n.max(1)) {
             unshot_power = column_power(sys, &unshot);
         }
         let worst = unshot_power
@@ -132,7 +132,7 @@ pub(crate) fn run(
         // j's own entry (F_jj ≠ 0 on curved patches) may have given it new unshot power.
         priority[j] = priority_of(&unshot, j);
         shots += 1;
-        if shots % n.max(1) == 0 {
+        if shots.is_multiple_of(n.max(1)) {
             debug!(shots, unshot = worst, "shooting");
         }
     };
