@@ -67,6 +67,19 @@ bench: deps build
 bench-quick: deps build
 	$(PYTHON) bench/run.py --quick
 
+# Fuzzing (documented in tests/README.md): a long run of the stable-Rust mutation fuzzer,
+# then libFuzzer through cargo-fuzz (needs RUSTC_BOOTSTRAP on a stable toolchain),
+# seeded from the golden files and the scene corpus, FUZZ_SECONDS per target.
+FUZZ_SECONDS ?= 60
+fuzz:
+	FFSTREAM_FUZZ_ITERS=100000 $(CARGO) test --test it stress_fuzz -- --nocapture
+	command -v cargo-fuzz >/dev/null || $(CARGO) install cargo-fuzz
+	mkdir -p fuzz/corpus/ffz_reader fuzz/corpus/obj_loader
+	cp formats/golden/*.ffz fuzz/corpus/ffz_reader/
+	cp tests/data/scenes/*.obj tests/data/bad/*.obj fuzz/corpus/obj_loader/
+	RUSTC_BOOTSTRAP=1 $(CARGO) fuzz run ffz_reader fuzz/corpus/ffz_reader -- -max_total_time=$(FUZZ_SECONDS) -max_len=4096
+	RUSTC_BOOTSTRAP=1 $(CARGO) fuzz run obj_loader fuzz/corpus/obj_loader -- -max_total_time=$(FUZZ_SECONDS) -max_len=4096
+
 clean:
 	$(CARGO) clean
 	rm -rf out
