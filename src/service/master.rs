@@ -258,29 +258,40 @@ pub fn prepare(
     Ok((writer, plan, present))
 }
 
-/// True when the file to resume is a strict prefix of the meta block this run would
-/// write: the run that made it was killed while writing its header, so no row can be in
-/// it and starting afresh loses nothing. Any other content goes to `resume`, which
-/// checks it properly.
+/// True when the file to resume ends inside its own meta block (spec §1, §3): the run
+/// that made it was killed while writing its header, so no chunk, hence no row, can be
+/// in it and starting afresh loses nothing. That is: the bytes there are a prefix of the
+/// file magic, or the magic is complete and the file is shorter than the `meta_len` its
+/// header declares (or than the 48 bytes that declare it). Any other content goes to
+/// `resume`, which checks it properly.
 fn torn_own_header(job: &crate::service::ComputeJob) -> Result<bool, ServiceError> {
+    use crate::ffz::spec::FILE_MAGIC;
     let io = |e: std::io::Error| FfzError::Io {
         path: job.output.clone(),
         op: "read for resume".into(),
         source: e,
     };
-    let len = std::fs::metadata(&job.output).map_err(io)?.len();
-    let ours = crate::ffz::encode_meta(&job.meta, job.writer.zstd_level)?;
-    if len >= ours.len() as u64 {
-        return Ok(false);
+    let mut head = Vec::with_capacity(48);
+    {
+        use std::io::Read;
+        let file = std::fs::File::open(&job.output).map_err(io)?;
+        file.take(48).read_to_end(&mut head).map_err(io)?;
     }
-    let have = std::fs::read(&job.output).map_err(io)?;
-    let torn = ours.starts_with(&have);
+    let len = std::fs::metadata(&job.output).map_err(io)?.len();
+    let magic_len = head.len().min(FILE_MAGIC.len());
+    if head[..magic_len] != FILE_MAGIC[..magic_len] {
+        return Ok(false); // not an .ffz beginning: let resume name the problem
+    }
+    let torn = if head.len() < 48 {
+        true
+    } else {
+        let meta_len = u64::from_le_bytes(head[40..48].try_into().unwrap_or([0xff; 8]));
+        len < meta_len
+    };
     if torn {
         eprintln!(
-            "ffstream: warning: {} holds only {} bytes of its {}-byte header (killed while starting): starting afresh",
-            job.output.display(),
-            len,
-            ours.len()
+            "ffstream: warning: {} ends inside its header ({len} bytes; killed while starting): no row can be in it, starting afresh",
+            job.output.display()
         );
     }
     Ok(torn)
