@@ -32,13 +32,13 @@ demo-mpi: deps build
 test: deps
 	$(CARGO) test
 	$(CARGO) bench --no-run --quiet
+	$(CARGO) build --release
+	$(PYTHON) bench/run.py --quick
 	@tmp=$$(mktemp -d) && \
 	./target/debug/ffstream compute builtin:cornell --patches 300 --quiet -o $$tmp/c.ffz && \
 	./target/debug/ffstream export $$tmp/c.ffz --matrix $$tmp/c.mtx --patches $$tmp/c.csv && \
 	FFZ_FILE=$$tmp/c.ffz FFZ_MTX=$$tmp/c.mtx FFZ_CSV=$$tmp/c.csv $(PYTHON) -m pytest -q -p no:cacheprovider formats; \
 	status=$$?; rm -rf $$tmp; exit $$status
-	$(CARGO) build --release
-	$(PYTHON) bench/run.py --quick
 
 build:
 	$(CARGO) build --release
