@@ -32,6 +32,7 @@ demo-mpi: deps build
 test: deps
 	$(CARGO) test
 	$(CARGO) bench --no-run --quiet
+	$(CARGO) check --no-default-features --all-targets --quiet
 	$(CARGO) build --release
 	$(PYTHON) bench/run.py --quick
 	@tmp=$$(mktemp -d) && \

@@ -13,7 +13,9 @@ use ffstream::formfactor::{FormFactorConfig, Method, RowEngine};
 use ffstream::geometry::bvh::Occluders;
 use ffstream::geometry::subdivide::{default_max_edge, patch_count, subdivide};
 use ffstream::scene::{self, Scene};
-use ffstream::service::{ComputeJob, ComputeReport, RowSelection, Schedule, ServiceError};
+#[cfg(feature = "mpi")]
+use ffstream::service::ServiceError;
+use ffstream::service::{ComputeJob, ComputeReport, RowSelection, Schedule};
 
 use super::SceneInput;
 
@@ -283,6 +285,8 @@ fn creation_info() -> String {
 /// Where this process stands after a compute: rank 0 / embedded get the report.
 pub enum Outcome {
     Master(ComputeReport),
+    /// An MPI worker rank: it has nothing to report (rank 0 does).
+    #[cfg_attr(not(feature = "mpi"), allow(dead_code))]
     Worker,
 }
 
