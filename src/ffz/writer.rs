@@ -82,12 +82,24 @@ pub struct FfzWriter {
 /// second writer, e.g. a `--resume` started while the killed job's rank 0 is still
 /// alive, gets [`FfzError::Locked`] instead of interleaving its chunks with the first's.
 fn lock_for_writing(path: &Path, file: &File) -> Result<()> {
-    match file.try_lock() {
-        Ok(()) => Ok(()),
-        Err(std::fs::TryLockError::WouldBlock) => Err(FfzError::Locked {
-            path: path.to_path_buf(),
-        }),
-        Err(std::fs::TryLockError::Error(e)) => Err(FfzError::io(path, "lock", e)),
+    // Retry briefly: the lock belongs to the open file description, which a child
+    // process forked elsewhere in this program shares until its exec closes it
+    // (close-on-exec), so a writer just dropped can hold it for a moment longer. A
+    // writer that is really alive holds it for good and gets the error.
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(2);
+    loop {
+        match file.try_lock() {
+            Ok(()) => return Ok(()),
+            Err(std::fs::TryLockError::WouldBlock) if std::time::Instant::now() < deadline => {
+                std::thread::sleep(std::time::Duration::from_millis(10));
+            }
+            Err(std::fs::TryLockError::WouldBlock) => {
+                return Err(FfzError::Locked {
+                    path: path.to_path_buf(),
+                })
+            }
+            Err(std::fs::TryLockError::Error(e)) => return Err(FfzError::io(path, "lock", e)),
+        }
     }
 }
 
