@@ -125,29 +125,10 @@ pub fn group_ff(g: &Geo, f: &[f64], gi: u32, gj: u32) -> f64 {
     num / den
 }
 
-/// Howell C-11: parallel directly opposed rectangles, X = a/c, Y = b/c.
-pub fn howell_c11(x: f64, y: f64) -> f64 {
-    let (x2, y2) = (x * x, y * y);
-    let ln = (((1.0 + x2) * (1.0 + y2)) / (1.0 + x2 + y2)).sqrt().ln();
-    2.0 / (PI * x * y)
-        * (ln
-            + x * (1.0 + y2).sqrt() * (x / (1.0 + y2).sqrt()).atan()
-            + y * (1.0 + x2).sqrt() * (y / (1.0 + x2).sqrt()).atan()
-            - x * x.atan()
-            - y * y.atan())
-}
-
-/// Howell C-14: perpendicular rectangles sharing an edge, W = w/l, H = h/l.
-pub fn howell_c14(w: f64, h: f64) -> f64 {
-    let (w2, h2) = (w * w, h * h);
-    let s = w2 + h2;
-    let a = (1.0 + w2) * (1.0 + h2) / (1.0 + s);
-    let b = (w2 * (1.0 + s) / ((1.0 + w2) * s)).powf(w2);
-    let c = (h2 * (1.0 + s) / ((1.0 + h2) * s)).powf(h2);
-    1.0 / (PI * w)
-        * (w * (1.0 / w).atan() + h * (1.0 / h).atan() - s.sqrt() * (1.0 / s.sqrt()).atan()
-            + 0.25 * (a * b * c).ln())
-}
+/// Howell C-11 (the formula the formfactor tests check against REFERENCES.md's tables).
+pub use crate::formfactor::analytic::parallel_rectangles as howell_c11;
+/// Howell C-14 (likewise).
+pub use crate::formfactor::analytic::perpendicular_rectangles as howell_c14;
 
 /// Differential area to a parallel rectangle a × b whose corner is straight above
 /// (below) it at distance c (Howell B-3 form): X = a/c, Y = b/c.

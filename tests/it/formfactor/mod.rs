@@ -2,7 +2,7 @@
 //! values, closed-cube row sums and reciprocity, scale invariance, determinism across
 //! threads, occlusion, and the error of the `point` and `mc` baselines.
 
-mod analytic;
+pub mod analytic;
 mod scenes;
 
 use std::sync::Arc;
