@@ -128,14 +128,20 @@ impl FfzWriter {
         }
         file.write_all(&block)
             .map_err(|e| FfzError::io(path, "write header", e))?;
+        Ok(Self::empty(path, file, opts, meta, block.len() as u64))
+    }
+
+    /// A writer for `meta` with no chunk yet, appending at `pos` (the end of the meta
+    /// block): the common start of `create` and `resume`.
+    fn empty(path: &Path, file: File, opts: WriterOptions, meta: &FileMeta, pos: u64) -> Self {
         let n = meta.n();
-        Ok(FfzWriter {
+        FfzWriter {
             path: path.to_path_buf(),
             file,
             opts,
             n,
             layout: meta.layout,
-            pos: block.len() as u64,
+            pos,
             chunk_offsets: Vec::new(),
             row_chunk: vec![spec::NO_CHUNK; n as usize],
             presence: RowPresence::new(n),
@@ -146,7 +152,7 @@ impl FfzWriter {
             poisoned: false,
             finished: false,
             warnings: Vec::new(),
-        })
+        }
     }
 
     /// Reopen a partial or finished file to add the rows it lacks. Checks that the file
@@ -201,24 +207,7 @@ impl FfzWriter {
         }
         let n = header.n;
         let file_len = map.len() as u64;
-        let mut w = FfzWriter {
-            path: path.to_path_buf(),
-            file,
-            opts,
-            n,
-            layout: meta.layout,
-            pos: header.meta_len,
-            chunk_offsets: Vec::new(),
-            row_chunk: vec![spec::NO_CHUNK; n as usize],
-            presence: RowPresence::new(n),
-            pending: Vec::new(),
-            pending_ids: HashSet::new(),
-            pending_bytes: 0,
-            raw_bytes: 0,
-            poisoned: false,
-            finished: false,
-            warnings: Vec::new(),
-        };
+        let mut w = Self::empty(path, file, opts, meta, header.meta_len);
         // A finished file whose chunks all pass their cheap checks: trust its index.
         let indexed = index::read_index(&map, n, header.meta_len)
             .ok()
