@@ -33,7 +33,7 @@ pub use chunk::{
     SHUFFLE_DEFAULT,
 };
 pub use error::FfzError;
-pub use meta::{encode_meta, FileMeta, Layout};
+pub use meta::{FileMeta, Layout};
 pub use presence::{RowPresence, RowState};
 pub use reader::FfzReader;
 pub use recover::BadRegion;
