@@ -34,9 +34,12 @@ impl MasterLink for MasterSide {
     }
 
     fn assign(&mut self, _worker: usize, rows: Vec<u32>) -> Result<(), ServiceError> {
-        self.assign_tx
-            .send(rows)
-            .map_err(|_| ServiceError::Transport("the compute pool stopped".into()))
+        // A pool that has hung up always says why first: its `Failed` (or `Done`)
+        // message is already queued on `rx`, and the next `poll` delivers it (or reports
+        // a pool that vanished without a word). Failing here instead would race that
+        // message and replace the named row with a vague transport error.
+        let _ = self.assign_tx.send(rows);
+        Ok(())
     }
 }
 
