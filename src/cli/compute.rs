@@ -80,6 +80,14 @@ pub struct ComputeOptions {
     /// so that a rerun cannot destroy a long computation by accident).
     #[arg(long, conflicts_with = "resume")]
     pub force: bool,
+    /// Reciprocity half (the paper's trick): compute each unordered pair once and get
+    /// F_ji = F_ij A_i / A_j. on: half the pair work; rows are merged by the I/O
+    /// master through a spill file next to the output (OUT.ffz.spill, deleted at the
+    /// end) in blocks, so a killed run keeps whole blocks only. off: every row on its
+    /// own. auto: on for dense files, off for --top-k (where the bound already skips
+    /// most of the work, and the spill would hold half of all entries) and --gather.
+    #[arg(long, default_value = "auto", value_name = "auto|on|off")]
+    pub symmetric: String,
     /// The paper's design, as a baseline: every rank computes, rank 0 gathers the dense
     /// f64 matrix in memory and writes it at the end.
     #[arg(long)]
@@ -203,13 +211,25 @@ pub fn build_job(
         Some(k) => Layout::TopK { k },
         None => Layout::Dense,
     };
+    let symmetric = match (o.symmetric.as_str(), o.gather) {
+        ("on", true) => bail!(
+            "--gather is the paper's full-row baseline: it cannot be combined with --symmetric on"
+        ),
+        ("on", false) => true,
+        ("off", _) | ("auto", true) => false,
+        ("auto", false) => cfg.top_k.is_none(),
+        (other, _) => bail!("unknown --symmetric '{other}' (expected auto, on or off)"),
+    };
     let meta = FileMeta {
         layout,
         method: cfg.method.to_string(),
         params: format!(
-            "{} max_edge={max_edge} scene={}{}",
+            "{} max_edge={max_edge} scene={}{}{}",
             engine.describe(),
             input.scene,
+            // Half rows give (slightly) different numbers from full rows, so a resume
+            // must use the same mode: the header says which one.
+            if symmetric { " pairs=half" } else { "" },
             match &o.occluders {
                 Some(p) => format!(" occluders={}", p.display()),
                 None => String::new(),
@@ -236,6 +256,7 @@ pub fn build_job(
         resume: o.resume,
         overwrite: o.force,
         schedule: o.schedule.parse::<Schedule>().map_err(anyhow::Error::msg)?,
+        symmetric,
         rows: o
             .rows
             .as_deref()

@@ -56,6 +56,10 @@ pub enum FfzError {
     /// A chunk handed to [`crate::ffz::FfzWriter::append_chunk`] is not a well-formed record.
     #[error("{path}: chunk handed to the writer is malformed: {what}")]
     BadEncodedChunk { path: PathBuf, what: String },
+    /// The spill file of a `--symmetric` run (service::symmetric) holds a piece that
+    /// cannot be used: wrong rows, bad checksum, an entry given twice.
+    #[error("{path}: spill file: {what}")]
+    Spill { path: PathBuf, what: String },
     /// A row id that is already in the file (or in the same chunk).
     #[error(
         "{path}: row {row} is already in the file (chunk {chunk}); each row may be written once"

@@ -29,8 +29,8 @@ mod verify;
 mod writer;
 
 pub use chunk::{
-    encode_chunk, encode_chunk_with, raw_row_len, ChunkEncoding, DecodedChunk, EncodedChunk,
-    SHUFFLE_DEFAULT,
+    check_record, decode_record, encode_chunk, encode_chunk_with, raw_row_len, ChunkEncoding,
+    DecodedChunk, EncodedChunk, SHUFFLE_DEFAULT,
 };
 pub use error::FfzError;
 pub use meta::{FileMeta, Layout};

@@ -295,34 +295,55 @@ impl RowEngine {
     }
 
     /// The compute side of `--symmetric` (reciprocity half, bench/PERF.md section 6):
-    /// F_ij for the columns j > i only, into `upper` as (j, F_ij), and the mirrored
-    /// entries of the rows j > i, into `mirrored` as (j, F_ji) with
-    /// F_ji = F_ij · A_i / A_j (reciprocity A_i F_ij = A_j F_ji, DESIGN.md §3). Row j
-    /// of the matrix is then its own upper half plus the mirrored entries that rows
-    /// i < j sent it. Each unordered pair is evaluated once (half the kernel work and
-    /// rays of two dense rows); entries that are 0 are left out. Values and seeds are
-    /// those of [`RowEngine::pair_value`] for (i, j), i < j.
+    /// each unordered pair {a < b} is evaluated once, as `pair_value(a, b)` = F_ab, and
+    /// its other direction follows from reciprocity A_a F_ab = A_b F_ba (DESIGN.md §3):
+    /// F_ba = F_ab · A_a / A_b.
+    ///
+    /// `in_run[j]` says whether row j is computed in this run. Row i owns the pairs
+    /// {i, j} with j > i, and also those with j < i when row j is not in the run (it is
+    /// already in the file, or skipped on purpose), since no other row will evaluate
+    /// them. Out: `own` = (j, F_ij) for every owned column j; `mirrored` = (j, F_ji) for
+    /// the owned j > i that are in the run. Row j of the matrix is its own entries
+    /// plus the mirrored entries of the rows i < j. Entries that are 0 are left out.
+    ///
+    /// Whatever `in_run` is, the value of a pair is the same function of (a, b), so a
+    /// resumed or `--rows needed` run gives rows bitwise equal to a full one.
     ///
     /// # Panics
-    /// If `i` is not a patch index.
+    /// If `i` is not a patch index, `in_run.len() != n` or `in_run[i]` is false.
     pub fn half_row(
         &self,
         i: u32,
+        in_run: &[bool],
         scratch: &mut Scratch,
-        upper: &mut Vec<(u32, f64)>,
+        own: &mut Vec<(u32, f64)>,
         mirrored: &mut Vec<(u32, f64)>,
     ) {
         let n = self.n();
         assert!((i as usize) < n, "row {i} out of range (n = {n})");
-        upper.clear();
+        assert!(
+            in_run.len() == n && in_run[i as usize],
+            "row {i} must be one of the n = {n} rows of the run"
+        );
+        own.clear();
         mirrored.clear();
         scratch.counters.rows += 1;
         let ai = self.geom[i as usize].area;
+        for (j, &computed) in in_run.iter().enumerate().take(i as usize) {
+            if !computed {
+                let f = self.pair_value(j as u32, i, scratch);
+                if f > 0.0 {
+                    own.push((j as u32, f * self.geom[j].area / ai));
+                }
+            }
+        }
         for j in i + 1..n as u32 {
             let f = self.pair_value(i, j, scratch);
             if f > 0.0 {
-                upper.push((j, f));
-                mirrored.push((j, f * ai / self.geom[j as usize].area));
+                own.push((j, f));
+                if in_run[j as usize] {
+                    mirrored.push((j, f * ai / self.geom[j as usize].area));
+                }
             }
         }
     }

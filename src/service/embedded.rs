@@ -2,6 +2,7 @@
 //! master, one thread runs the worker driver with its compute threads, and they talk
 //! over bounded crossbeam channels (the same master and worker code as under MPI).
 
+use std::sync::Arc;
 use std::time::Duration;
 
 use crossbeam::channel::{bounded, Receiver, RecvTimeoutError, Sender, TryRecvError};
@@ -10,6 +11,7 @@ use crate::ffz::EncodedChunk;
 use crate::service::link::{MasterLink, ToMaster, WorkerLink};
 use crate::service::master::{prepare, report, run_master};
 use crate::service::schedule::{folded_share, Schedule};
+use crate::service::symmetric::in_run;
 use crate::service::worker::{run_worker, WorkerConfig};
 use crate::service::{ComputeJob, ComputeReport, ServiceError, WorkerStats};
 
@@ -75,6 +77,14 @@ impl WorkerLink for WorkerSide {
         self.send(ToMaster::Chunk { worker: 0, chunk })
     }
 
+    fn send_piece(&mut self, chunk: EncodedChunk) -> Result<(), ServiceError> {
+        self.send(ToMaster::Piece { worker: 0, chunk })
+    }
+
+    fn half_rows_done(&mut self, rows: Vec<u32>) -> Result<(), ServiceError> {
+        self.send(ToMaster::HalfRowsDone { worker: 0, rows })
+    }
+
     fn failed(&mut self, row: i64, message: &str) -> Result<(), ServiceError> {
         self.send(ToMaster::Failed {
             worker: 0,
@@ -98,14 +108,19 @@ pub fn run_embedded(job: &ComputeJob) -> Result<ComputeReport, ServiceError> {
     let (writer, plan, present) = prepare(job, threads)?;
     let (tx, rx) = bounded(2 * threads + 2);
     let (assign_tx, assign_rx) = bounded(1);
+    let n = job.patches.len() as u32;
     let cfg = WorkerConfig {
         rank: 0,
         threads,
         layout: job.meta.layout,
-        n: job.patches.len() as u32,
+        n,
         zstd_level: job.writer.zstd_level,
         chunk_bytes: job.writer.chunk_bytes,
         flush_seconds: job.flush_seconds,
+        symmetric: plan
+            .spill
+            .is_some()
+            .then(|| Arc::new(in_run(&plan.todo, n))),
     };
     let static_rows = (plan.schedule == Schedule::Folded).then(|| folded_share(&plan.todo, 1, 0));
     let engine = job.engine.clone();

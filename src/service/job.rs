@@ -44,6 +44,8 @@ pub struct ComputeJob {
     pub overwrite: bool,
     pub schedule: Schedule,
     pub rows: RowSelection,
+    /// Compute each unordered pair once and mirror it by reciprocity (service::symmetric).
+    pub symmetric: bool,
     /// Compute threads per process (embedded) or per worker rank (MPI).
     pub threads: usize,
     pub writer: WriterOptions,

@@ -13,6 +13,10 @@ pub enum ToMaster {
     Request { worker: usize },
     /// Compressed rows, ready to append.
     Chunk { worker: usize, chunk: EncodedChunk },
+    /// `--symmetric`: a piece of partial rows for the spill (service::symmetric).
+    Piece { worker: usize, chunk: EncodedChunk },
+    /// `--symmetric`: these half rows are complete (all their pieces were sent before).
+    HalfRowsDone { worker: usize, rows: Vec<u32> },
     /// The worker failed; `row` is -1 when no row was involved.
     Failed {
         worker: usize,
@@ -42,6 +46,9 @@ pub trait WorkerLink {
     /// The answer to the last request if it has arrived; `Some(vec![])` = no more work.
     fn try_assignment(&mut self) -> Result<Option<Vec<u32>>, ServiceError>;
     fn send_chunk(&mut self, chunk: EncodedChunk) -> Result<(), ServiceError>;
+    /// `--symmetric`: a spill piece; then, after a row's pieces, `half_rows_done`.
+    fn send_piece(&mut self, piece: EncodedChunk) -> Result<(), ServiceError>;
+    fn half_rows_done(&mut self, rows: Vec<u32>) -> Result<(), ServiceError>;
     fn failed(&mut self, row: i64, message: &str) -> Result<(), ServiceError>;
     fn done(&mut self, stats: WorkerStats) -> Result<(), ServiceError>;
 }

@@ -18,6 +18,7 @@ use crate::rows::Row;
 use crate::service::link::{MasterLink, ToMaster};
 use crate::service::progress::Progress;
 use crate::service::schedule::{DynamicQueue, Schedule};
+use crate::service::symmetric::{Frontier, Spill};
 use crate::service::{ServiceError, WorkerStats};
 
 /// Chunks queued between the master thread and the writer thread.
@@ -36,6 +37,9 @@ pub struct MasterPlan {
     pub n: u32,
     pub zstd_level: i32,
     pub progress: bool,
+    /// `--symmetric`: workers send half rows as spill pieces, kept in this file until
+    /// their row block is complete (service::symmetric).
+    pub spill: Option<std::path::PathBuf>,
 }
 
 /// What the master observed.
@@ -50,6 +54,10 @@ pub struct MasterOutcome {
 
 enum WriterJob {
     Chunk(EncodedChunk),
+    /// `--symmetric`: append to the spill.
+    Piece(EncodedChunk),
+    /// `--symmetric`: this row block is complete; merge it into rows and write them.
+    Merge(u32),
 }
 
 /// Shared counters the writer thread updates for the progress display.
@@ -77,21 +85,28 @@ pub fn run_master(
     let counters = Arc::new(WriterCounters::default());
     let (tx, rx) = bounded::<WriterJob>(WRITER_QUEUE);
 
+    let spill = match &plan.spill {
+        Some(path) => Some(Spill::create(
+            path.clone(),
+            plan.n,
+            &plan.todo,
+            plan.layout,
+        )?),
+        None => None,
+    };
     let writer_counters = Arc::clone(&counters);
     let writer_thread = std::thread::Builder::new()
         .name("ffz-writer".into())
         .spawn(move || -> Result<WriterStats, FfzError> {
             let mut writer = writer;
-            for job in rx {
-                match job {
-                    WriterJob::Chunk(chunk) => writer.append_chunk(chunk)?,
-                }
-                let s = writer.stats();
-                writer_counters
-                    .disk
-                    .store(s.bytes_on_disk, Ordering::Relaxed);
-                writer_counters.raw.store(s.raw_bytes, Ordering::Relaxed);
+            let mut spill = spill;
+            let written = write_jobs(&mut writer, spill.as_mut(), rx, &writer_counters);
+            // A spill is of no use after the run, whatever happened: `--resume`
+            // recomputes the blocks that were not merged.
+            if let Some(s) = spill {
+                s.remove();
             }
+            written?;
             writer.finish()
         })
         .map_err(|e| ServiceError::Transport(format!("cannot start the writer thread: {e}")))?;
@@ -111,6 +126,32 @@ pub fn run_master(
     }
 }
 
+/// The writer thread's work: append chunks; for `--symmetric`, spill pieces and merge
+/// complete blocks into rows.
+fn write_jobs(
+    writer: &mut FfzWriter,
+    mut spill: Option<&mut Spill>,
+    rx: crossbeam::channel::Receiver<WriterJob>,
+    counters: &WriterCounters,
+) -> Result<(), FfzError> {
+    for job in rx {
+        match (job, spill.as_deref_mut()) {
+            (WriterJob::Chunk(chunk), _) => writer.append_chunk(chunk)?,
+            (WriterJob::Piece(piece), Some(s)) => s.append(&piece)?,
+            (WriterJob::Merge(j), Some(s)) => s.merge(j, |row| writer.push_row(row))?,
+            (WriterJob::Piece(_) | WriterJob::Merge(_), None) => {
+                return Err(FfzError::InvalidMeta(
+                    "a half-row piece reached a run without --symmetric".into(),
+                ))
+            }
+        }
+        let s = writer.stats();
+        counters.disk.store(s.bytes_on_disk, Ordering::Relaxed);
+        counters.raw.store(s.raw_bytes, Ordering::Relaxed);
+    }
+    Ok(())
+}
+
 fn master_loop(
     link: &mut dyn MasterLink,
     tx: &Sender<WriterJob>,
@@ -127,6 +168,10 @@ fn master_loop(
     };
     let mut failure: Option<ServiceError> = None;
     let mut done = 0usize;
+    let mut frontier = plan
+        .spill
+        .as_ref()
+        .map(|_| Frontier::new(plan.n, &plan.todo));
 
     // Rows skipped on purpose are recorded by the master itself, in small chunks.
     for ids in plan.skipped.chunks(4096) {
@@ -170,6 +215,28 @@ fn master_loop(
                     counters.raw.load(Ordering::Relaxed),
                 );
                 sent
+            }
+            ToMaster::Piece { chunk, .. } => {
+                tx.send(WriterJob::Piece(chunk)).map_err(|_| writer_gone())
+            }
+            ToMaster::HalfRowsDone { worker, rows } => {
+                let count = rows.len() as u64;
+                let ready = match frontier.as_mut() {
+                    Some(f) => f.finish(&rows),
+                    None => Err("half rows in a run without --symmetric".to_string()),
+                };
+                outcome.rows_received += count;
+                progress.advance(
+                    count,
+                    counters.disk.load(Ordering::Relaxed),
+                    counters.raw.load(Ordering::Relaxed),
+                );
+                match ready {
+                    Ok(blocks) => blocks
+                        .into_iter()
+                        .try_for_each(|j| tx.send(WriterJob::Merge(j)).map_err(|_| writer_gone())),
+                    Err(e) => Err(ServiceError::Transport(format!("worker {worker}: {e}"))),
+                }
             }
             ToMaster::Failed {
                 rank, row, message, ..
@@ -254,6 +321,9 @@ pub fn prepare(
         n,
         zstd_level: job.writer.zstd_level,
         progress: job.progress,
+        spill: job
+            .symmetric
+            .then(|| crate::service::symmetric::spill_path(&job.output)),
     };
     Ok((writer, plan, present))
 }

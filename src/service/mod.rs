@@ -25,6 +25,7 @@ pub mod mpi;
 pub mod progress;
 pub mod rss;
 pub mod schedule;
+pub mod symmetric;
 pub mod worker;
 
 pub use error::ServiceError;

@@ -11,6 +11,7 @@
 
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use crossbeam::channel::{bounded, unbounded, Receiver, RecvTimeoutError, Sender};
@@ -20,6 +21,7 @@ use crate::formfactor::{RowEngine, Scratch};
 use crate::rows::{Row, RowValues};
 use crate::service::link::WorkerLink;
 use crate::service::rss::peak_rss_bytes;
+use crate::service::symmetric::HalfRowBuffer;
 use crate::service::{ServiceError, WorkerStats};
 
 /// Environment variable that makes a worker fail on purpose when it reaches this row
@@ -37,12 +39,23 @@ pub struct WorkerConfig {
     /// Target uncompressed bytes per chunk.
     pub chunk_bytes: usize,
     pub flush_seconds: f64,
+    /// `--symmetric`: compute half rows; `in_run[i]` says whether row i is computed in
+    /// this run (see [`RowEngine::half_row`]).
+    pub symmetric: Option<Arc<Vec<bool>>>,
 }
 
 /// What a compute thread hands back to the driver.
 enum FromCompute {
     Chunk(EncodedChunk),
-    Failed { row: i64, message: String },
+    /// `--symmetric`: pieces for the spill, then the half rows they complete.
+    Pieces {
+        pieces: Vec<EncodedChunk>,
+        rows: Vec<u32>,
+    },
+    Failed {
+        row: i64,
+        message: String,
+    },
 }
 
 /// Compute rows until the master says there are no more (dynamic), or `static_rows`
@@ -149,6 +162,12 @@ fn drive(
         }
         match out_rx.recv_timeout(Duration::from_millis(2)) {
             Ok(FromCompute::Chunk(chunk)) => link.send_chunk(chunk)?,
+            Ok(FromCompute::Pieces { pieces, rows }) => {
+                for p in pieces {
+                    link.send_piece(p)?;
+                }
+                link.half_rows_done(rows)?;
+            }
             Ok(FromCompute::Failed { row, message }) => {
                 link.failed(row, &message)?;
                 return Err(ServiceError::WorkerFailed {
@@ -172,7 +191,98 @@ struct Counters<'a> {
     stop: &'a AtomicBool,
 }
 
-/// One compute thread: rows in, compressed chunks out.
+/// What a compute thread has computed and not yet handed to the driver.
+enum Pending {
+    /// Whole rows, compressed into one chunk when flushed.
+    Rows { rows: Vec<Row>, bytes: usize },
+    /// `--symmetric`: half rows bucketed by destination block.
+    Half {
+        buf: HalfRowBuffer,
+        in_run: Arc<Vec<bool>>,
+        own: Vec<(u32, f64)>,
+        mirrored: Vec<(u32, f64)>,
+    },
+}
+
+impl Pending {
+    fn new(cfg: &WorkerConfig) -> Self {
+        match &cfg.symmetric {
+            Some(in_run) => Pending::Half {
+                buf: HalfRowBuffer::new(cfg.n),
+                in_run: Arc::clone(in_run),
+                own: Vec::new(),
+                mirrored: Vec::new(),
+            },
+            None => Pending::Rows {
+                rows: Vec::new(),
+                bytes: 0,
+            },
+        }
+    }
+
+    /// Compute row i (or its half) into the pending work.
+    fn compute(&mut self, engine: &RowEngine, i: u32, scratch: &mut Scratch) {
+        match self {
+            Pending::Rows { rows, bytes } => {
+                let row = engine.compute_row(i, scratch);
+                *bytes += raw_row_bytes(&row);
+                rows.push(row);
+            }
+            Pending::Half {
+                buf,
+                in_run,
+                own,
+                mirrored,
+            } => {
+                engine.half_row(i, in_run, scratch, own, mirrored);
+                buf.add(i, own, mirrored);
+            }
+        }
+    }
+
+    fn is_empty(&self) -> bool {
+        match self {
+            Pending::Rows { rows, .. } => rows.is_empty(),
+            Pending::Half { buf, .. } => buf.rows() == 0,
+        }
+    }
+
+    /// Whether the pending work has reached its flush size: one chunk of rows, or for
+    /// half rows four chunks' worth (spread over many blocks, so pieces stay large).
+    fn full(&self, chunk_bytes: usize) -> bool {
+        match self {
+            Pending::Rows { bytes, .. } => *bytes >= chunk_bytes,
+            Pending::Half { buf, .. } => buf.pending_bytes() >= 4 * chunk_bytes,
+        }
+    }
+
+    /// Compress the pending work into the message for the driver.
+    fn flush(&mut self, cfg: &WorkerConfig) -> FromCompute {
+        match self {
+            Pending::Rows { rows, bytes } => {
+                let msg = match encode_chunk(rows, cfg.layout, cfg.n, cfg.zstd_level) {
+                    Ok(chunk) => FromCompute::Chunk(chunk),
+                    Err(e) => FromCompute::Failed {
+                        row: rows[0].index as i64,
+                        message: e.to_string(),
+                    },
+                };
+                rows.clear();
+                *bytes = 0;
+                msg
+            }
+            Pending::Half { buf, .. } => match buf.flush(cfg.zstd_level) {
+                Ok((pieces, rows)) => FromCompute::Pieces { pieces, rows },
+                Err(e) => FromCompute::Failed {
+                    row: -1,
+                    message: e.to_string(),
+                },
+            },
+        }
+    }
+}
+
+/// One compute thread: rows in, compressed chunks (or spill pieces) out.
 fn compute_thread(
     engine: &RowEngine,
     cfg: &WorkerConfig,
@@ -187,8 +297,7 @@ fn compute_thread(
         stop,
     } = counters;
     let mut scratch = Scratch::default();
-    let mut pending: Vec<Row> = Vec::new();
-    let mut pending_bytes = 0usize;
+    let mut pending = Pending::new(cfg);
     let mut oldest: Option<Instant> = None;
     let flush_after = Duration::from_secs_f64(cfg.flush_seconds.max(0.01));
     loop {
@@ -203,40 +312,28 @@ fn compute_thread(
         }
         if let Some(i) = next {
             let t0 = Instant::now();
-            let row = if fail_row == Some(i) {
+            let done = if fail_row == Some(i) {
                 Err(format!("failure injected by {FAIL_ROW_ENV}={i}"))
             } else {
-                catch_unwind(AssertUnwindSafe(|| engine.compute_row(i, &mut scratch)))
-                    .map_err(|p| panic_message(p.as_ref()))
+                catch_unwind(AssertUnwindSafe(|| {
+                    pending.compute(engine, i, &mut scratch)
+                }))
+                .map_err(|p| panic_message(p.as_ref()))
             };
             busy_nanos.fetch_add(t0.elapsed().as_nanos() as u64, Ordering::Relaxed);
-            match row {
-                Ok(row) => {
-                    pending_bytes += raw_row_bytes(&row);
-                    pending.push(row);
-                    oldest.get_or_insert_with(Instant::now);
-                    computed.fetch_add(1, Ordering::Relaxed);
-                }
-                Err(message) => {
-                    let _ = out.send(FromCompute::Failed {
-                        row: i as i64,
-                        message,
-                    });
-                    return;
-                }
+            if let Err(message) = done {
+                let _ = out.send(FromCompute::Failed {
+                    row: i as i64,
+                    message,
+                });
+                return;
             }
+            oldest.get_or_insert_with(Instant::now);
+            computed.fetch_add(1, Ordering::Relaxed);
         }
         let due = oldest.is_some_and(|t| t.elapsed() >= flush_after);
-        if !pending.is_empty() && (finished || due || pending_bytes >= cfg.chunk_bytes) {
-            let msg = match encode_chunk(&pending, cfg.layout, cfg.n, cfg.zstd_level) {
-                Ok(chunk) => FromCompute::Chunk(chunk),
-                Err(e) => FromCompute::Failed {
-                    row: pending[0].index as i64,
-                    message: e.to_string(),
-                },
-            };
-            pending.clear();
-            pending_bytes = 0;
+        if !pending.is_empty() && (finished || due || pending.full(cfg.chunk_bytes)) {
+            let msg = pending.flush(cfg);
             oldest = None;
             if out.send(msg).is_err() {
                 return; // the driver stopped (failure elsewhere)

@@ -45,6 +45,14 @@ impl MpiMasterLink<'_> {
                 worker,
                 chunk: p::decode_chunk_message(buf, rank)?,
             },
+            p::PIECE => ToMaster::Piece {
+                worker,
+                chunk: p::decode_chunk_message(buf, rank)?,
+            },
+            p::HALF_DONE => ToMaster::HalfRowsDone {
+                worker,
+                rows: p::decode_rows(&buf, rank)?,
+            },
             p::FAILED => {
                 let (row, message) = p::decode_failed(&buf, rank)?;
                 ToMaster::Failed {
@@ -134,6 +142,22 @@ impl WorkerLink for MpiWorkerLink<'_> {
         self.world
             .process_at_rank(0)
             .send_with_tag(&msg[..], p::CHUNK);
+        Ok(())
+    }
+
+    fn send_piece(&mut self, piece: EncodedChunk) -> Result<(), ServiceError> {
+        let msg = p::encode_chunk_message(piece);
+        self.world
+            .process_at_rank(0)
+            .send_with_tag(&msg[..], p::PIECE);
+        Ok(())
+    }
+
+    fn half_rows_done(&mut self, rows: Vec<u32>) -> Result<(), ServiceError> {
+        let msg = p::encode_rows(&rows);
+        self.world
+            .process_at_rank(0)
+            .send_with_tag(&msg[..], p::HALF_DONE);
         Ok(())
     }
 

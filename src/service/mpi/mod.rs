@@ -31,6 +31,7 @@ use links::{MpiMasterLink, MpiWorkerLink};
 
 use crate::service::master::{prepare, report, run_master};
 use crate::service::schedule::{folded_share, Schedule};
+use crate::service::symmetric::in_run;
 use crate::service::worker::{run_worker, WorkerConfig};
 use crate::service::{ComputeJob, ComputeReport, ServiceError};
 
@@ -186,7 +187,7 @@ pub fn run(ctx: &MpiContext, job: &ComputeJob) -> Result<Option<ComputeReport>, 
         let mut head = [0u32; 2];
         if let Ok((_, plan, _)) = &prepared {
             head[0] = 1;
-            head[1] = if plan.schedule == Schedule::Folded {
+            head[1] = if plan.schedule == Schedule::Folded || plan.spill.is_some() {
                 plan.todo.len() as u32
             } else {
                 0
@@ -210,23 +211,25 @@ pub fn run(ctx: &MpiContext, job: &ComputeJob) -> Result<Option<ComputeReport>, 
                 message: "stopped: rank 0 could not open the output file".into(),
             });
         }
-        let static_rows = if job.schedule == Schedule::Folded {
-            let mut todo = vec![0u32; head[1] as usize];
-            if head[1] > 0 {
-                root.broadcast_into(&mut todo[..]);
-            }
-            Some(folded_share(&todo, workers, (ctx.rank() - 1) as usize))
-        } else {
-            None
-        };
+        // Rank 0 sends the rows of the run when workers need them: the folded schedule
+        // splits them statically; `--symmetric` needs to know which rows are in the run.
+        let mut todo = vec![0u32; head[1] as usize];
+        if head[1] > 0 {
+            root.broadcast_into(&mut todo[..]);
+        }
+        let static_rows = (job.schedule == Schedule::Folded)
+            .then(|| folded_share(&todo, workers, (ctx.rank() - 1) as usize));
+        let n = job.patches.len() as u32;
+        let symmetric = job.symmetric.then(|| std::sync::Arc::new(in_run(&todo, n)));
         let cfg = WorkerConfig {
             rank: ctx.rank(),
             threads: job.threads.max(1),
             layout: job.meta.layout,
-            n: job.patches.len() as u32,
+            n,
             zstd_level: job.writer.zstd_level,
             chunk_bytes: job.writer.chunk_bytes,
             flush_seconds: job.flush_seconds,
+            symmetric,
         };
         let mut link = MpiWorkerLink { world };
         run_worker(&job.engine, &cfg, &mut link, static_rows)?;

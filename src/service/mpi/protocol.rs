@@ -13,6 +13,8 @@
 //! | `DONE` | worker → 0 | `u64` rows, `f64` busy seconds, `u32` threads, `u64` peak RSS |
 //! | `SETUP` | worker → 0 | UTF-8 message: why this rank could not set up |
 //! | `GATHER_ROW` | worker → 0 | `u32` row, then n × `f64` (the `--gather` baseline only) |
+//! | `PIECE` | worker → 0 | as `CHUNK`: a spill piece of partial rows (`--symmetric`) |
+//! | `HALF_DONE` | worker → 0 | `count` × `u32` row ids: half rows whose pieces were all sent |
 //!
 //! The trailer of `CHUNK` sits after the chunk bytes so the master can cut it off in
 //! place and hand the buffer to the writer without copying.
@@ -29,6 +31,8 @@ pub const FAILED: Tag = 4;
 pub const DONE: Tag = 5;
 pub const SETUP: Tag = 6;
 pub const GATHER_ROW: Tag = 7;
+pub const PIECE: Tag = 8;
+pub const HALF_DONE: Tag = 9;
 
 fn malformed(what: &str, rank: i32) -> ServiceError {
     ServiceError::Transport(format!("malformed {what} message from rank {rank}"))
@@ -87,6 +91,19 @@ pub fn decode_chunk_message(mut v: Vec<u8>, rank: i32) -> Result<EncodedChunk, S
         bytes: v,
         raw_len,
     })
+}
+
+pub fn encode_rows(rows: &[u32]) -> Vec<u8> {
+    rows.iter().flat_map(|r| r.to_le_bytes()).collect()
+}
+
+pub fn decode_rows(v: &[u8], rank: i32) -> Result<Vec<u32>, ServiceError> {
+    if v.len() % 4 != 0 {
+        return Err(malformed("HALF_DONE", rank));
+    }
+    Ok(v.chunks_exact(4)
+        .map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+        .collect())
 }
 
 pub fn encode_failed(row: i64, message: &str) -> Vec<u8> {
@@ -179,6 +196,11 @@ mod tests {
             Vec::<u32>::new()
         );
         assert!(decode_assign(&[3, 1]).is_err());
+        assert_eq!(
+            decode_rows(&encode_rows(&[1, 70_000]), 1).unwrap(),
+            vec![1, 70_000]
+        );
+        assert!(decode_rows(&[1, 2, 3], 1).is_err());
         let s = WorkerStats {
             rank: 4,
             rows: 9,
