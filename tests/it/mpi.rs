@@ -35,11 +35,7 @@ fn need_mpi() -> bool {
 }
 
 fn mpi_compute(ranks: usize, out: &Path, extra: &[&str]) -> std::process::Output {
-    let mut args = vec!["compute"];
-    args.extend_from_slice(CUBE);
-    args.extend_from_slice(&["-o", path_str(out)]);
-    args.extend_from_slice(extra);
-    mpirun(ranks, &args).output().expect("cannot start mpirun")
+    mpi_compute_scene(ranks, CUBE, out, extra)
 }
 
 fn assert_ok(out: &std::process::Output, what: &str) {
@@ -53,12 +49,41 @@ fn assert_ok(out: &std::process::Output, what: &str) {
 }
 
 fn embedded_reference(dir: &Path) -> std::path::PathBuf {
-    let reference = dir.join("embedded.ffz");
+    embedded_reference_with(dir, CUBE, &[])
+}
+
+/// Occluders and unequal patch areas, so that half rows (`--symmetric on`, merged by
+/// rank 0 from pieces of every worker) differ from full rows.
+const CORNELL: &[&str] = &[
+    "builtin:cornell",
+    "--patches",
+    "300",
+    "--quiet",
+    "--threads",
+    "1",
+];
+
+fn embedded_reference_with(dir: &Path, scene: &[&str], extra: &[&str]) -> std::path::PathBuf {
+    let reference = dir.join(format!("embedded{}.ffz", extra.join("")));
     let mut args = vec!["compute"];
-    args.extend_from_slice(CUBE);
+    args.extend_from_slice(scene);
     args.extend_from_slice(&["-o", path_str(&reference)]);
+    args.extend_from_slice(extra);
     ok(&args);
     reference
+}
+
+fn mpi_compute_scene(
+    ranks: usize,
+    scene: &[&str],
+    out: &Path,
+    extra: &[&str],
+) -> std::process::Output {
+    let mut args = vec!["compute"];
+    args.extend_from_slice(scene);
+    args.extend_from_slice(&["-o", path_str(out)]);
+    args.extend_from_slice(extra);
+    mpirun(ranks, &args).output().expect("cannot start mpirun")
 }
 
 #[test]
@@ -67,17 +92,25 @@ fn rows_are_identical_for_2_3_5_ranks_and_embedded() {
         return;
     }
     let dir = tempfile::tempdir().unwrap();
-    let reference = embedded_reference(dir.path());
-    for ranks in [2, 3, 5] {
-        let f = dir.path().join(format!("n{ranks}.ffz"));
-        let out = mpi_compute(ranks, &f, &["--chunk-kib", "8"]);
-        assert_ok(&out, &format!("mpirun -n {ranks}"));
-        let stderr = String::from_utf8_lossy(&out.stderr);
-        assert!(
-            stderr.contains("worker rank"),
-            "rank 0 reports each worker: {stderr}"
-        );
-        assert_same_rows(&reference, &f);
+    for mode in ["on", "off"] {
+        let sym = ["--symmetric", mode];
+        let reference = embedded_reference_with(dir.path(), CORNELL, &sym);
+        for ranks in [2, 3, 5] {
+            let f = dir.path().join(format!("n{ranks}{mode}.ffz"));
+            let out = mpi_compute_scene(
+                ranks,
+                CORNELL,
+                &f,
+                &[&sym[..], &["--chunk-kib", "8"]].concat(),
+            );
+            assert_ok(&out, &format!("mpirun -n {ranks} --symmetric {mode}"));
+            let stderr = String::from_utf8_lossy(&out.stderr);
+            assert!(
+                stderr.contains("worker rank"),
+                "rank 0 reports each worker: {stderr}"
+            );
+            assert_same_rows(&reference, &f);
+        }
     }
 }
 
@@ -87,16 +120,21 @@ fn folded_schedule_and_gather_baseline_give_the_same_rows() {
         return;
     }
     let dir = tempfile::tempdir().unwrap();
-    let reference = embedded_reference(dir.path());
+    let reference = embedded_reference_with(dir.path(), CORNELL, &[]);
     let folded = dir.path().join("folded.ffz");
     assert_ok(
-        &mpi_compute(3, &folded, &["--schedule", "folded"]),
+        &mpi_compute_scene(3, CORNELL, &folded, &["--schedule", "folded"]),
         "folded",
     );
     assert_same_rows(&reference, &folded);
+    // The paper's design computes full rows.
+    let full = embedded_reference_with(dir.path(), CORNELL, &["--symmetric", "off"]);
     let gather = dir.path().join("gather.ffz");
-    assert_ok(&mpi_compute(3, &gather, &["--gather"]), "gather");
-    assert_same_rows(&reference, &gather);
+    assert_ok(
+        &mpi_compute_scene(3, CORNELL, &gather, &["--gather"]),
+        "gather",
+    );
+    assert_same_rows(&full, &gather);
 }
 
 #[test]

@@ -46,6 +46,9 @@ pub fn assert_same_rows(a: &Path, b: &Path) {
 }
 
 const CUBE: &[&str] = &["builtin:cube", "--max-edge", "0.25", "--quiet"];
+/// Occluders and unequal patch areas: half rows (`--symmetric on`) differ from full
+/// rows here, so a test that mixes them up fails.
+const CORNELL: &[&str] = &["builtin:cornell", "--patches", "300", "--quiet"];
 
 fn compute(scene: &[&str], out: &Path, extra: &[&str]) -> String {
     let mut args = vec!["compute"];
@@ -58,14 +61,144 @@ fn compute(scene: &[&str], out: &Path, extra: &[&str]) -> String {
 #[test]
 fn rows_are_bitwise_identical_for_one_and_two_threads_and_both_schedules() {
     let dir = tempfile::tempdir().unwrap();
-    let a = dir.path().join("t1.ffz");
-    let b = dir.path().join("t2.ffz");
-    let c = dir.path().join("folded.ffz");
-    compute(CUBE, &a, &["--threads", "1"]);
-    compute(CUBE, &b, &["--threads", "2", "--chunk-kib", "4"]);
-    compute(CUBE, &c, &["--threads", "2", "--schedule", "folded"]);
-    assert_same_rows(&a, &b);
-    assert_same_rows(&a, &c);
+    for mode in ["on", "off"] {
+        let a = dir.path().join(format!("t1_{mode}.ffz"));
+        let b = dir.path().join(format!("t2_{mode}.ffz"));
+        let c = dir.path().join(format!("folded_{mode}.ffz"));
+        let sym = ["--symmetric", mode];
+        compute(CORNELL, &a, &[&sym[..], &["--threads", "1"]].concat());
+        compute(
+            CORNELL,
+            &b,
+            &[&sym[..], &["--threads", "2", "--chunk-kib", "4"]].concat(),
+        );
+        compute(
+            CORNELL,
+            &c,
+            &[&sym[..], &["--threads", "2", "--schedule", "folded"]].concat(),
+        );
+        assert_same_rows(&a, &b);
+        assert_same_rows(&a, &c);
+    }
+}
+
+/// Largest |A_i F_ij - A_j F_ji| / max(A_i F_ij, A_j F_ji) over the pairs of a file,
+/// and the largest entry difference against another file of the same scene.
+fn reciprocity_and_difference(a: &Path, b: &Path) -> (f64, f64) {
+    let ra = FfzReader::open(a).unwrap();
+    let rb = FfzReader::open(b).unwrap();
+    let n = ra.n() as usize;
+    let dense = |r: &FfzReader, i: u32| -> Vec<f64> {
+        let mut v = vec![0.0; n];
+        r.row(i)
+            .unwrap()
+            .unwrap()
+            .for_each_nonzero(|j, f| v[j as usize] = f64::from(f));
+        v
+    };
+    let fa: Vec<Vec<f64>> = (0..n as u32).map(|i| dense(&ra, i)).collect();
+    let area: Vec<f64> = ra.meta().patches.patches.iter().map(|p| p.area).collect();
+    let (mut recip, mut diff) = (0.0f64, 0.0f64);
+    for i in 0..n {
+        let fb = dense(&rb, i as u32);
+        for j in 0..n {
+            diff = diff.max((fa[i][j] - fb[j]).abs());
+            let (x, y) = (area[i] * fa[i][j], area[j] * fa[j][i]);
+            if x.max(y) > 0.0 {
+                recip = recip.max((x - y).abs() / x.max(y));
+            }
+        }
+    }
+    (recip, diff)
+}
+
+/// `--symmetric on` computes each pair once: its rows are reciprocal to f32 rounding
+/// (A_i F_ij and A_j F_ji come from one f64 value), and where the kernel is exact
+/// (no occluders: the contour integral to 1e-8) they equal the full rows to that
+/// accuracy, even with unequal patch areas.
+#[test]
+fn symmetric_rows_are_reciprocal_and_equal_full_rows_where_the_kernel_is_exact() {
+    let dir = tempfile::tempdir().unwrap();
+    // Perpendicular 1 x 2 rectangles at max edge 0.3: patches of 0.25 x 0.25 and
+    // 0.25 x 0.2857, no occluder between them.
+    let open = ["builtin:perpendicular:2", "--max-edge", "0.3", "--quiet"];
+    let (half, full) = (dir.path().join("half.ffz"), dir.path().join("full.ffz"));
+    compute(&open, &half, &["--symmetric", "on"]);
+    compute(&open, &full, &["--symmetric", "off"]);
+    let (recip, diff) = reciprocity_and_difference(&half, &full);
+    assert!(recip <= 2.5e-7, "half rows: reciprocity error {recip}");
+    assert!(diff <= 1e-7, "half vs full rows, exact kernel: {diff}");
+    let params = FfzReader::open(&half).unwrap().meta().params.clone();
+    assert!(
+        params.contains("pairs=half"),
+        "the header says how: {params}"
+    );
+
+    // With occluders (Cornell box) the full rows carry the visibility estimate of both
+    // directions and are reciprocal only to its noise; the half rows stay exact.
+    let (half, full) = (dir.path().join("ch.ffz"), dir.path().join("cf.ffz"));
+    compute(CORNELL, &half, &["--symmetric", "on"]);
+    compute(CORNELL, &full, &["--symmetric", "off"]);
+    let (recip_half, diff) = reciprocity_and_difference(&half, &full);
+    let (recip_full, _) = reciprocity_and_difference(&full, &half);
+    assert!(
+        recip_half <= 2.5e-7,
+        "half rows: reciprocity error {recip_half}"
+    );
+    assert!(
+        recip_full > 1e-3,
+        "full rows are not exactly reciprocal: {recip_full}"
+    );
+    assert!(
+        diff > 0.0 && diff < 0.05,
+        "half vs full, visibility noise only: {diff}"
+    );
+}
+
+/// `--symmetric on --top-k K`: the master selects the K largest entries of each whole
+/// merged row, so the rows equal the top-K of the dense half-row file bitwise and the
+/// dropped mass is the rest of the row.
+#[test]
+fn symmetric_top_k_keeps_the_largest_entries_of_the_merged_rows() {
+    let dir = tempfile::tempdir().unwrap();
+    let (dense, topk) = (dir.path().join("d.ffz"), dir.path().join("k.ffz"));
+    compute(CORNELL, &dense, &["--symmetric", "on"]);
+    compute(CORNELL, &topk, &["--symmetric", "on", "--top-k", "20"]);
+    let (rd, rk) = (
+        FfzReader::open(&dense).unwrap(),
+        FfzReader::open(&topk).unwrap(),
+    );
+    for i in 0..rd.n() {
+        let d = rd.row(i).unwrap().unwrap();
+        let k = rk.row(i).unwrap().unwrap();
+        let RowValues::Sparse { cols, vals } = &k.values else {
+            panic!("row {i}: top-k rows are sparse")
+        };
+        let RowValues::Dense(all) = &d.values else {
+            panic!("row {i}: dense")
+        };
+        let positive = all.iter().filter(|&&v| v > 0.0).count();
+        assert_eq!(cols.len(), positive.min(20), "row {i}");
+        let smallest_kept = vals.iter().copied().fold(f32::INFINITY, f32::min);
+        let mut dropped = 0.0f64;
+        for (j, &v) in all.iter().enumerate() {
+            match cols.binary_search(&(j as u32)) {
+                Ok(p) => assert_eq!(vals[p], v, "row {i} column {j}"),
+                Err(_) => {
+                    assert!(
+                        v <= smallest_kept,
+                        "row {i}: dropped {v} > kept {smallest_kept}"
+                    );
+                    dropped += f64::from(v);
+                }
+            }
+        }
+        assert!(
+            (f64::from(k.dropped) - dropped).abs() <= 1e-6 * dropped.max(1e-3),
+            "row {i}: dropped {} vs {dropped}",
+            k.dropped
+        );
+    }
 }
 
 #[test]
@@ -73,8 +206,8 @@ fn gather_baseline_gives_the_streamed_rows() {
     let dir = tempfile::tempdir().unwrap();
     let a = dir.path().join("stream.ffz");
     let b = dir.path().join("gather.ffz");
-    compute(CUBE, &a, &["--threads", "2"]);
-    compute(CUBE, &b, &["--threads", "2", "--gather"]);
+    compute(CORNELL, &a, &["--threads", "2", "--symmetric", "off"]);
+    compute(CORNELL, &b, &["--threads", "2", "--gather"]);
     // The gather path converts f32 rows to f64 and back: exact, so bitwise equal.
     assert_same_rows(&a, &b);
 }
@@ -116,6 +249,10 @@ fn injected_worker_failure_names_the_row_keeps_the_file_and_resume_completes_it(
         1,
         "one-line cause expected: {stderr}"
     );
+    assert!(
+        !ffstream::service::symmetric::spill_path(&part).exists(),
+        "the spill of the failed run is removed"
+    );
     let r = FfzReader::open(&part).expect("a failed run leaves a readable file");
     assert!(
         r.row(40).unwrap().is_none(),
@@ -128,13 +265,24 @@ fn injected_worker_failure_names_the_row_keeps_the_file_and_resume_completes_it(
 
 #[test]
 fn killed_run_resumes_to_the_same_rows() {
+    killed_run_resumes_to_the_same_rows_with("off");
+}
+
+/// Half rows: the killed run keeps its merged row blocks (its spill is useless and
+/// replaced); the resumed rows are bitwise those of an uninterrupted run.
+#[test]
+fn killed_symmetric_run_resumes_to_the_same_rows() {
+    killed_run_resumes_to_the_same_rows_with("on");
+}
+
+fn killed_run_resumes_to_the_same_rows_with(symmetric: &str) {
     let dir = tempfile::tempdir().unwrap();
     let full = dir.path().join("full.ffz");
     let part = dir.path().join("part.ffz");
     // Enough work (occluded pairs cast rays) to be killed mid-way; small chunks
     // flushed often.
     let scene = ["builtin:cornell", "--patches", "800", "--quiet"];
-    let extra = ["--threads", "2", "--samples", "8"];
+    let extra = ["--threads", "2", "--samples", "8", "--symmetric", symmetric];
     compute(&scene, &full, &extra);
     let mut child = std::process::Command::new(crate::common::exe())
         .args([
@@ -170,13 +318,10 @@ fn killed_run_resumes_to_the_same_rows() {
     } else {
         assert!(missing > 0, "a killed run should have missing rows");
     }
-    let stderr = compute(
-        &scene,
-        &part,
-        &[extra[0], extra[1], extra[2], extra[3], "--resume"],
-    );
+    let stderr = compute(&scene, &part, &[&extra[..], &["--resume"]].concat());
     eprintln!("{stderr}");
     assert_same_rows(&full, &part);
+    assert!(!ffstream::service::symmetric::spill_path(&part).exists());
 }
 
 #[test]
@@ -186,14 +331,17 @@ fn rows_needed_skips_inert_patches_and_says_so_in_the_file() {
     let obj = dir.path().join("black.obj");
     std::fs::write(dir.path().join("black.mtl"), BLACK_CUBE_MTL).unwrap();
     std::fs::write(&obj, BLACK_CUBE_OBJ).unwrap();
-    let f = dir.path().join("needed.ffz");
-    let all = dir.path().join("all.ffz");
-    compute(&[path_str(&obj), "--max-edge", "0.5", "--quiet"], &all, &[]);
-    compute(
-        &[path_str(&obj), "--max-edge", "0.5", "--quiet"],
-        &f,
-        &["--rows", "needed"],
-    );
+    for mode in ["on", "off"] {
+        rows_needed_equal_those_of_a_full_run(dir.path(), &obj, mode);
+    }
+}
+
+fn rows_needed_equal_those_of_a_full_run(dir: &Path, obj: &Path, symmetric: &str) {
+    let f = dir.join(format!("needed_{symmetric}.ffz"));
+    let all = dir.join(format!("all_{symmetric}.ffz"));
+    let scene = [path_str(obj), "--max-edge", "0.5", "--quiet"];
+    compute(&scene, &all, &["--symmetric", symmetric]);
+    compute(&scene, &f, &["--rows", "needed", "--symmetric", symmetric]);
     let ra = FfzReader::open(&all).unwrap();
     let rn = FfzReader::open(&f).unwrap();
     let patches = &rn.meta().patches;
@@ -211,7 +359,7 @@ fn rows_needed_skips_inert_patches_and_says_so_in_the_file() {
             assert_eq!(
                 Some(row),
                 ra.row(i).unwrap(),
-                "needed row {i} must equal the full run's"
+                "needed row {i} must equal the full run's (--symmetric {symmetric})"
             );
         }
     }

@@ -98,7 +98,7 @@ pub fn encode_rows(rows: &[u32]) -> Vec<u8> {
 }
 
 pub fn decode_rows(v: &[u8], rank: i32) -> Result<Vec<u32>, ServiceError> {
-    if v.len() % 4 != 0 {
+    if !v.len().is_multiple_of(4) {
         return Err(malformed("HALF_DONE", rank));
     }
     Ok(v.chunks_exact(4)
