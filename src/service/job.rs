@@ -80,6 +80,9 @@ pub struct ComputeReport {
     pub master_idle_fraction: f64,
     pub bytes_on_disk: u64,
     pub raw_bytes: u64,
+    /// `--symmetric`: bytes of half rows that went through the spill file (deleted at
+    /// the end; its peak size on disk).
+    pub spill_bytes: u64,
     pub master_peak_rss: u64,
     pub workers: Vec<WorkerStats>,
 }
@@ -108,6 +111,12 @@ impl ComputeReport {
             100.0 * self.master_idle_fraction,
             self.master_peak_rss as f64 / 1e6,
         );
+        if self.spill_bytes > 0 {
+            s.push_str(&format!(
+                "\nhalf rows (--symmetric): {:.2} MB went through the spill file (now removed)",
+                self.spill_bytes as f64 / 1e6
+            ));
+        }
         for w in &self.workers {
             s.push_str(&format!(
                 "\nworker rank {}: {} rows, {} threads, busy {:.2} s ({:.0}% of wall x threads), peak RSS {:.1} MB",

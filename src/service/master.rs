@@ -46,6 +46,8 @@ pub struct MasterPlan {
 #[derive(Debug, Default)]
 pub struct MasterOutcome {
     pub writer: WriterStats,
+    /// `--symmetric`: bytes that went through the spill file.
+    pub spill_bytes: u64,
     pub rows_received: u64,
     pub idle_seconds: f64,
     pub wall_seconds: f64,
@@ -97,17 +99,18 @@ pub fn run_master(
     let writer_counters = Arc::clone(&counters);
     let writer_thread = std::thread::Builder::new()
         .name("ffz-writer".into())
-        .spawn(move || -> Result<WriterStats, FfzError> {
+        .spawn(move || -> Result<(WriterStats, u64), FfzError> {
             let mut writer = writer;
             let mut spill = spill;
             let written = write_jobs(&mut writer, spill.as_mut(), rx, &writer_counters);
             // A spill is of no use after the run, whatever happened: `--resume`
             // recomputes the blocks that were not merged.
+            let spilled = spill.as_ref().map_or(0, Spill::bytes);
             if let Some(s) = spill {
                 s.remove();
             }
             written?;
-            writer.finish()
+            Ok((writer.finish()?, spilled))
         })
         .map_err(|e| ServiceError::Transport(format!("cannot start the writer thread: {e}")))?;
 
@@ -118,7 +121,7 @@ pub fn run_master(
         .map_err(|_| ServiceError::Transport("the writer thread panicked".into()))?;
     let (mut outcome, failure) = result;
     // A file error is the root cause when both fail (the master saw a closed channel).
-    outcome.writer = written?;
+    (outcome.writer, outcome.spill_bytes) = written?;
     outcome.wall_seconds = start.elapsed().as_secs_f64();
     match failure {
         Some(e) => Err(e),
@@ -382,6 +385,7 @@ pub fn report(
         wall_seconds: outcome.wall_seconds,
         master_idle_fraction: outcome.idle_seconds / outcome.wall_seconds.max(1e-9),
         bytes_on_disk: outcome.writer.bytes_on_disk,
+        spill_bytes: outcome.spill_bytes,
         raw_bytes: outcome.writer.raw_bytes,
         master_peak_rss: crate::service::rss::peak_rss_bytes(),
         workers: outcome.workers,

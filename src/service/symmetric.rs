@@ -135,7 +135,9 @@ impl HalfRowBuffer {
                     }),
                 }
             }
-            bucket.clear();
+            // Free the bucket rather than keep its capacity: which blocks receive the
+            // most entries shifts as the run goes on, and kept capacities would add up.
+            *bucket = Vec::new();
             pieces.push(encode_chunk(&rows, layout, self.n, zstd_level)?);
         }
         self.entries = 0;
