@@ -6,7 +6,7 @@
 //!
 //! ```text
 //! cargo bench --no-default-features --bench perf_rows -- SCENE PATCHES [options]
-//!   --modes default,topk256,occluders   modes to time (default: default)
+//!   --modes symmetric,default,topk256,occluders   modes to time (default: default)
 //!   --rows R        rows timed per mode, spread evenly over the matrix (default: all)
 //!   --threads T     threads (default: 2)
 //!   --ref-rows M    random rows compared against the reference preset (default: 0)
@@ -94,7 +94,12 @@ fn cpu_seconds() -> f64 {
 
 /// Rows `which` computed on `threads` threads; returns (rows by position, counters,
 /// wall seconds).
-fn run_rows(engine: &RowEngine, which: &[u32], threads: usize) -> (Vec<Row>, Counters, f64) {
+fn run_rows(
+    engine: &RowEngine,
+    which: &[u32],
+    threads: usize,
+    row_of: RowFn,
+) -> (Vec<Row>, Counters, f64) {
     let next = AtomicUsize::new(0);
     let out: Mutex<Vec<Option<Row>>> = Mutex::new(vec![None; which.len()]);
     let total = Mutex::new(Counters::default());
@@ -109,7 +114,7 @@ fn run_rows(engine: &RowEngine, which: &[u32], threads: usize) -> (Vec<Row>, Cou
                     if k >= which.len() {
                         break;
                     }
-                    local.push((k, engine.compute_row(which[k], &mut scratch)));
+                    local.push((k, row_of(engine, which[k], &mut scratch)));
                 }
                 let mut o = out.lock().unwrap();
                 for (k, r) in local {
@@ -124,7 +129,47 @@ fn run_rows(engine: &RowEngine, which: &[u32], threads: usize) -> (Vec<Row>, Cou
     (rows, total.into_inner().unwrap(), wall)
 }
 
-/// Modes: `default` (accurate preset), `topkK` (accurate + top-k K, exact tail: what
+/// How a mode computes the row it is timed (or checked) on.
+type RowFn = fn(&RowEngine, u32, &mut Scratch) -> Row;
+
+fn full_row(e: &RowEngine, i: u32, s: &mut Scratch) -> Row {
+    e.compute_row(i, s)
+}
+
+/// `--symmetric`, timed: the half row of row i in a run of all rows (the pairs j > i:
+/// what a worker computes for row i). Its entries are returned as a sparse row (only
+/// the counters and the time matter).
+fn half_row_all(e: &RowEngine, i: u32, s: &mut Scratch) -> Row {
+    let in_run = vec![true; e.n()];
+    let (mut own, mut mirrored) = (Vec::new(), Vec::new());
+    e.half_row(i, &in_run, s, &mut own, &mut mirrored);
+    sparse(i, &own)
+}
+
+/// `--symmetric`, checked: row i exactly as a half-row run stores it. With row i alone
+/// in the run, `half_row` owns every pair of row i and evaluates each as a half-row run
+/// does (pair {a < b} from a's side, mirrored by reciprocity), so its own entries are
+/// the stored row.
+fn half_row_as_stored(e: &RowEngine, i: u32, s: &mut Scratch) -> Row {
+    let mut in_run = vec![false; e.n()];
+    in_run[i as usize] = true;
+    let (mut own, mut mirrored) = (Vec::new(), Vec::new());
+    e.half_row(i, &in_run, s, &mut own, &mut mirrored);
+    sparse(i, &own)
+}
+
+fn sparse(i: u32, entries: &[(u32, f64)]) -> Row {
+    Row {
+        index: i,
+        values: ffstream::rows::RowValues::Sparse {
+            cols: entries.iter().map(|e| e.0).collect(),
+            vals: entries.iter().map(|e| e.1 as f32).collect(),
+        },
+        dropped: 0.0,
+    }
+}
+
+/// Modes: `symmetric` (accurate preset, half rows: `--symmetric on`), `default` (accurate preset, full rows), `topkK` (accurate + top-k K, exact tail: what
 /// `--top-k K` does), `topkKs` (top-k K with the tail sampled from 32 pairs, so the
 /// bound skips rays), `fast`, `occluders` (the scene's faces as foreign occluders,
 /// i.e. `--occluders` with the scene's own OBJ), `fineocc` (occluders = the patches'
@@ -188,7 +233,7 @@ fn main() {
             Arc::clone(&fine),
             FormFactorConfig::reference(),
         );
-        let (rows, _, wall) = run_rows(&e, &ref_idx, a.threads);
+        let (rows, _, wall) = run_rows(&e, &ref_idx, a.threads, full_row);
         println!("reference: {} rows in {wall:.1} s", rows.len());
         rows.iter().map(|r| r.to_dense(n)).collect::<Vec<_>>()
     };
@@ -228,12 +273,17 @@ fn main() {
         let occ_tris = occ.len();
         let e = RowEngine::new(Arc::clone(&patches), occ, config_of(mode));
         let cpu0 = cpu_seconds();
-        let (_, c, wall) = run_rows(&e, &timed, a.threads);
+        let (timed_fn, checked_fn): (RowFn, RowFn) = if mode == "symmetric" {
+            (half_row_all, half_row_as_stored)
+        } else {
+            (full_row, full_row)
+        };
+        let (_, c, wall) = run_rows(&e, &timed, a.threads, timed_fn);
         let cpu = cpu_seconds() - cpu0;
         let scale = n as f64 / timed.len() as f64;
         let (mut max_abs, mut sum_err, mut mean_abs) = (0.0f64, 0.0f64, 0.0f64);
         if !reference.is_empty() {
-            let (rows, _, _) = run_rows(&e, &ref_idx, a.threads);
+            let (rows, _, _) = run_rows(&e, &ref_idx, a.threads, checked_fn);
             for (r, want) in rows.iter().zip(&reference) {
                 let got = r.to_dense(n);
                 let mut s = 0.0;
