@@ -84,8 +84,10 @@ pub struct ComputeOptions {
     /// F_ji = F_ij A_i / A_j. on: half the pair work; rows are merged by the I/O
     /// master through a spill file next to the output (OUT.ffz.spill, deleted at the
     /// end) in blocks, so a killed run keeps whole blocks only. off: every row on its
-    /// own. auto: on for dense files, off for --top-k (where the bound already skips
-    /// most of the work, and the spill would hold half of all entries) and --gather.
+    /// own. auto: on for dense files with --method contour; off for --top-k (where the
+    /// bound already skips most of the work, and the spill would hold half of all
+    /// entries), for --gather, and for the point and mc baselines (they clamp each
+    /// direction to 1, so a mirrored value is not the other direction; `on` refuses them).
     #[arg(long, default_value = "auto", value_name = "auto|on|off")]
     pub symmetric: String,
     /// The paper's design, as a baseline: every rank computes, rank 0 gathers the dense
@@ -211,13 +213,22 @@ pub fn build_job(
         Some(k) => Layout::TopK { k },
         None => Layout::Dense,
     };
+    // Half rows mirror F_ij into F_ji = F_ij A_i / A_j. That is the other direction
+    // only for `contour` (exact unoccluded part, symmetric visibility estimate): the
+    // `point` and `mc` baselines clamp each direction to 1 on their own, and a mirrored
+    // clamped value can exceed 1 (row sums of 4.5 seen on the Cornell box with mc).
+    let halves_ok = cfg.method == Method::Contour;
     let symmetric = match (o.symmetric.as_str(), o.gather) {
         ("on", true) => bail!(
             "--gather is the paper's full-row baseline: it cannot be combined with --symmetric on"
         ),
+        ("on", false) if !halves_ok => bail!(
+            "--symmetric on needs --method contour: the {} kernel clamps each direction to 1, so its mirror is not its other direction",
+            cfg.method
+        ),
         ("on", false) => true,
         ("off", _) | ("auto", true) => false,
-        ("auto", false) => cfg.top_k.is_none(),
+        ("auto", false) => cfg.top_k.is_none() && halves_ok,
         (other, _) => bail!("unknown --symmetric '{other}' (expected auto, on or off)"),
     };
     let meta = FileMeta {

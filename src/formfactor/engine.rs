@@ -309,6 +309,10 @@ impl RowEngine {
     /// Whatever `in_run` is, the value of a pair is the same function of (a, b), so a
     /// resumed or `--rows needed` run gives rows bitwise equal to a full one.
     ///
+    /// Meant for `contour`, whose two directions agree (exact unoccluded part, a
+    /// visibility estimate symmetric in expectation). `point` and `mc` clamp each
+    /// direction to 1, so their mirrored value can exceed 1: the CLI refuses them.
+    ///
     /// # Panics
     /// If `i` is not a patch index, `in_run.len() != n` or `in_run[i]` is false.
     pub fn half_row(

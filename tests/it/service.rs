@@ -155,6 +155,36 @@ fn symmetric_rows_are_reciprocal_and_equal_full_rows_where_the_kernel_is_exact()
     );
 }
 
+/// Half rows are for `contour` only: `point` and `mc` clamp each direction to 1, so a
+/// mirrored value can exceed 1 (row sums of 4.5 were seen). `auto` gives them full rows
+/// and `on` is refused with the reason.
+#[test]
+fn symmetric_is_refused_for_the_clamping_baselines_and_auto_gives_them_full_rows() {
+    let dir = tempfile::tempdir().unwrap();
+    for method in ["point", "mc"] {
+        let f = dir.path().join(format!("{method}.ffz"));
+        let mut args = vec!["compute"];
+        args.extend_from_slice(CORNELL);
+        args.extend_from_slice(&["-o", path_str(&f), "--method", method, "--symmetric", "on"]);
+        let out = ffstream(&args);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            !out.status.success() && stderr.contains("needs --method contour"),
+            "{method}: {stderr}"
+        );
+        compute(CORNELL, &f, &["--method", method]);
+        let r = FfzReader::open(&f).unwrap();
+        assert!(
+            !r.meta().params.contains("pairs=half"),
+            "{method}: auto gives full rows"
+        );
+        for i in 0..r.n() {
+            let row = r.row(i).unwrap().unwrap();
+            row.for_each_nonzero(|j, v| assert!(v <= 1.0, "{method}: F[{i}][{j}] = {v}"));
+        }
+    }
+}
+
 /// `--symmetric on --top-k K`: the master selects the K largest entries of each whole
 /// merged row, so the rows equal the top-K of the dense half-row file bitwise and the
 /// dropped mass is the rest of the row.
