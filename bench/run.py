@@ -443,9 +443,13 @@ def section_scaling(r: Runner, quick: bool, res: dict) -> None:
             abs(float(np.mean(diff))) <= 4 * float(np.std(diff)) / math.sqrt(len(diff)) + 2e-4,
             f"mean signed difference {np.mean(diff):.1e}, mean |difference| {np.mean(np.abs(diff)):.1e}, "
             f"max {np.max(np.abs(diff)):.1e}")
-    topk_full = [topk_full_point(rec, t_file)]
+    topk_full = [topk_full_point(rec, t_file, sizes[-1])]
     os.remove(out)
     os.remove(dense_last)
+    # The same size by sampled rows, at once (about the same load as the full run).
+    perf_rows = perf_rows_binary()
+    rows_timed = TOPK_SAMPLED_ROWS_QUICK if quick else TOPK_SAMPLED_ROWS
+    topk_sampled = [topk_sampled_point(r, perf_rows, sizes[-1], rows_timed)]
     # Top-k at the largest size run in full (also the top-k row of the I/O table).
     big = 2000 if quick else 12000
     out = os.path.join(r.work, "topk_big.ffz")
@@ -454,9 +458,10 @@ def section_scaling(r: Runner, quick: bool, res: dict) -> None:
     res["scaling_topk"] = {"n": rec["n"], "wall": rec["wall"], "disk_mb": rec["disk_mb"], "raw_mb": rec["raw_mb"],
                            "ratio": rec["ratio"], "idle": rec.get("idle"), "master_rss": rec.get("master_rss_mb"),
                            "cmd": rec["cmd"], "k": TOPK_K}
-    topk_full.append(topk_full_point(rec, ffz.read(out, verify=False)))
+    topk_full.append(topk_full_point(rec, ffz.read(out, verify=False), big))
     os.remove(out)
-    topk_series(r, quick, res, topk_full)
+    topk_sampled.append(topk_sampled_point(r, perf_rows, big, rows_timed))
+    topk_series(r, quick, res, topk_full, topk_sampled, perf_rows)
 
 
 TOPK_K = 64
@@ -465,7 +470,7 @@ TOPK_K = 64
 # sizes time an evenly spread sample of rows with bench/perf_rows.rs and extrapolate.
 TOPK_SAMPLED_SIZES = [8000, 12000, 25000, 50000, 100000]
 TOPK_SAMPLED_ROWS = 2000
-TOPK_SAMPLED_SIZES_QUICK = [600, 2000, 4000]
+TOPK_SAMPLED_SIZES_QUICK = [600, 2000, 4000]  # the first two: the quick full runs' sizes
 TOPK_SAMPLED_ROWS_QUICK = 200
 
 PERF_ROWS_RES = {
@@ -477,9 +482,10 @@ PERF_ROWS_RES = {
 }
 
 
-def topk_full_point(rec: dict, f: "ffz.FfzFile") -> dict:
-    """A top-k series point from a full `ffstream compute` run (every row computed)."""
-    return {"kind": "full", "n": rec["n"], "rows": rec["n"], "wall": rec["wall"], "cpu": rec["cpu"],
+def topk_full_point(rec: dict, f: "ffz.FfzFile", target: int) -> dict:
+    """A top-k series point from a full `ffstream compute --patches target` run (every row
+    computed)."""
+    return {"kind": "full", "n": rec["n"], "target": target, "rows": rec["n"], "wall": rec["wall"], "cpu": rec["cpu"],
             "setup": rec.get("setup"), "process_wall": rec["process_wall"], "cmd": rec["cmd"],
             "engine": f.params.split(" max_edge=")[0], "load": os.getloadavg()[0]}
 
@@ -503,32 +509,42 @@ def perf_rows_binary() -> str:
     raise RuntimeError(f"{' '.join(cmd)}: no perf_rows executable in cargo's output")
 
 
-def topk_series(r: Runner, quick: bool, res: dict, full: list[dict]) -> None:
-    """Top-k 64 (preset fast, 2 threads) time vs n: the full runs given, then sampled rows
-    extrapolated to all n rows at every size of TOPK_SAMPLED_SIZES; fitted exponents."""
-    exe = perf_rows_binary()
+def topk_sampled_point(r: Runner, exe: str, n: int, rows_timed: int) -> dict:
+    """A top-k series point from perf_rows: `rows_timed` evenly spread rows of the n-patch
+    room, timed on 2 threads, extrapolated to all rows (perf_rows scales by n / rows)."""
+    mode = f"fasttopk{TOPK_K}"
+    rec = r.run(["builtin:room", str(n), "--modes", mode, "--rows", str(rows_timed), "--threads", "2"], exe=exe,
+                shown_as="cargo bench --bench perf_rows --")
+    out = rec["stdout"]
+    setup = PERF_ROWS_RES["setup"].search(out)
+    cnt = PERF_ROWS_RES["counters"].search(out)
+    line = re.search(rf"^{mode}\s+([\d.]+)\s+([\d.]+)\s", out, re.M)
+    eng = PERF_ROWS_RES["engine"].search(out)
+    if not (setup and cnt and line and eng):
+        raise RuntimeError(f"unexpected perf_rows output of `{rec['cmd']}`:\n{out[-2000:]}")
+    timed, total = int(setup.group(2)), int(setup.group(3))
+    per_row = 1.0 / int(cnt.group(1))
+    return {"kind": "sampled", "n": total, "rows": timed, "wall": float(line.group(1)),
+            "cpu": float(line.group(2)), "setup": float(setup.group(1)),
+            "sample_wall": float(line.group(1)) * timed / total, "process_wall": rec["process_wall"],
+            "pairs_per_row": int(cnt.group(2)) * per_row,
+            "rays_pairs_per_row": (int(cnt.group(2)) - int(cnt.group(4)) - int(cnt.group(3))) * per_row,
+            "rays_per_row": int(cnt.group(5)) * per_row, "engine": eng.group(1), "cmd": rec["cmd"],
+            "load": os.getloadavg()[0]}
+
+
+def topk_series(r: Runner, quick: bool, res: dict, full: list[dict], sampled: list[dict], exe: str) -> None:
+    """Top-k 64 (preset fast, 2 threads) time vs n: the full runs and the sampled points
+    already taken (each right after the full run of its size, so that both see about the
+    same load from other jobs), then the remaining sizes of TOPK_SAMPLED_SIZES; checks,
+    extrapolation errors, fitted exponents."""
     mode = f"fasttopk{TOPK_K}"
     rows_timed = TOPK_SAMPLED_ROWS_QUICK if quick else TOPK_SAMPLED_ROWS
-    sampled = []
+    done = {f["target"] for f in full}
     for n in TOPK_SAMPLED_SIZES_QUICK if quick else TOPK_SAMPLED_SIZES:
-        rec = r.run(["builtin:room", str(n), "--modes", mode, "--rows", str(rows_timed), "--threads", "2"], exe=exe,
-                    shown_as="cargo bench --bench perf_rows --")
-        out = rec["stdout"]
-        setup = PERF_ROWS_RES["setup"].search(out)
-        cnt = PERF_ROWS_RES["counters"].search(out)
-        line = re.search(rf"^{mode}\s+([\d.]+)\s+([\d.]+)\s", out, re.M)
-        eng = PERF_ROWS_RES["engine"].search(out)
-        if not (setup and cnt and line and eng):
-            raise RuntimeError(f"unexpected perf_rows output of `{rec['cmd']}`:\n{out[-2000:]}")
-        timed, total = int(setup.group(2)), int(setup.group(3))
-        per_row = 1.0 / int(cnt.group(1))
-        sampled.append({"kind": "sampled", "n": total, "rows": timed, "wall": float(line.group(1)),
-                        "cpu": float(line.group(2)), "setup": float(setup.group(1)),
-                        "sample_wall": float(line.group(1)) * timed / total, "process_wall": rec["process_wall"],
-                        "pairs_per_row": int(cnt.group(2)) * per_row,
-                        "rays_pairs_per_row": (int(cnt.group(2)) - int(cnt.group(4)) - int(cnt.group(3))) * per_row,
-                        "rays_per_row": int(cnt.group(5)) * per_row, "engine": eng.group(1), "cmd": rec["cmd"],
-                        "load": os.getloadavg()[0]})
+        if n not in done:
+            sampled.append(topk_sampled_point(r, exe, n, rows_timed))
+    sampled.sort(key=lambda x: x["n"])
     # The sampled mode must compute exactly what `compute --preset fast --top-k 64` does.
     want = full[-1]["engine"]
     bad = [x for x in sampled if x["engine"] != want]
@@ -794,7 +810,8 @@ def topk_series_text(res: dict) -> str:
     big = sampled[-1]
     L = [f"### Time vs n up to {big['n'] // 1000}k patches: top-k {k}\n"]
     L.append(f"`builtin:room`, preset fast, `--top-k {k}`, 2 compute threads. A full `ffstream compute` at "
-             f"{big['n']} patches would take about {fmt(big['wall'])} s here (extrapolated, below) while the whole "
+             f"{big['n']} patches would take about {big['wall']:.0f} s ({big['wall'] / 60:.0f} min) here (extrapolated, "
+             "below) while the whole "
              f"benchmark must finish in 30 min, so only the smaller sizes are run in full and every size is also "
              f"**extrapolated** the same way: `bench/perf_rows.rs` (mode `{ts['mode']}`, which "
              f"builds the engine of `--preset fast --top-k {k}`: checked against the file header of the full run) "
@@ -931,7 +948,9 @@ def write_results(res: dict, path: str, plot_note: list[str], command: str) -> N
              "T(1 thread) / (p · T(p)), p = compute threads. The machine is shared (see the 1-minute load "
              "average column, taken after each run): when it exceeds 2, wall times say more about the other "
              "jobs than about ffstream. The CPU columns (user + system seconds of all processes of the run, "
-             "GNU time) measure the work done, which load barely changes: CPU / CPU(1 thread) close to 1 "
+             "GNU time) measure the work done, which load changes much less (though not nothing: other jobs "
+             "sharing the 2 virtual cores and their caches have moved it by tens of percent here): "
+             "CPU / CPU(1 thread) close to 1 "
              "means no parallel overhead (no duplicated work, no busy waiting), whatever the wall time.\n")
     rows = []
     t1 = {x["n"]: x["wall"] for x in res["scaling"] if x["config"] == "embedded --threads 1"}
