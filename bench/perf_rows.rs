@@ -7,13 +7,16 @@
 //! ```text
 //! cargo bench --no-default-features --bench perf_rows -- SCENE PATCHES [options]
 //!   --modes symmetric,default,topk256,occluders   modes to time (default: default)
+//!                   (modes: see `config_of`; `fasttopk64` is `--preset fast --top-k 64`)
 //!   --rows R        rows timed per mode, spread evenly over the matrix (default: all)
 //!   --threads T     threads (default: 2)
 //!   --ref-rows M    random rows compared against the reference preset (default: 0)
 //!   --occluders F   coarse OBJ for the `occluders` mode
 //! ```
 //!
-//! Output: one line per mode: wall and CPU seconds extrapolated to all rows, rays for
+//! Output: the set-up time (load, subdivide, Bvh, engine: what `ffstream compute` reports
+//! as set-up), the number of timed rows, then one line per mode: wall and CPU seconds
+//! extrapolated to all rows (measured × n / timed rows), rays for
 //! all rows, % of evaluated pairs on the far-field path and needing no rays, top-k
 //! tail pairs whose rays the bound skipped (timed rows), and the errors against the
 //! reference rows (largest entry, largest row sum, mean per entry).
@@ -171,12 +174,19 @@ fn sparse(i: u32, entries: &[(u32, f64)]) -> Row {
 
 /// Modes: `symmetric` (accurate preset, half rows: `--symmetric on`), `default` (accurate preset, full rows), `topkK` (accurate + top-k K, exact tail: what
 /// `--top-k K` does), `topkKs` (top-k K with the tail sampled from 32 pairs, so the
-/// bound skips rays), `fast`, `occluders` (the scene's faces as foreign occluders,
+/// bound skips rays), `fast`, `fasttopkK` (the fast preset with top-k K and the
+/// preset's own sampled tail: exactly `--preset fast --top-k K`, as bench/run.py's
+/// top-k scaling series runs it), `occluders` (the scene's faces as foreign occluders,
 /// i.e. `--occluders` with the scene's own OBJ), `fineocc` (occluders = the patches'
 /// own triangles, as if the OBJ were tessellated as finely as the patches).
 fn config_of(mode: &str) -> FormFactorConfig {
     let base = FormFactorConfig::accurate();
     match mode {
+        m if m.starts_with("fasttopk") => {
+            // The CLI applies --top-k on top of the preset and keeps its tail setting.
+            let k = m["fasttopk".len()..].parse().unwrap_or(64);
+            FormFactorConfig::fast().with_top_k(Some(k))
+        }
         m if m.starts_with("topk") => {
             let sampled = m.ends_with('s');
             let k = m[4..].trim_end_matches('s').parse().unwrap_or(256);
@@ -204,11 +214,21 @@ impl WithTail for FormFactorConfig {
 
 fn main() {
     let a = parse_args();
+    let setup_start = Instant::now();
     let scene = ffstream::scene::open_scene(&a.scene).expect("scene");
     let max_edge = default_max_edge(&scene, a.patches);
     let patches: Arc<PatchSet> = Arc::new(subdivide(&scene, max_edge));
     let n = patches.len();
     let fine = Arc::new(Occluders::new(scene.triangles().collect()));
+    // The engine of the first mode, built here so that the set-up time covers the same
+    // steps as `ffstream compute`'s "set-up (load, subdivide, Bvh, engine)" line.
+    let first_engine = RowEngine::new(
+        Arc::clone(&patches),
+        Arc::clone(&fine),
+        config_of(a.modes.first().map_or("default", String::as_str)),
+    );
+    let setup = setup_start.elapsed().as_secs_f64();
+    drop(first_engine);
     println!(
         "scene {} patches {n} occluder triangles {} threads {}",
         a.scene,
@@ -219,6 +239,10 @@ fn main() {
         Some(r) if r < n => (0..r).map(|k| (k * n / r) as u32).collect(),
         _ => (0..n as u32).collect(),
     };
+    println!(
+        "set-up (load, subdivide, Bvh, engine) {setup:.3} s; timed rows {} of {n} (evenly spread)",
+        timed.len()
+    );
     let mut rng = SplitMix64::new(12345);
     let mut ref_idx: Vec<u32> = (0..a.ref_rows)
         .map(|_| (rng.next_f64() * n as f64) as u32)
@@ -317,5 +341,8 @@ fn main() {
             c.pairs_topk_tail_skipped,
             c.pairs_evaluated - c.pairs_unoccludable
         );
+        // The engine's parameters as `ffstream compute` writes them into the file header
+        // (bench/run.py checks that a sampled mode matches the run it stands in for).
+        println!("  engine: {}", e.describe());
     }
 }
