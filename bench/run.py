@@ -16,6 +16,11 @@ Sections (DESIGN.md section 7, REFERENCES.md):
   3. I/O: master idle fraction, throughput, compression, streaming vs --gather memory,
      solver memory vs file size
   4. peers: pyviewfactor (when installable)
+  5. kernel modes (issue 6): the cluttered room at ~8.5k and ~20k patches, wall/CPU time
+     and rays of half rows (--symmetric, the default), full rows, top-k and --occluders,
+     extrapolated from sampled rows (bench/perf_rows.rs), each mode's error against the
+     reference preset on random rows; and the real `compute` at ~8.5k patches, half and
+     full rows
 
 Needs numpy, scipy, zstandard (the .ffz reader of formats/); matplotlib for the plots
 (without it the tables are still written and a message says so). Timing figures are wall
@@ -581,6 +586,61 @@ def topk_series(r: Runner, quick: bool, res: dict, full: list[dict], sampled: li
 # --------------------------------------------------------------------------- section 3
 
 
+# --------------------------------------------------------------------------- section 5
+
+# perf_rows modes of the issue-6 table and the flag each one stands for.
+MODE_FLAGS = {
+    "symmetric": "(default: half rows, `--symmetric auto`)",
+    "default": "`--symmetric off` (full rows)",
+    "topk256": "`--top-k 256`",
+    "topk256s": "top-k 256, tail sampled from 32 pairs (the bound skips rays)",
+    "occluders": "`--occluders room.obj` (the scene's faces as a foreign mesh)",
+}
+
+
+def section_modes(r: Runner, quick: bool, res: dict) -> None:
+    print("== 5. kernel modes (issue 6)", flush=True)
+    exe = perf_rows_binary()
+    if quick:
+        plan = [(1500, ["symmetric", "default", "topk256s", "occluders"], 30, 5)]
+    else:
+        plan = [(8500, ["symmetric", "default", "topk256", "topk256s", "occluders"], 150, 30),
+                (20000, ["symmetric", "default", "topk256", "occluders"], 100, 20)]
+    line_re = re.compile(r"^(\w+)\s+([\d.]+)\s+([\d.]+)\s+([\d.e+-]+)\s+([\d.]+)%\s+([\d.]+)%\s+(\d+)\s+"
+                         r"([\d.e+-]+)\s+([\d.e+-]+)\s+([\d.e+-]+)\s*$", re.M)
+    rows = []
+    for n, modes, timed, ref in plan:
+        rec = r.run(["builtin:room", str(n), "--modes", ",".join(modes), "--rows", str(timed),
+                     "--ref-rows", str(ref), "--threads", "2"], exe=exe, shown_as="cargo bench --bench perf_rows --")
+        got = {m.group(1): m for m in line_re.finditer(rec["stdout"])}
+        nn = PERF_ROWS_RES["n"].search(rec["stdout"])
+        if set(got) != set(modes) or not nn:
+            raise RuntimeError(f"unexpected perf_rows output of `{rec['cmd']}`:\n{rec['stdout'][-2000:]}")
+        for mode in modes:
+            m = got[mode]
+            rows.append({"n": int(nn.group(1)), "mode": mode, "wall": float(m.group(2)), "cpu": float(m.group(3)),
+                         "rays": float(m.group(4)), "far": float(m.group(5)), "noray": float(m.group(6)),
+                         "max_abs": float(m.group(8)), "rowsum": float(m.group(9)), "mean_abs": float(m.group(10)),
+                         "timed": timed, "ref": ref, "cmd": rec["cmd"], "load": os.getloadavg()[0]})
+        by = {x["mode"]: x for x in rows if x["n"] == int(nn.group(1))}
+        half, full = by["symmetric"], by["default"]
+        # Counts, not timings: every pair that faces the other is evaluated once instead
+        # of twice, so half rows cast half the rays (up to the sampling of rows).
+        ratio = half["rays"] / full["rays"]
+        r.check(f"n={half['n']}: half rows cast half the rays of full rows", 0.4 < ratio < 0.6, f"ratio {ratio:.3f}")
+        r.check(f"n={half['n']}: half rows are as accurate as full rows on average (mean |error| within 1.5x)",
+                half["mean_abs"] <= 1.5 * full["mean_abs"] + 1e-12,
+                f"{half['mean_abs']:.2e} vs {full['mean_abs']:.2e}")
+    # The real service at the paper's largest size: half rows (default) and full rows.
+    n_real = 1500 if quick else 8500
+    real = []
+    for flag in ([], ["--symmetric", "off"]):
+        rec = r.run(["compute", "builtin:room", "--patches", str(n_real), "-q", "-o", f"modes_{len(flag)}.ffz"] + flag)
+        real.append({"mode": "half rows (default)" if not flag else "full rows (`--symmetric off`)", "n": rec["n"],
+                     "wall": rec["wall"], "cpu": rec["cpu"], "cmd": rec["cmd"], "load": os.getloadavg()[0]})
+    res["modes"] = {"rows": rows, "real": real}
+
+
 def section_io(r: Runner, quick: bool, res: dict) -> None:
     print("== 3. I/O and memory", flush=True)
     sizes = [600, 1200] if quick else [10000, 20000]
@@ -1037,6 +1097,26 @@ def write_results(res: dict, path: str, plot_note: list[str], command: str) -> N
     L.append("OpenFOAM `viewFactorsGen` was not run (not installed; not trivial to set up here).\n")
 
     # ---- checks
+    L.append("## 5. Kernel modes at the paper's largest mesh and beyond (issue 6)\n")
+    m = res["modes"]
+    L.append("Cluttered room (`builtin:room`, 16 boxes, 188 occluder triangles), accurate preset, 2 threads. "
+             "Wall and CPU seconds and rays are extrapolated to the whole matrix from an evenly spread sample of "
+             "rows timed by `bench/perf_rows.rs` (the row engine alone: no file, no master; `symmetric` times the "
+             "half row each worker computes); errors are against the `reference` preset (contour to 1e-13, 256 "
+             "rays per pair that may be occluded) on random rows: largest entry difference, largest row-sum "
+             "difference, mean |ΔF| per entry. The machine has 2 cores and may be shared (load column): CPU "
+             "seconds are the steadier figure.\n")
+    L.append(table(["n", "mode", "what", "wall [s]", "CPU [s]", "rays", "far-field %", "no-ray %", "max abs err",
+                    "max row-sum err", "mean abs err", "rows timed / checked", "load", "command"],
+                   [[x["n"], x["mode"], MODE_FLAGS.get(x["mode"], ""), fmt(x["wall"]), fmt(x["cpu"]), fmt(x["rays"]),
+                     f"{x['far']:.1f}", f"{x['noray']:.1f}", fmt(x["max_abs"]), fmt(x["rowsum"]), fmt(x["mean_abs"]),
+                     f"{x['timed']} / {x['ref']}", f"{x['load']:.1f}", f"`{x['cmd']}`"] for x in m["rows"]]) + "\n")
+    L.append("The whole service (`ffstream compute`, embedded, 2 threads: merge of half rows at the I/O master "
+             "included), issue 6's target being 15 s wall for ~8.5k patches on 2 cores:\n")
+    L.append(table(["mode", "n", "wall [s]", "CPU [s]", "load", "command"],
+                   [[x["mode"], x["n"], fmt(x["wall"]), fmt(x["cpu"]), f"{x['load']:.1f}", f"`{x['cmd']}`"]
+                    for x in m["real"]]) + "\n")
+    L.append("Profile, gap and next steps: [PERF.md](PERF.md) sections 1, 6 and 7.\n")
     L.append("## Checks made by this run\n")
     L.append(table(["check", "result", "detail"], [[n, "ok" if ok else "FAILED", d] for n, ok, d in res["checks"]]) + "\n")
     with open(path, "w") as fh:
@@ -1098,7 +1178,7 @@ def main() -> int:
     ap.add_argument("--quick", action="store_true", help="tiny sizes, output in bench/out-quick/, non-zero exit on failure")
     ap.add_argument("--bin", default=os.path.join(ROOT, "target", "release", "ffstream"), help="ffstream binary")
     ap.add_argument("--out", help="output directory for RESULTS.md and plots (default: bench/ full, bench/out-quick/ quick)")
-    ap.add_argument("--sections", default="1,2,3,4", help="comma-separated sections to run (default all)")
+    ap.add_argument("--sections", default="1,2,3,4,5", help="comma-separated sections to run (default all)")
     args = ap.parse_args()
     if not os.path.exists(args.bin):
         print(f"run.py: {args.bin} not found: run `cargo build --release` first", file=sys.stderr)
@@ -1111,7 +1191,8 @@ def main() -> int:
     os.makedirs(work)
     r = Runner(os.path.abspath(args.bin), os.path.abspath(work))
     res: dict = {"meta": machine_info(args.bin)}
-    sections = {"1": section_time_error, "2": section_scaling, "3": section_io, "4": section_peers}
+    sections = {"1": section_time_error, "2": section_scaling, "3": section_io, "4": section_peers,
+                "5": section_modes}
     wanted = [s.strip() for s in args.sections.split(",")]
     errors = []
     for s in wanted:
@@ -1126,9 +1207,9 @@ def main() -> int:
     res["meta"]["load_end"] = os.getloadavg()
     res["meta"]["total_wall"] = time.perf_counter() - t_start
     command = "python3 bench/run.py" + (" --quick" if args.quick else "") + (
-        f" --sections {args.sections}" if args.sections != "1,2,3,4" else "")
+        f" --sections {args.sections}" if args.sections != "1,2,3,4,5" else "")
     notes = []
-    if not errors and set(wanted) == {"1", "2", "3", "4"}:  # every section ran (checks may fail)
+    if not errors and set(wanted) == {"1", "2", "3", "4", "5"}:  # every section ran (checks may fail)
         notes = make_plots(res, os.path.join(out_dir, "plots"))
         write_results(res, os.path.join(out_dir, "RESULTS.md"), notes, command)
         print(f"wrote {os.path.join(out_dir, 'RESULTS.md')}")
