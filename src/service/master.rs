@@ -264,6 +264,13 @@ fn master_loop(
             break;
         }
     }
+    if failure.is_none() && frontier.as_ref().is_some_and(|f| !f.complete()) {
+        // Every worker said done but some half rows never reported: their blocks
+        // cannot be merged. Say so rather than finish a file with rows missing.
+        failure = Some(ServiceError::Transport(
+            "the workers finished but some half rows never reported; the file lacks their blocks (rerun with --resume)".into(),
+        ));
+    }
     progress.finish();
     outcome.wall_seconds = start.elapsed().as_secs_f64();
     outcome.workers.sort_by_key(|w| w.rank);

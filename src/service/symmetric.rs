@@ -208,6 +208,13 @@ impl Frontier {
     }
 }
 
+impl Frontier {
+    /// Every block holding rows of the run has been released.
+    pub fn complete(&self) -> bool {
+        self.pos == self.todo.len()
+    }
+}
+
 /// The master's spill file of pieces, and the merge of a complete block into rows.
 pub struct Spill {
     path: PathBuf,
@@ -320,6 +327,14 @@ impl Spill {
             let chunk = decode_record(h, &rec, self.n, piece_layout).map_err(|(_, w)| bad(w))?;
             for e in chunk.entries() {
                 let row = chunk.row(e, self.n).map_err(bad)?;
+                // The message said which rows the piece holds; its checked content must
+                // agree (a piece is never trusted to index the merge buffer).
+                if !(lo..hi).contains(&row.index) || !self.in_run[row.index as usize] {
+                    return Err(bad(format!(
+                        "holds row {}, outside block {j} (rows {lo}..{hi}) or the run",
+                        row.index
+                    )));
+                }
                 let base = (row.index - lo) as usize * n;
                 let mut twice = None;
                 row.for_each_nonzero(|c, v| {
@@ -443,6 +458,22 @@ mod tests {
         let path = spill.path().to_path_buf();
         spill.remove();
         assert!(!path.exists());
+    }
+
+    #[test]
+    fn a_piece_whose_rows_disagree_with_its_message_is_refused_at_the_merge() {
+        let dir = tempfile::tempdir().unwrap();
+        let n = 40u32; // blocks of 8 rows
+        let mut buf = HalfRowBuffer::new(n);
+        buf.add(20, &[(30, 0.25)], &[]);
+        let (mut pieces, _) = buf.flush(1).unwrap();
+        // The message claims block 0; the record holds row 20 (block 2).
+        pieces[0].row_ids = vec![1];
+        let todo: Vec<u32> = (0..n).collect();
+        let mut spill = Spill::create(dir.path().join("m.spill"), n, &todo, Layout::Dense).unwrap();
+        spill.append(&pieces[0]).unwrap();
+        let e = spill.merge(0, |_| Ok(())).unwrap_err().to_string();
+        assert!(e.contains("outside block 0"), "{e}");
     }
 
     #[test]
