@@ -175,6 +175,9 @@ fn master_loop(
         .spill
         .as_ref()
         .map(|_| Frontier::new(plan.n, &plan.todo));
+    if let Some(f) = &frontier {
+        progress = progress.with_work(f.total_work());
+    }
 
     // Rows skipped on purpose are recorded by the master itself, in small chunks.
     for ids in plan.skipped.chunks(4096) {
@@ -224,13 +227,17 @@ fn master_loop(
             }
             ToMaster::HalfRowsDone { worker, rows } => {
                 let count = rows.len() as u64;
-                let ready = match frontier.as_mut() {
-                    Some(f) => f.finish(&rows),
-                    None => Err("half rows in a run without --symmetric".to_string()),
+                let (ready, work) = match frontier.as_mut() {
+                    Some(f) => {
+                        let work = rows.iter().map(|&i| f.work(i)).sum();
+                        (f.finish(&rows), work)
+                    }
+                    None => (Err("half rows in a run without --symmetric".to_string()), 0),
                 };
                 outcome.rows_received += count;
-                progress.advance(
+                progress.advance_work(
                     count,
+                    work,
                     counters.disk.load(Ordering::Relaxed),
                     counters.raw.load(Ordering::Relaxed),
                 );

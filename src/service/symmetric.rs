@@ -209,6 +209,19 @@ impl Frontier {
 }
 
 impl Frontier {
+    /// Pairs the half row of row `i` (of the run) owns: the n − 1 − i columns after it
+    /// and the columns before it whose rows are not in the run (`RowEngine::half_row`).
+    pub fn work(&self, i: u32) -> u64 {
+        let n = self.done.len() as u64;
+        let run_below = self.todo.partition_point(|&r| r < i) as u64;
+        (n - 1 - u64::from(i)) + (u64::from(i) - run_below)
+    }
+
+    /// Σ of [`Frontier::work`] over the run.
+    pub fn total_work(&self) -> u64 {
+        self.todo.iter().map(|&i| self.work(i)).sum()
+    }
+
     /// Every block holding rows of the run has been released.
     pub fn complete(&self) -> bool {
         self.pos == self.todo.len()
@@ -404,6 +417,12 @@ mod tests {
         // Block 0 holds no row of the run and is never released; block 1 is.
         assert_eq!(f.finish(&[300]).unwrap(), vec![1]);
         assert!(f.finish(&[300]).is_err(), "reported twice");
+        // Row 300 owns the 19 699 columns after it and the 300 before it (not in run);
+        // every pair touching the run is owned once.
+        assert_eq!(f.work(300), 19_699 + 300);
+        assert_eq!(f.work(n - 1), 300);
+        let pairs = u64::from(n) * u64::from(n - 1) / 2 - 300 * 299 / 2;
+        assert_eq!(f.total_work(), pairs);
         assert!(f.finish(&[5]).is_err(), "not in the run");
         let rest: Vec<u32> = (2 * b..n).rev().collect();
         let ready = f.finish(&rest).unwrap();
