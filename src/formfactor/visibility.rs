@@ -37,6 +37,33 @@ use crate::geometry::bvh::Occluders;
 const STREAM_FIRST: u64 = 0;
 const STREAM_SECOND: u64 = 1;
 
+/// What blocks the rays of a pair: the occluders, and when known the only triangles of
+/// them that can come between the two patches (`Occluders::collect_between`).
+pub(crate) struct Blockers<'a> {
+    pub occluders: &'a Occluders,
+    pub candidates: Option<&'a [u32]>,
+}
+
+impl Blockers<'_> {
+    fn is_foreign(&self) -> bool {
+        self.occluders.is_foreign()
+    }
+
+    /// Is the segment x → y blocked (not by the faces of the two patches)?
+    fn occluded(
+        &self,
+        x: glam::DVec3,
+        y: glam::DVec3,
+        faces: (u32, u32),
+        planes: Option<[(glam::DVec3, f64); 2]>,
+    ) -> bool {
+        match self.candidates {
+            Some(ids) => self.occluders.occluded_by(x, y, ids, planes),
+            None => self.occluders.occluded_between_planes(x, y, faces, planes),
+        }
+    }
+}
+
 /// Weighted sums of one batch.
 #[derive(Default)]
 struct Batch {
@@ -52,7 +79,7 @@ fn run_batch(
     j: u32,
     gi: &PatchGeom,
     gj: &PatchGeom,
-    occ: &Occluders,
+    occ: &Blockers<'_>,
     cfg: &FormFactorConfig,
     n: usize,
     stream: u64,
@@ -77,7 +104,7 @@ fn run_batch(
         let w = jx * jy * ci * cj / (r2 * r2);
         scratch.counters.rays_cast += 1;
         out.weight += w;
-        if occ.occluded_between_planes(x, y, (gi.face, gj.face), planes) {
+        if occ.occluded(x, y, (gi.face, gj.face), planes) {
             out.any_blocked = true;
         } else {
             out.any_free = true;
@@ -96,7 +123,7 @@ pub(crate) fn fraction(
     gj: &PatchGeom,
     pi: &Polygon,
     pj: &Polygon,
-    occ: &Occluders,
+    occ: &Blockers<'_>,
     cfg: &FormFactorConfig,
     scratch: &mut Scratch,
 ) -> f64 {
@@ -129,7 +156,7 @@ pub(crate) fn fraction(
         let planes = occ
             .is_foreign()
             .then_some([(gi.normal, gi.offset), (gj.normal, gj.offset)]);
-        if occ.occluded_between_planes(
+        if occ.occluded(
             pi.vertex_mean(),
             pj.vertex_mean(),
             (gi.face, gj.face),

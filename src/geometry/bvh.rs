@@ -39,6 +39,10 @@ pub const RAY_EPSILON: f64 = 1e-6;
 /// a triangle that only touches the pair's hull within it cannot block a ray.
 pub const PLANE_TOLERANCE: f64 = 1e-9;
 
+/// Most candidate triangles [`Occluders::collect_between`] hands out for one pair; with
+/// more, the pair's rays use the hierarchy.
+pub const MAX_PAIR_CANDIDATES: usize = 16;
+
 /// Work bound of [`Occluders::any_between`]: candidate triangles examined in detail
 /// before it gives up and answers "rays needed".
 pub const MAX_REJECTED_CANDIDATES: usize = 32;
@@ -111,6 +115,43 @@ impl OccluderTriangle {
         let t = (u * (ray.sz * a[kz]) + v * (ray.sz * b[kz]) + w * (ray.sz * c[kz])) / det;
         (t >= t0 && t <= t1).then_some(t)
     }
+}
+
+/// A shadow segment in the normalized frame, ready for [`OccluderTriangle::hit`].
+struct Segment {
+    f: DVec3,
+    dir: DVec3,
+    len: f64,
+    t0: f64,
+    t1: f64,
+    sheared: ShearedRay,
+}
+
+impl Segment {
+    /// Whether a hit at `t` blocks: with foreign occluders, not when the hit point lies
+    /// on the plane of one of the end patches (that is the patch itself, in the coarse
+    /// mesh).
+    #[inline]
+    fn counts(&self, t: f64, planes: &Option<[(DVec3, f64); 2]>) -> bool {
+        match planes {
+            Some(ps) => {
+                let x = self.f + self.dir * t;
+                !ps.iter().any(|(n, o)| (n.dot(x) - o).abs() <= RAY_EPSILON)
+            }
+            None => true,
+        }
+    }
+}
+
+/// How [`Occluders::scan_between`] ended.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Scan {
+    /// Every triangle was examined.
+    Done,
+    /// The callback asked to stop.
+    Stopped,
+    /// Too many candidates to examine ([`MAX_REJECTED_CANDIDATES`]).
+    GaveUp,
 }
 
 /// A ray prepared for [`OccluderTriangle::hit`]: the axis permutation that makes the
@@ -398,47 +439,58 @@ impl Occluders {
         planes: Option<[(DVec3, f64); 2]>,
     ) -> bool {
         let Some(bvh) = &self.bvh else { return false };
-        let (ignore, planes) = if self.foreign {
-            // Offsets in the normalized frame: n·x' = (n·x − n·c) / d.
-            let p =
-                planes.map(|ps| ps.map(|(n, o)| (n, (o - n.dot(self.center)) * self.inv_scale)));
-            ((u32::MAX, u32::MAX), p)
+        let ignore = if self.foreign {
+            (u32::MAX, u32::MAX)
         } else {
-            (ignore, None)
+            ignore
         };
-        let f = self.to_norm(from);
-        let t = self.to_norm(to);
-        let d = t - f;
-        let len = d.length();
-        if len.is_nan() || len <= 2.0 * RAY_EPSILON {
+        let planes = self.normalized_planes(planes);
+        let Some(seg) = self.segment(from, to) else {
             return false;
-        }
-        let dir = d / len;
-        let t0 = RAY_EPSILON;
-        let t1 = len - RAY_EPSILON;
-        let origin32 = (f - dir * RAY_BACKOFF).as_vec3a();
-        let tmax32 = ((RAY_BACKOFF + len) * (1.0 + 1e-5) + 1e-6) as f32;
-        let ray = Ray::new(origin32, dir.as_vec3a(), 0.0, tmax32);
+        };
+        let origin32 = (seg.f - seg.dir * RAY_BACKOFF).as_vec3a();
+        let tmax32 = ((RAY_BACKOFF + seg.len) * (1.0 + 1e-5) + 1e-6) as f32;
+        let ray = Ray::new(origin32, seg.dir.as_vec3a(), 0.0, tmax32);
         let tris = &self.tris;
-        let sheared = ShearedRay::new(f, dir);
         // ray_traverse_miss stops at the first primitive whose returned t < tmax.
         !bvh.ray_traverse_miss(ray, |_, id| {
             let tri = &tris[id];
             if tri.face == ignore.0 || tri.face == ignore.1 {
                 return f32::INFINITY;
             }
-            match tri.hit(&sheared, t0, t1) {
-                Some(t) => {
-                    if let Some(ps) = &planes {
-                        let x = f + dir * t;
-                        if ps.iter().any(|(n, o)| (n.dot(x) - o).abs() <= RAY_EPSILON) {
-                            return f32::INFINITY;
-                        }
-                    }
-                    0.0
-                }
-                None => f32::INFINITY,
+            match tri.hit(&seg.sheared, seg.t0, seg.t1) {
+                Some(t) if seg.counts(t, &planes) => 0.0,
+                _ => f32::INFINITY,
             }
+        })
+    }
+
+    /// For foreign occluders, the planes of the two end patches in the normalized frame
+    /// (n·x' = (n·x − n·c) / d); `None` for native occluders, which use face ids.
+    fn normalized_planes(&self, planes: Option<[(DVec3, f64); 2]>) -> Option<[(DVec3, f64); 2]> {
+        if !self.foreign {
+            return None;
+        }
+        planes.map(|ps| ps.map(|(n, o)| (n, (o - n.dot(self.center)) * self.inv_scale)))
+    }
+
+    /// The segment `from` → `to` (world units) as a ray in the normalized frame, hits
+    /// counted between [`RAY_EPSILON`] of either end; `None` when it is too short.
+    fn segment(&self, from: DVec3, to: DVec3) -> Option<Segment> {
+        let f = self.to_norm(from);
+        let d = self.to_norm(to) - f;
+        let len = d.length();
+        if len.is_nan() || len <= 2.0 * RAY_EPSILON {
+            return None;
+        }
+        let dir = d / len;
+        Some(Segment {
+            f,
+            dir,
+            len,
+            t0: RAY_EPSILON,
+            t1: len - RAY_EPSILON,
+            sheared: ShearedRay::new(f, dir),
         })
     }
 
@@ -524,8 +576,49 @@ impl Occluders {
         nb: DVec3,
         ignore: (u32, u32),
     ) -> bool {
+        self.scan_between(a, na, b, nb, ignore, |_| true) != Scan::Done
+    }
+
+    /// The triangles that may come between polygons `a` and `b` (the candidates of
+    /// [`Occluders::any_between`], all of them), into `out`. Returns `false` (and
+    /// `out` is then of no use) when there are more than [`MAX_PAIR_CANDIDATES`] or
+    /// the search gave up ([`MAX_REJECTED_CANDIDATES`]); rays must then use the
+    /// hierarchy. An empty `out` with `true` means no segment between the polygons
+    /// can be blocked. A triangle left out cannot block any segment from a point of
+    /// `a` to a point of `b`, so [`Occluders::occluded_by`] with these candidates
+    /// answers as the hierarchy would for such segments (up to rays grazing a
+    /// triangle that only touches the pair's hull, which `any_between` ignores too).
+    pub fn collect_between(
+        &self,
+        a: &[DVec3],
+        na: DVec3,
+        b: &[DVec3],
+        nb: DVec3,
+        ignore: (u32, u32),
+        out: &mut Vec<u32>,
+    ) -> bool {
+        out.clear();
+        let scan = self.scan_between(a, na, b, nb, ignore, |k| {
+            out.push(k as u32);
+            out.len() > MAX_PAIR_CANDIDATES
+        });
+        scan == Scan::Done
+    }
+
+    /// The search behind [`Occluders::any_between`] and
+    /// [`Occluders::collect_between`]: calls `found` with every triangle that may come
+    /// between the polygons, until it returns `true`.
+    fn scan_between(
+        &self,
+        a: &[DVec3],
+        na: DVec3,
+        b: &[DVec3],
+        nb: DVec3,
+        ignore: (u32, u32),
+        mut found: impl FnMut(usize) -> bool,
+    ) -> Scan {
         if self.bvh.is_none() || a.is_empty() || b.is_empty() {
-            return false;
+            return Scan::Done;
         }
         // Foreign occluders: triangles on the planes of a or b are rejected by test 3.
         let ignore = if self.foreign {
@@ -555,9 +648,10 @@ impl Occluders {
         let ob = nb.dot(self.to_norm(b[0]));
         let tris = &self.tris;
         let mut rejected = 0usize;
+        let mut gave_up = false;
         let (na_len, nb_len) = (a.len().min(CAP), b.len().min(CAP - a.len().min(CAP)));
         let hull = HullAxes::new(pts, na_len, nb_len);
-        self.for_each_in_hull(qlo, qhi, &hull, |k| {
+        let stopped = self.for_each_in_hull(qlo, qhi, &hull, |k| {
             let t = &tris[k];
             if t.face == ignore.0 || t.face == ignore.1 {
                 return false;
@@ -567,6 +661,7 @@ impl Occluders {
             }
             rejected += 1;
             if rejected > MAX_REJECTED_CANDIDATES {
+                gave_up = true;
                 return true;
             }
             let off = t.normal.dot(t.v[0]);
@@ -584,7 +679,33 @@ impl Occluders {
             if behind(na, oa) || behind(nb, ob) {
                 return false;
             }
-            !hull.separates(&verts)
+            !hull.separates(&verts) && found(k)
+        });
+        match (stopped, gave_up) {
+            (_, true) => Scan::GaveUp,
+            (true, false) => Scan::Stopped,
+            (false, false) => Scan::Done,
+        }
+    }
+
+    /// Is the segment `from` → `to` (world units) blocked by one of the triangles
+    /// `ids` (from [`Occluders::collect_between`])? The same ray set-up and exact test
+    /// as [`Occluders::occluded_between_planes`], without the hierarchy.
+    pub fn occluded_by(
+        &self,
+        from: DVec3,
+        to: DVec3,
+        ids: &[u32],
+        planes: Option<[(DVec3, f64); 2]>,
+    ) -> bool {
+        let Some(seg) = self.segment(from, to) else {
+            return false;
+        };
+        let planes = self.normalized_planes(planes);
+        ids.iter().any(|&k| {
+            self.tris[k as usize]
+                .hit(&seg.sheared, seg.t0, seg.t1)
+                .is_some_and(|t| seg.counts(t, &planes))
         })
     }
 
@@ -652,6 +773,71 @@ mod tests {
         let o = Occluders::new(t);
         o.validate();
         o
+    }
+
+    /// The candidate list of a pair gives every segment between the two polygons the
+    /// answer the hierarchy gives (random squares facing each other across the
+    /// blocker, at three scales); an empty list means nothing can block.
+    #[test]
+    fn pair_candidates_answer_like_the_hierarchy() {
+        let square = |c: DVec3, h: f64, z: f64, up: bool| -> Vec<DVec3> {
+            let mut v = vec![
+                dvec3(c.x - h, c.y - h, z),
+                dvec3(c.x + h, c.y - h, z),
+                dvec3(c.x + h, c.y + h, z),
+                dvec3(c.x - h, c.y + h, z),
+            ];
+            if !up {
+                v.reverse();
+            }
+            v
+        };
+        let point_in = |p: &[DVec3], u: f64, v: f64| {
+            p[0] * ((1.0 - u) * (1.0 - v))
+                + p[1] * (u * (1.0 - v))
+                + p[2] * (u * v)
+                + p[3] * ((1.0 - u) * v)
+        };
+        let mut rng = crate::formfactor::sampling::SplitMix64::new(5);
+        let mut ids = Vec::new();
+        let (mut listed, mut empty, mut blocked, mut free) = (0, 0, 0, 0);
+        for s in [1e-3, 1.0, 1e3] {
+            let o = blocker(s);
+            for _ in 0..300 {
+                let mut r = || rng.next_f64();
+                let ca = dvec3(0.1 + 0.8 * r(), 0.1 + 0.8 * r(), 0.0) * s;
+                let cb = dvec3(0.1 + 0.8 * r(), 0.1 + 0.8 * r(), 0.0) * s;
+                let (ha, hb) = ((0.01 + 0.1 * r()) * s, (0.01 + 0.1 * r()) * s);
+                // a below the blocker facing up, b above or below it facing down.
+                let za = (0.05 + 0.4 * r()) * s;
+                let zb = if r() < 0.7 {
+                    0.55 + 0.4 * r()
+                } else {
+                    za / s + 0.01 + 0.4 * r()
+                } * s;
+                let a = square(ca, ha, za, true);
+                let b = square(cb, hb, zb, false);
+                let (na, nb) = (DVec3::Z, -DVec3::Z);
+                if !o.collect_between(&a, na, &b, nb, (8, 9), &mut ids) {
+                    continue;
+                }
+                listed += 1;
+                empty += ids.is_empty() as usize;
+                assert_eq!(ids.is_empty(), !o.any_between(&a, na, &b, nb, (8, 9)));
+                for _ in 0..50 {
+                    let x = point_in(&a, rng.next_f64(), rng.next_f64());
+                    let y = point_in(&b, rng.next_f64(), rng.next_f64());
+                    let by_list = o.occluded_by(x, y, &ids, None);
+                    assert_eq!(by_list, o.occluded(x, y, (8, 9)), "scale {s}: {x} -> {y}");
+                    blocked += by_list as usize;
+                    free += !by_list as usize;
+                }
+            }
+        }
+        assert!(
+            listed > 500 && empty > 50 && blocked > 1000 && free > 1000,
+            "cases: {listed} listed, {empty} empty, {blocked} blocked, {free} free"
+        );
     }
 
     #[test]
