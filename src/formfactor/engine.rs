@@ -694,6 +694,7 @@ impl RowEngine {
         let occ = visibility::Blockers {
             occluders: &self.occluders,
             candidates,
+            last: std::cell::Cell::new(0),
         };
         visibility::fraction(i, j, gi, gj, &pi, &pj, &occ, &self.cfg, scratch)
     }

@@ -42,6 +42,8 @@ const STREAM_SECOND: u64 = 1;
 pub(crate) struct Blockers<'a> {
     pub occluders: &'a Occluders,
     pub candidates: Option<&'a [u32]>,
+    /// The candidate that blocked the pair's last blocked ray (tested first).
+    pub last: std::cell::Cell<usize>,
 }
 
 impl Blockers<'_> {
@@ -58,7 +60,12 @@ impl Blockers<'_> {
         planes: Option<[(glam::DVec3, f64); 2]>,
     ) -> bool {
         match self.candidates {
-            Some(ids) => self.occluders.occluded_by(x, y, ids, planes),
+            Some(ids) => {
+                let mut first = self.last.get();
+                let blocked = self.occluders.occluded_by(x, y, ids, planes, &mut first);
+                self.last.set(first);
+                blocked
+            }
             None => self.occluders.occluded_between_planes(x, y, faces, planes),
         }
     }

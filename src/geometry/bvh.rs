@@ -691,22 +691,37 @@ impl Occluders {
     /// Is the segment `from` → `to` (world units) blocked by one of the triangles
     /// `ids` (from [`Occluders::collect_between`])? The same ray set-up and exact test
     /// as [`Occluders::occluded_between_planes`], without the hierarchy.
+    ///
+    /// `first` is tested first (the pair's last blocker: its rays are coherent, so it
+    /// likely blocks the next one too) and is set to the blocker found. The answer does
+    /// not depend on it.
     pub fn occluded_by(
         &self,
         from: DVec3,
         to: DVec3,
         ids: &[u32],
         planes: Option<[(DVec3, f64); 2]>,
+        first: &mut usize,
     ) -> bool {
         let Some(seg) = self.segment(from, to) else {
             return false;
         };
         let planes = self.normalized_planes(planes);
-        ids.iter().any(|&k| {
-            self.tris[k as usize]
+        let blocks = |k: usize| {
+            self.tris[ids[k] as usize]
                 .hit(&seg.sheared, seg.t0, seg.t1)
                 .is_some_and(|t| seg.counts(t, &planes))
-        })
+        };
+        if *first < ids.len() && blocks(*first) {
+            return true;
+        }
+        match (0..ids.len()).find(|&k| k != *first && blocks(k)) {
+            Some(k) => {
+                *first = k;
+                true
+            }
+            None => false,
+        }
     }
 
     /// Checks internal invariants (for tests): every triangle is finite with a unit
@@ -823,11 +838,12 @@ mod tests {
                 }
                 listed += 1;
                 empty += ids.is_empty() as usize;
+                let mut first = 0;
                 assert_eq!(ids.is_empty(), !o.any_between(&a, na, &b, nb, (8, 9)));
                 for _ in 0..50 {
                     let x = point_in(&a, rng.next_f64(), rng.next_f64());
                     let y = point_in(&b, rng.next_f64(), rng.next_f64());
-                    let by_list = o.occluded_by(x, y, &ids, None);
+                    let by_list = o.occluded_by(x, y, &ids, None, &mut first);
                     assert_eq!(by_list, o.occluded(x, y, (8, 9)), "scale {s}: {x} -> {y}");
                     blocked += by_list as usize;
                     free += !by_list as usize;
