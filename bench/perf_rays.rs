@@ -62,85 +62,179 @@ fn main() {
                 )
             })
             .collect();
-        let mut best = f64::INFINITY;
-        let mut blocked = 0usize;
-        for _ in 0..3 {
-            let t0 = Instant::now();
-            blocked = segs
-                .iter()
+        let time_it = |f: &dyn Fn() -> usize| {
+            let mut best = f64::INFINITY;
+            let mut blocked = 0usize;
+            for _ in 0..3 {
+                let t0 = Instant::now();
+                blocked = f();
+                best = best.min(t0.elapsed().as_secs_f64());
+            }
+            (best, blocked)
+        };
+        let (best, blocked) = time_it(&|| {
+            segs.iter()
                 .filter(|(a, b)| occ.occluded(*a, *b, (u32::MAX, u32::MAX)))
-                .count();
-            best = best.min(t0.elapsed().as_secs_f64());
-        }
+                .count()
+        });
         let ours = rays as f64 / best;
         println!(
-            "room:{b} triangles {} build {build:.3} s | ffstream rays {rays} occluded {blocked} seconds {best:.4} rays_per_s {ours:.4e}",
+            "room:{b} triangles {} build {build:.3} s | incoherent | ffstream rays {rays} occluded {blocked} seconds {best:.4} rays_per_s {ours:.4e}",
             occ.len()
         );
-        if !embree.exists() {
-            println!("  (target/embree-shadow missing: run bench/embree/build.sh)");
-            continue;
-        }
-        // The normalized frame of the Occluders: centre of the box, unit diagonal.
-        let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
-        for (_, t) in &tris {
-            for p in t {
-                lo = lo.min(*p);
-                hi = hi.max(*p);
+        report_embree(embree, &tris, &segs, b, "incoherent", ours);
+
+        // The rays of the form-factor workload: 16 per pair of triangles that face
+        // each other, from random points of one to random points of the other. ffstream
+        // collects the pair's candidate occluders once (`collect_between`, as the
+        // `contour` kernel does) and tests its rays against them; Embree casts the same
+        // segments one by one.
+        let mut pairs: Vec<(usize, usize, DVec3, DVec3)> = Vec::new();
+        while pairs.len() * PAIR_RAYS < rays {
+            let i = (rng.next_f64() * tris.len() as f64) as usize % tris.len();
+            let j = (rng.next_f64() * tris.len() as f64) as usize % tris.len();
+            let (ti, tj) = (&tris[i].1, &tris[j].1);
+            let (ci, cj) = ((ti[0] + ti[1] + ti[2]) / 3.0, (tj[0] + tj[1] + tj[2]) / 3.0);
+            let normal = |t: &[DVec3; 3], toward: DVec3, c: DVec3| {
+                let n = (t[1] - t[0]).cross(t[2] - t[0]).normalize();
+                if n.dot(toward - c) >= 0.0 {
+                    n
+                } else {
+                    -n
+                }
+            };
+            let (ni, nj) = (normal(ti, cj, ci), normal(tj, ci, cj));
+            let front = |t: &[DVec3; 3], n: DVec3, o: DVec3| t.iter().all(|p| n.dot(*p - o) > 1e-9);
+            if i != j && tris[i].0 != tris[j].0 && front(tj, ni, ti[0]) && front(ti, nj, tj[0]) {
+                pairs.push((i, j, ni, nj));
             }
         }
-        let c = 0.5 * (lo + hi);
-        let inv = 1.0 / (hi - lo).length();
-        let path = std::env::temp_dir().join(format!("ffstream-rays-{b}.bin"));
-        let mut buf: Vec<u8> = Vec::new();
-        buf.extend((tris.len() as u64).to_le_bytes());
-        for (_, t) in &tris {
-            for p in t {
-                for x in ((*p - c) * inv).to_array() {
-                    buf.extend((x as f32).to_le_bytes());
+        let pair_segs: Vec<(DVec3, DVec3)> = pairs
+            .iter()
+            .flat_map(|&(i, j, _, _)| {
+                (0..PAIR_RAYS)
+                    .map(|_| {
+                        (
+                            point_on(&tris[i].1, &mut rng),
+                            point_on(&tris[j].1, &mut rng),
+                        )
+                    })
+                    .collect::<Vec<_>>()
+            })
+            .collect();
+        let n_pair_rays = pair_segs.len();
+        let (best_bvh, blocked_bvh) = time_it(&|| {
+            pair_segs
+                .iter()
+                .enumerate()
+                .filter(|(k, (a, b))| {
+                    let (i, j, _, _) = pairs[k / PAIR_RAYS];
+                    occ.occluded(*a, *b, (tris[i].0, tris[j].0))
+                })
+                .count()
+        });
+        let (best_pairs, blocked_pairs) = time_it(&|| {
+            let mut ids = Vec::new();
+            let mut blocked = 0;
+            for (p, &(i, j, ni, nj)) in pairs.iter().enumerate() {
+                let faces = (tris[i].0, tris[j].0);
+                let listed = occ.collect_between(&tris[i].1, ni, &tris[j].1, nj, faces, &mut ids);
+                let mut first = 0;
+                for (a, b) in &pair_segs[p * PAIR_RAYS..(p + 1) * PAIR_RAYS] {
+                    let hit = if listed {
+                        occ.occluded_by(*a, *b, &ids, None, &mut first)
+                    } else {
+                        occ.occluded(*a, *b, faces)
+                    };
+                    blocked += hit as usize;
                 }
             }
+            blocked
+        });
+        let rate_bvh = n_pair_rays as f64 / best_bvh;
+        let rate_pairs = n_pair_rays as f64 / best_pairs;
+        println!(
+            "room:{b} | pairs of {PAIR_RAYS} | ffstream per ray through the Bvh: occluded {blocked_bvh} rays_per_s {rate_bvh:.4e} | per pair (candidate list): occluded {blocked_pairs} rays_per_s {rate_pairs:.4e}"
+        );
+        report_embree(embree, &tris, &pair_segs, b, "pairs", rate_pairs);
+    }
+}
+
+/// Rays per pair in the pair workload (the `accurate` preset's 16).
+const PAIR_RAYS: usize = 16;
+
+/// Run the Embree yardstick on `segs` (if built) and print its rate and the ratio.
+fn report_embree(
+    embree: &std::path::Path,
+    tris: &[(u32, [DVec3; 3])],
+    segs: &[(DVec3, DVec3)],
+    b: usize,
+    what: &str,
+    ours: f64,
+) {
+    if !embree.exists() {
+        println!("  (target/embree-shadow missing: run bench/embree/build.sh)");
+        return;
+    }
+    // The normalized frame of the Occluders: centre of the box, unit diagonal.
+    let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
+    for (_, t) in tris {
+        for p in t {
+            lo = lo.min(*p);
+            hi = hi.max(*p);
         }
-        buf.extend((segs.len() as u64).to_le_bytes());
-        for (a, b2) in &segs {
-            let (a, b2) = ((*a - c) * inv, (*b2 - c) * inv);
-            let d = b2 - a;
-            let len = d.length();
-            let dir = d / len;
-            let rec = [
-                a.x,
-                a.y,
-                a.z,
-                dir.x,
-                dir.y,
-                dir.z,
-                RAY_EPSILON,
-                (len - RAY_EPSILON).max(0.0),
-            ];
-            for x in rec {
+    }
+    let c = 0.5 * (lo + hi);
+    let inv = 1.0 / (hi - lo).length();
+    let path = std::env::temp_dir().join(format!("ffstream-rays-{b}-{what}.bin"));
+    let mut buf: Vec<u8> = Vec::new();
+    buf.extend((tris.len() as u64).to_le_bytes());
+    for (_, t) in tris {
+        for p in t {
+            for x in ((*p - c) * inv).to_array() {
                 buf.extend((x as f32).to_le_bytes());
             }
         }
-        std::fs::File::create(&path)
-            .and_then(|mut f| f.write_all(&buf))
-            .expect("ray file");
-        let out = Command::new(embree)
-            .arg(&path)
-            .arg("3")
-            .output()
-            .expect("embree-shadow");
-        let text = String::from_utf8_lossy(&out.stdout);
-        let theirs: f64 = text
-            .split_whitespace()
-            .skip_while(|w| *w != "rays_per_s")
-            .nth(1)
-            .and_then(|v| v.parse().ok())
-            .unwrap_or(f64::NAN);
-        println!(
-            "room:{b} | {} | ratio ffstream/embree {:.3}",
-            text.trim(),
-            ours / theirs
-        );
-        let _ = std::fs::remove_file(&path);
     }
+    buf.extend((segs.len() as u64).to_le_bytes());
+    for (a, b2) in segs {
+        let (a, b2) = ((*a - c) * inv, (*b2 - c) * inv);
+        let d = b2 - a;
+        let len = d.length();
+        let dir = d / len;
+        let rec = [
+            a.x,
+            a.y,
+            a.z,
+            dir.x,
+            dir.y,
+            dir.z,
+            RAY_EPSILON,
+            (len - RAY_EPSILON).max(0.0),
+        ];
+        for x in rec {
+            buf.extend((x as f32).to_le_bytes());
+        }
+    }
+    std::fs::File::create(&path)
+        .and_then(|mut f| f.write_all(&buf))
+        .expect("ray file");
+    let out = Command::new(embree)
+        .arg(&path)
+        .arg("3")
+        .output()
+        .expect("embree-shadow");
+    let text = String::from_utf8_lossy(&out.stdout);
+    let theirs: f64 = text
+        .split_whitespace()
+        .skip_while(|w| *w != "rays_per_s")
+        .nth(1)
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(f64::NAN);
+    println!(
+        "room:{b} | {what} | {} | ratio ffstream/embree {:.3}",
+        text.trim(),
+        ours / theirs
+    );
+    let _ = std::fs::remove_file(&path);
 }

@@ -209,7 +209,17 @@ pub struct RowEngine {
     gauss: &'static GaussTable,
     params: ContourParams,
     tol: f64,
+    /// Rays of a pair test the pair's candidate list instead of the Bvh (see
+    /// [`PAIR_LISTS_MAX_OCCLUDERS`]).
+    pair_lists: bool,
 }
+
+/// Pair candidate lists (`Occluders::collect_between`) pay off only with few occluder
+/// triangles: measured (bench/PERF.md §7, 2-core machine, x86-64-v3), the 16-box room
+/// (188 triangles) at 8.5k patches 45.1 → 39.8 CPU-s, but rooms of 64, 200 and 900 boxes
+/// (780, 2120, 9470 triangles) 9-21 % slower, because finding every candidate of a
+/// cluttered pair costs more than the rays save. Both ways give the same answers.
+pub const PAIR_LISTS_MAX_OCCLUDERS: usize = 256;
 
 impl RowEngine {
     /// Precomputes per-patch data. Patches with zero area (or no proper normal) get
@@ -231,6 +241,7 @@ impl RowEngine {
             (hi - lo).length()
         };
         let params = cfg.contour_params();
+        let occluders_len = occluders.len();
         static NEXT_ID: AtomicU64 = AtomicU64::new(0);
         RowEngine {
             id: NEXT_ID.fetch_add(1, Ordering::Relaxed),
@@ -242,6 +253,7 @@ impl RowEngine {
             gauss: gauss_table(),
             params,
             tol: PLANE_RELATIVE_TOLERANCE * diag,
+            pair_lists: occluders_len <= PAIR_LISTS_MAX_OCCLUDERS,
         }
     }
 
@@ -500,15 +512,26 @@ impl RowEngine {
         }
         // The triangles that may block this pair, once: its rays then test only those
         // instead of walking the hierarchy each (16 rays per pair in `accurate`).
-        let listed = self.occluders.collect_between(
-            pi.verts(),
-            gi.normal,
-            pj.verts(),
-            gj.normal,
-            (gi.face, gj.face),
-            &mut scratch.candidates,
-        );
-        let needs_rays = !listed || !scratch.candidates.is_empty();
+        let (listed, needs_rays) = if self.pair_lists {
+            let listed = self.occluders.collect_between(
+                pi.verts(),
+                gi.normal,
+                pj.verts(),
+                gj.normal,
+                (gi.face, gj.face),
+                &mut scratch.candidates,
+            );
+            (listed, !listed || !scratch.candidates.is_empty())
+        } else {
+            let needs = self.occluders.any_between(
+                pi.verts(),
+                gi.normal,
+                pj.verts(),
+                gj.normal,
+                (gi.face, gj.face),
+            );
+            (false, needs)
+        };
         Some(Unoccluded {
             f,
             needs_rays,
