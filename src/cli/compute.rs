@@ -46,8 +46,8 @@ pub struct ComputeOptions {
     /// integral times a ray-estimated visibility).
     #[arg(long, value_name = "METHOD")]
     pub method: Option<String>,
-    /// Visibility samples per pair (mc: point pairs; contour: up to this many rays, fewer
-    /// when the first rays agree).
+    /// Visibility samples per pair (mc: point pairs; contour: rays per pair that may be
+    /// occluded, fewer only when --first-batch is below it and the first rays agree).
     #[arg(long, value_name = "S")]
     pub samples: Option<u32>,
     /// Rays cast for a pair before the adaptive early stop (when they all agree the
