@@ -2,7 +2,6 @@
 //! master, one thread runs the worker driver with its compute threads, and they talk
 //! over bounded crossbeam channels (the same master and worker code as under MPI).
 
-use std::sync::Arc;
 use std::time::Duration;
 
 use crossbeam::channel::{bounded, Receiver, RecvTimeoutError, Sender, TryRecvError};
@@ -11,7 +10,6 @@ use crate::ffz::EncodedChunk;
 use crate::service::link::{MasterLink, ToMaster, WorkerLink};
 use crate::service::master::{prepare, report, run_master};
 use crate::service::schedule::{folded_share, Schedule};
-use crate::service::symmetric::in_run;
 use crate::service::worker::{run_worker, WorkerConfig};
 use crate::service::{ComputeJob, ComputeReport, ServiceError, WorkerStats};
 
@@ -108,20 +106,7 @@ pub fn run_embedded(job: &ComputeJob) -> Result<ComputeReport, ServiceError> {
     let (writer, plan, present) = prepare(job, threads)?;
     let (tx, rx) = bounded(2 * threads + 2);
     let (assign_tx, assign_rx) = bounded(1);
-    let n = job.patches.len() as u32;
-    let cfg = WorkerConfig {
-        rank: 0,
-        threads,
-        layout: job.meta.layout,
-        n,
-        zstd_level: job.writer.zstd_level,
-        chunk_bytes: job.writer.chunk_bytes,
-        flush_seconds: job.flush_seconds,
-        symmetric: plan
-            .spill
-            .is_some()
-            .then(|| Arc::new(in_run(&plan.todo, n))),
-    };
+    let cfg = WorkerConfig::for_job(job, 0, &plan.todo);
     let static_rows = (plan.schedule == Schedule::Folded).then(|| folded_share(&plan.todo, 1, 0));
     let engine = job.engine.clone();
     let pool = std::thread::Builder::new()

@@ -16,13 +16,13 @@ use std::time::{Duration, Instant};
 
 use crossbeam::channel::{bounded, unbounded, Receiver, RecvTimeoutError, Sender};
 
-use crate::ffz::{encode_chunk, EncodedChunk, Layout};
+use crate::ffz::{encode_chunk, raw_row_len, EncodedChunk, Layout};
 use crate::formfactor::{RowEngine, Scratch};
-use crate::rows::{Row, RowValues};
+use crate::rows::Row;
 use crate::service::link::WorkerLink;
 use crate::service::rss::peak_rss_bytes;
-use crate::service::symmetric::HalfRowBuffer;
-use crate::service::{ServiceError, WorkerStats};
+use crate::service::symmetric::{in_run, HalfRowBuffer};
+use crate::service::{ComputeJob, ServiceError, WorkerStats};
 
 /// Environment variable that makes a worker fail on purpose when it reaches this row
 /// (fault-injection for tests of the failure path). Documented in the README.
@@ -42,6 +42,24 @@ pub struct WorkerConfig {
     /// `--symmetric`: compute half rows; `in_run[i]` says whether row i is computed in
     /// this run (see [`RowEngine::half_row`]).
     pub symmetric: Option<Arc<Vec<bool>>>,
+}
+
+impl WorkerConfig {
+    /// The configuration of worker `rank` for `job`, whose run computes the rows `todo`
+    /// (needed with `--symmetric`, where a half row depends on which rows are in the run).
+    pub fn for_job(job: &ComputeJob, rank: i32, todo: &[u32]) -> Self {
+        let n = job.patches.len() as u32;
+        WorkerConfig {
+            rank,
+            threads: job.threads.max(1),
+            layout: job.meta.layout,
+            n,
+            zstd_level: job.writer.zstd_level,
+            chunk_bytes: job.writer.chunk_bytes,
+            flush_seconds: job.flush_seconds,
+            symmetric: job.symmetric.then(|| Arc::new(in_run(todo, n))),
+        }
+    }
 }
 
 /// What a compute thread hands back to the driver.
@@ -225,7 +243,7 @@ impl Pending {
         match self {
             Pending::Rows { rows, bytes } => {
                 let row = engine.compute_row(i, scratch);
-                *bytes += raw_row_bytes(&row);
+                *bytes += raw_row_len(&row);
                 rows.push(row);
             }
             Pending::Half {
@@ -342,15 +360,6 @@ fn compute_thread(
         if finished {
             return;
         }
-    }
-}
-
-/// Uncompressed size of a row, for chunk sizing.
-fn raw_row_bytes(row: &Row) -> usize {
-    16 + match &row.values {
-        RowValues::Dense(v) => 4 * v.len(),
-        RowValues::Sparse { cols, .. } => 8 * cols.len(),
-        RowValues::Skipped => 0,
     }
 }
 

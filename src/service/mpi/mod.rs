@@ -31,7 +31,6 @@ use links::{MpiMasterLink, MpiWorkerLink};
 
 use crate::service::master::{prepare, report, run_master};
 use crate::service::schedule::{folded_share, Schedule};
-use crate::service::symmetric::in_run;
 use crate::service::worker::{run_worker, WorkerConfig};
 use crate::service::{ComputeJob, ComputeReport, ServiceError};
 
@@ -219,18 +218,7 @@ pub fn run(ctx: &MpiContext, job: &ComputeJob) -> Result<Option<ComputeReport>, 
         }
         let static_rows = (job.schedule == Schedule::Folded)
             .then(|| folded_share(&todo, workers, (ctx.rank() - 1) as usize));
-        let n = job.patches.len() as u32;
-        let symmetric = job.symmetric.then(|| std::sync::Arc::new(in_run(&todo, n)));
-        let cfg = WorkerConfig {
-            rank: ctx.rank(),
-            threads: job.threads.max(1),
-            layout: job.meta.layout,
-            n,
-            zstd_level: job.writer.zstd_level,
-            chunk_bytes: job.writer.chunk_bytes,
-            flush_seconds: job.flush_seconds,
-            symmetric,
-        };
+        let cfg = WorkerConfig::for_job(job, ctx.rank(), &todo);
         let mut link = MpiWorkerLink { world };
         run_worker(&job.engine, &cfg, &mut link, static_rows)?;
         Ok(None)
