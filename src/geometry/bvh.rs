@@ -754,11 +754,12 @@ mod tests {
         vec![(face, [p[0], p[1], p[2]]), (face, [p[0], p[2], p[3]])]
     }
 
-    /// A unit square blocker in the plane z = 0.5 over [0.25, 0.75]².
-    fn blocker(scale: f64) -> Occluders {
-        let s = scale;
+    /// Floor (face `ids.0`, at height `floor_z`) and ceiling (`ids.1`, z = 1) over the
+    /// unit square, and a blocker (`ids.2`) over [0.25, 0.75]² at z = 0.5, split along
+    /// its diagonal (0.25, 0.25)–(0.75, 0.75); everything scaled by `s`.
+    fn blocker_scene(ids: (u32, u32, u32), floor_z: f64, s: f64) -> Vec<(u32, [DVec3; 3])> {
         let mut t = quad(
-            7,
+            ids.2,
             [
                 dvec3(0.25, 0.25, 0.5) * s,
                 dvec3(0.75, 0.25, 0.5) * s,
@@ -766,18 +767,17 @@ mod tests {
                 dvec3(0.25, 0.75, 0.5) * s,
             ],
         );
-        // Two faces far away so that the scene box is larger than the blocker.
         t.extend(quad(
-            8,
+            ids.0,
             [
-                dvec3(0.0, 0.0, 0.0) * s,
-                dvec3(1.0, 0.0, 0.0) * s,
-                dvec3(1.0, 1.0, 0.0) * s,
-                dvec3(0.0, 1.0, 0.0) * s,
+                dvec3(0.0, 0.0, floor_z) * s,
+                dvec3(1.0, 0.0, floor_z) * s,
+                dvec3(1.0, 1.0, floor_z) * s,
+                dvec3(0.0, 1.0, floor_z) * s,
             ],
         ));
         t.extend(quad(
-            9,
+            ids.1,
             [
                 dvec3(0.0, 0.0, 1.0) * s,
                 dvec3(0.0, 1.0, 1.0) * s,
@@ -785,7 +785,13 @@ mod tests {
                 dvec3(1.0, 0.0, 1.0) * s,
             ],
         ));
-        let o = Occluders::new(t);
+        t
+    }
+
+    /// A unit square blocker (face 7) in the plane z = 0.5 over [0.25, 0.75]², between
+    /// a floor (8) and a ceiling (9) that make the scene box larger than the blocker.
+    fn blocker(scale: f64) -> Occluders {
+        let o = Occluders::new(blocker_scene((8, 9, 7), 0.0, scale));
         o.validate();
         o
     }
@@ -904,32 +910,7 @@ mod tests {
         // A quad face as two triangles sharing the diagonal (0.25,0.25)–(0.75,0.75) at
         // z = 0.5; rays crossing the plane exactly on the diagonal, in many directions,
         // must all be blocked (a non-watertight test lets some through).
-        let q = [
-            dvec3(0.25, 0.25, 0.5),
-            dvec3(0.75, 0.25, 0.5),
-            dvec3(0.75, 0.75, 0.5),
-            dvec3(0.25, 0.75, 0.5),
-        ];
-        let mut t = quad(1, q);
-        t.extend(quad(
-            2,
-            [
-                dvec3(0.0, 0.0, 0.0),
-                dvec3(1.0, 0.0, 0.0),
-                dvec3(1.0, 1.0, 0.0),
-                dvec3(0.0, 1.0, 0.0),
-            ],
-        ));
-        t.extend(quad(
-            3,
-            [
-                dvec3(0.0, 0.0, 1.0),
-                dvec3(0.0, 1.0, 1.0),
-                dvec3(1.0, 1.0, 1.0),
-                dvec3(1.0, 0.0, 1.0),
-            ],
-        ));
-        let o = Occluders::new(t);
+        let o = Occluders::new(blocker_scene((2, 3, 1), 0.0, 1.0));
         let mut missed = 0;
         for a in 0..=16 {
             for b in 0..=16 {
@@ -1026,33 +1007,7 @@ mod tests {
     fn foreign_occluders_ignore_the_endpoint_planes_not_blockers() {
         // A coarse mesh whose floor lies 5e-7 above the fine floor z = 0 (within the
         // plane skin), a ceiling at z = 1 and a blocker at z = 0.5 over [0.25, 0.75]².
-        let mut t = quad(
-            1,
-            [
-                dvec3(0.0, 0.0, 5e-7),
-                dvec3(1.0, 0.0, 5e-7),
-                dvec3(1.0, 1.0, 5e-7),
-                dvec3(0.0, 1.0, 5e-7),
-            ],
-        );
-        t.extend(quad(
-            2,
-            [
-                dvec3(0.0, 0.0, 1.0),
-                dvec3(0.0, 1.0, 1.0),
-                dvec3(1.0, 1.0, 1.0),
-                dvec3(1.0, 0.0, 1.0),
-            ],
-        ));
-        t.extend(quad(
-            3,
-            [
-                dvec3(0.25, 0.25, 0.5),
-                dvec3(0.75, 0.25, 0.5),
-                dvec3(0.75, 0.75, 0.5),
-                dvec3(0.25, 0.75, 0.5),
-            ],
-        ));
+        let t = blocker_scene((1, 2, 3), 5e-7, 1.0);
         let occ = Occluders::new_foreign(t.clone());
         assert!(occ.is_foreign());
         let up = dvec3(0.0, 0.0, 1.0);
