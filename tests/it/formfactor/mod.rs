@@ -556,18 +556,7 @@ fn top_k_keeps_largest_and_preserves_row_sum() {
 fn top_k_sampled_tail_keeps_the_same_entries_and_estimates_dropped_mass() {
     // Closed cube with a box in the middle: many pairs are partly hidden.
     let mut b = cube(6, false);
-    let (lo, s) = (dvec3(0.35, 0.35, 0.35), 0.3);
-    let (x, y, z) = (dvec3(s, 0.0, 0.0), dvec3(0.0, s, 0.0), dvec3(0.0, 0.0, s));
-    for (o, u, v) in [
-        (lo, y, x),
-        (lo + z, x, y),
-        (lo, z, y),
-        (lo + x, y, z),
-        (lo, x, z),
-        (lo + y, z, x),
-    ] {
-        b.blocker(o, u, v);
-    }
+    b.blocker_box(dvec3(0.35, 0.35, 0.35), 0.3);
     let k = 20;
     let base = FormFactorConfig::accurate().with_top_k(Some(k));
     let exact_cfg = FormFactorConfig {
@@ -716,18 +705,7 @@ fn counters_and_describe() {
 #[test]
 fn top_k_with_occluders_equals_k_largest_of_dense_row() {
     let mut b = cube(6, false);
-    let (lo, s) = (dvec3(0.3, 0.3, 0.3), 0.4);
-    let (x, y, z) = (dvec3(s, 0.0, 0.0), dvec3(0.0, s, 0.0), dvec3(0.0, 0.0, s));
-    for (o, u, v) in [
-        (lo, y, x),
-        (lo + z, x, y),
-        (lo, z, y),
-        (lo + x, y, z),
-        (lo, x, z),
-        (lo + y, z, x),
-    ] {
-        b.blocker(o, u, v);
-    }
+    b.blocker_box(dvec3(0.3, 0.3, 0.3), 0.4);
     let k = 24u32;
     let n = b.n();
     let dense = all_rows(&b.engine(FormFactorConfig::accurate()));

@@ -101,6 +101,26 @@ impl Built {
         self
     }
 
+    /// Occluders only: the six faces of the cube [lo, lo + s]³ (a closed box).
+    pub fn blocker_box(&mut self, lo: DVec3, s: f64) -> &mut Self {
+        let (x, y, z) = (
+            DVec3::new(s, 0.0, 0.0),
+            DVec3::new(0.0, s, 0.0),
+            DVec3::new(0.0, 0.0, s),
+        );
+        for (o, u, v) in [
+            (lo, y, x),
+            (lo + z, x, y),
+            (lo, z, y),
+            (lo + x, y, z),
+            (lo, x, z),
+            (lo + y, z, x),
+        ] {
+            self.blocker(o, u, v);
+        }
+        self
+    }
+
     pub fn scaled(&self, s: f64) -> Built {
         let mut b = self.clone();
         for p in &mut b.patches.patches {
