@@ -15,7 +15,7 @@ use std::time::Duration;
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use ffstream::formfactor::sampling::SplitMix64;
 use ffstream::formfactor::{FormFactorConfig, Method, RowEngine, Scratch, TopKTail};
-use ffstream::geometry::bvh::Occluders;
+use ffstream::geometry::bvh::{Between, Occluders};
 use ffstream::patch::{Patch, PatchSet};
 use glam::{dvec3, DVec3};
 
@@ -214,7 +214,13 @@ fn shadow_rays(c: &mut Criterion) {
                     quads
                         .iter()
                         .filter(|(a, z)| {
-                            occ.any_between(a, DVec3::Z, z, -DVec3::Z, (u32::MAX, u32::MAX))
+                            occ.any_between(&Between::new(
+                                a,
+                                DVec3::Z,
+                                z,
+                                -DVec3::Z,
+                                (u32::MAX, u32::MAX),
+                            ))
                         })
                         .count()
                 })

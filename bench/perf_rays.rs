@@ -17,7 +17,7 @@ use std::process::Command;
 use std::time::Instant;
 
 use ffstream::formfactor::sampling::SplitMix64;
-use ffstream::geometry::bvh::{Occluders, RAY_EPSILON};
+use ffstream::geometry::bvh::{Between, Occluders, RAY_EPSILON};
 use glam::DVec3;
 
 fn point_on(t: &[DVec3; 3], rng: &mut SplitMix64) -> DVec3 {
@@ -138,7 +138,10 @@ fn main() {
             let mut blocked = 0;
             for (p, &(i, j, ni, nj)) in pairs.iter().enumerate() {
                 let faces = (tris[i].0, tris[j].0);
-                let listed = occ.collect_between(&tris[i].1, ni, &tris[j].1, nj, faces, &mut ids);
+                let listed = occ.collect_between(
+                    &Between::new(&tris[i].1, ni, &tris[j].1, nj, faces),
+                    &mut ids,
+                );
                 let mut first = 0;
                 for (a, b) in &pair_segs[p * PAIR_RAYS..(p + 1) * PAIR_RAYS] {
                     let hit = if listed {

@@ -27,13 +27,14 @@ use std::sync::Arc;
 
 use glam::DVec3;
 
+use super::clusters::{ClusterCache, Clusters};
 use super::contour::{area_form_factor_edges, ContourParams};
 use super::farfield::{self, far_order, PatchLanes, PatchPoints, MAX_FAR_ORDER};
 use super::polygon::{EdgeSet, Polygon};
 use super::quadrature::{gauss_table, GaussTable};
 use super::sampling::{pair_seed, PatchMap, SplitMix64};
 use super::{mc, point, topk, visibility, FormFactorConfig, Method, TopKTail};
-use crate::geometry::bvh::Occluders;
+use crate::geometry::bvh::{Between, Occluders, MAX_PAIR_CANDIDATES};
 use crate::patch::PatchSet;
 use crate::rows::{Row, RowValues};
 
@@ -92,6 +93,8 @@ pub struct Scratch {
     /// Occluder triangles that may come between the current pair
     /// (`Occluders::collect_between`): its rays test only these.
     pub(crate) candidates: Vec<u32>,
+    /// Occluder lists of cluster pairs ([`super::clusters`]).
+    clusters: ClusterCache,
     /// Far-field Gauss points of patch `far_row.1` of engine `far_row.0`, by order
     /// (index q), filled lazily.
     far_row: Option<(u64, u32)>,
@@ -149,7 +152,7 @@ pub(crate) struct PatchGeom {
 }
 
 impl PatchGeom {
-    fn new(p: &crate::patch::Patch) -> Self {
+    pub(crate) fn new(p: &crate::patch::Patch) -> Self {
         let poly = Polygon::new(p.corners());
         let edges = EdgeSet::from_polygon(&poly);
         let size = edges.edges().iter().map(|e| e.len).fold(0.0, f64::max);
@@ -186,8 +189,19 @@ impl PatchGeom {
         (lo, hi)
     }
 
+    /// The occluder question between this patch and `other`, unclipped.
+    pub(crate) fn between<'a>(&'a self, other: &'a PatchGeom) -> Between<'a> {
+        Between::new(
+            self.poly.verts(),
+            self.normal,
+            other.poly.verts(),
+            other.normal,
+            (self.face, other.face),
+        )
+    }
+
     /// A usable patch: positive finite area and a unit normal.
-    fn is_valid(&self) -> bool {
+    pub(crate) fn is_valid(&self) -> bool {
         self.area > 0.0
             && self.area.is_finite()
             && (self.normal.length() - 1.0).abs() < 1e-6
@@ -212,6 +226,9 @@ pub struct RowEngine {
     /// Rays of a pair test the pair's candidate list instead of the Bvh (see
     /// [`PAIR_LISTS_MAX_OCCLUDERS`]).
     pair_lists: bool,
+    /// Patch clusters whose pairs share one occluder query (None: every pair queries
+    /// the hierarchy).
+    clusters: Option<Clusters>,
 }
 
 /// Pair candidate lists (`Occluders::collect_between`) pay off only with few occluder
@@ -227,7 +244,12 @@ impl RowEngine {
     /// [`FormFactorConfig::validate`]; out-of-range values are clamped.
     pub fn new(patches: Arc<PatchSet>, occluders: Arc<Occluders>, cfg: FormFactorConfig) -> Self {
         let geom: Vec<PatchGeom> = patches.patches.iter().map(PatchGeom::new).collect();
-        let valid = geom.iter().map(PatchGeom::is_valid).collect();
+        let valid: Vec<bool> = geom.iter().map(PatchGeom::is_valid).collect();
+        let clusters = if occluders.is_empty() {
+            None
+        } else {
+            Clusters::new(&geom, &valid)
+        };
         let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
         for g in &geom {
             for c in g.poly.verts() {
@@ -254,7 +276,16 @@ impl RowEngine {
             params,
             tol: PLANE_RELATIVE_TOLERANCE * diag,
             pair_lists: occluders_len <= PAIR_LISTS_MAX_OCCLUDERS,
+            clusters,
         }
+    }
+
+    /// The same engine with every pair querying the hierarchy itself (for tests:
+    /// cluster lists must change no value).
+    #[cfg(test)]
+    pub(crate) fn without_clusters(mut self) -> Self {
+        self.clusters = None;
+        self
     }
 
     pub fn patches(&self) -> &Arc<PatchSet> {
@@ -404,7 +435,7 @@ impl RowEngine {
         };
         match self.cfg.method {
             Method::Mc => mc::pair(i, j, gi, gj, &self.occluders, &self.cfg, scratch),
-            _ => match self.contour_unoccluded(i, gi, gj, extent, scratch) {
+            _ => match self.contour_unoccluded((i, j), gi, gj, extent, scratch) {
                 Some(u) => u.f * self.contour_visibility(i, j, &u, scratch),
                 None => 0.0,
             },
@@ -452,7 +483,7 @@ impl RowEngine {
     /// ([`super::farfield`]), else by the double contour integral. None when ≤ 0.
     fn contour_unoccluded(
         &self,
-        i: u32,
+        (i, j): (u32, u32),
         gi: &PatchGeom,
         gj: &PatchGeom,
         extent: (f64, f64),
@@ -510,33 +541,64 @@ impl RowEngine {
         if f.is_nan() || f <= 0.0 {
             return None;
         }
-        // The triangles that may block this pair, once: its rays then test only those
-        // instead of walking the hierarchy each (16 rays per pair in `accurate`).
-        let (listed, needs_rays) = if self.pair_lists {
-            let listed = self.occluders.collect_between(
-                pi.verts(),
-                gi.normal,
-                pj.verts(),
-                gj.normal,
-                (gi.face, gj.face),
-                &mut scratch.candidates,
-            );
-            (listed, !listed || !scratch.candidates.is_empty())
-        } else {
-            let needs = self.occluders.any_between(
-                pi.verts(),
-                gi.normal,
-                pj.verts(),
-                gj.normal,
-                (gi.face, gj.face),
-            );
-            (false, needs)
-        };
+        let (listed, needs_rays) = self.blockers_between(i, j, gi, gj, pi, pj, scratch);
         Some(Unoccluded {
             f,
             needs_rays,
             listed,
         })
+    }
+
+    /// Which occluder triangles may block pair (i, j), whose polygons clipped to each
+    /// other are `pi`, `pj`: returns (listed, needs_rays). `listed`: they are in
+    /// `scratch.candidates` (at most [`MAX_PAIR_CANDIDATES`]) and the pair's rays test
+    /// only those instead of walking the hierarchy (16 rays per pair in `accurate`).
+    /// `needs_rays` false: nothing can come between, no rays.
+    ///
+    /// From the list of the two patches' clusters when there is one (see
+    /// [`super::clusters`]), else from the hierarchy.
+    #[allow(clippy::too_many_arguments)]
+    fn blockers_between(
+        &self,
+        i: u32,
+        j: u32,
+        gi: &PatchGeom,
+        gj: &PatchGeom,
+        pi: &Polygon,
+        pj: &Polygon,
+        scratch: &mut Scratch,
+    ) -> (bool, bool) {
+        let q = Between::new(
+            pi.verts(),
+            gi.normal,
+            pj.verts(),
+            gj.normal,
+            (gi.face, gj.face),
+        );
+        let occ = &self.occluders;
+        let shared = self
+            .clusters
+            .as_ref()
+            .and_then(|c| Some((c, c.of(i)?, c.of(j)?)))
+            .and_then(|(c, ci, cj)| scratch.clusters.list(self.id, c, occ, ci, cj));
+        if let Some(list) = shared {
+            // Lists for rays only with few occluders (see PAIR_LISTS_MAX_OCCLUDERS);
+            // else only whether there is any.
+            let max = if self.pair_lists {
+                MAX_PAIR_CANDIDATES
+            } else {
+                0
+            };
+            occ.filter_between(&q, list, max, &mut scratch.candidates);
+            let found = scratch.candidates.len();
+            return (self.pair_lists && found <= max, found > 0);
+        }
+        if self.pair_lists {
+            let listed = occ.collect_between(&q, &mut scratch.candidates);
+            (listed, !listed || !scratch.candidates.is_empty())
+        } else {
+            (false, occ.any_between(&q))
+        }
     }
 
     /// `contour`, visibility fraction of a pair (1 without rays when nothing can come
@@ -588,7 +650,7 @@ impl RowEngine {
                 let Some(extent) = self.facing(gi, gj, scratch) else {
                     continue;
                 };
-                if let Some(u) = self.contour_unoccluded(i, gi, gj, extent, scratch) {
+                if let Some(u) = self.contour_unoccluded((i, j as u32), gi, gj, extent, scratch) {
                     f0[j] = u.f;
                     rays[j] = u.needs_rays;
                     if !u.needs_rays {
@@ -789,6 +851,52 @@ mod tests {
         let c = s.counters();
         assert_eq!(c.pairs_evaluated, 1);
         assert_eq!(c.rays_cast, 0);
+    }
+
+    /// Rooms of 16 and 64 boxes (188 and 780 occluder triangles: candidate lists for
+    /// rays, and hierarchy rays), and the Cornell box: every row is bitwise the same
+    /// whether pairs take their occluders from cluster lists or query the hierarchy,
+    /// in full and in half rows.
+    #[test]
+    fn cluster_lists_change_no_value() {
+        use crate::geometry::subdivide::{default_max_edge, subdivide};
+        use crate::scene::builtin;
+        let cases = [
+            ("room", None, 1200, 7),
+            ("room", Some(64.0), 3000, 29),
+            ("cornell", None, 700, 7),
+        ];
+        for (name, param, target, step) in cases {
+            let scene = builtin(name, param).unwrap();
+            let patches = Arc::new(subdivide(&scene, default_max_edge(&scene, target)));
+            let occ = Arc::new(Occluders::new(scene.triangles().collect()));
+            let cfg = FormFactorConfig::accurate();
+            let with = RowEngine::new(patches.clone(), occ.clone(), cfg.clone());
+            assert!(with.clusters.is_some(), "{name}: no clusters");
+            let without = RowEngine::new(patches, occ, cfg).without_clusters();
+            let n = with.n();
+            let in_run = vec![true; n];
+            let (mut s1, mut s2) = (Scratch::new(), Scratch::new());
+            let (mut own1, mut own2, mut m1, mut m2) = (vec![], vec![], vec![], vec![]);
+            for i in (0..n as u32).step_by(step) {
+                assert_eq!(
+                    with.compute_row(i, &mut s1),
+                    without.compute_row(i, &mut s2),
+                    "{name}: row {i}"
+                );
+                with.half_row(i, &in_run, &mut s1, &mut own1, &mut m1);
+                without.half_row(i, &in_run, &mut s2, &mut own2, &mut m2);
+                assert!(own1 == own2 && m1 == m2, "{name}: half row {i}");
+            }
+            let (c1, c2) = (s1.counters(), s2.counters());
+            // The pair's own query gives up on crowded pairs (rays then decide);
+            // cluster lists are complete, so they may spare rays, never add any.
+            assert!(c1.rays_cast <= c2.rays_cast && c1.pairs_unoccludable >= c2.pairs_unoccludable);
+            assert!(
+                c1.pairs_unoccludable > 0 && c1.rays_cast > 0,
+                "{name}: both kinds of pairs: {c1:?}"
+            );
+        }
     }
 
     #[test]

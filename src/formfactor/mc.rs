@@ -30,13 +30,7 @@ pub(crate) fn pair(
     scratch: &mut Scratch,
 ) -> f64 {
     let s = cfg.samples.max(1) as usize;
-    let need_rays = occ.any_between(
-        gi.poly.verts(),
-        gi.normal,
-        gj.poly.verts(),
-        gj.normal,
-        (gi.face, gj.face),
-    );
+    let need_rays = occ.any_between(&gi.between(gj));
     if !need_rays {
         scratch.counters.pairs_unoccludable += 1;
         scratch.counters.rays_skipped += s as u64;

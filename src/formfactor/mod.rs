@@ -17,6 +17,7 @@
 //! drawn from a stream seeded by (i, j, seed), so a row is bitwise the same on any
 //! thread or rank.
 
+pub mod clusters;
 pub mod contour;
 pub mod engine;
 pub mod farfield;

@@ -30,13 +30,7 @@ pub(crate) fn pair(
     counters.pairs_evaluated += 1;
     // cosθ_i cosθ_j / r² = (n_i·d)(−n_j·d) / r⁴
     let f = (ci * cj / (r2 * r2) * gj.area / std::f64::consts::PI).min(1.0);
-    if !occ.any_between(
-        gi.poly.verts(),
-        gi.normal,
-        gj.poly.verts(),
-        gj.normal,
-        (gi.face, gj.face),
-    ) {
+    if !occ.any_between(&gi.between(gj)) {
         counters.pairs_unoccludable += 1;
         counters.rays_skipped += 1;
         return f;

@@ -284,6 +284,135 @@ impl HullAxes {
     }
 }
 
+/// The question of [`Occluders::any_between`] and its siblings: polygon `a` (front
+/// normal `na`) and polygon `b` (front normal `nb`), world units, each already clipped
+/// to the other's front half-space; triangles of the faces `ignore` never count.
+#[derive(Clone, Copy, Debug)]
+pub struct Between<'a> {
+    pub a: &'a [DVec3],
+    pub na: DVec3,
+    pub b: &'a [DVec3],
+    pub nb: DVec3,
+    pub ignore: (u32, u32),
+}
+
+impl<'a> Between<'a> {
+    pub fn new(a: &'a [DVec3], na: DVec3, b: &'a [DVec3], nb: DVec3, ignore: (u32, u32)) -> Self {
+        Between {
+            a,
+            na,
+            b,
+            nb,
+            ignore,
+        }
+    }
+}
+
+/// Most polygon vertices [`PairHull`] takes (the rest are ignored, which only widens
+/// no test: callers pass polygons of at most 8 vertices each).
+const MAX_PAIR_POINTS: usize = 16;
+
+/// Two polygons a (front normal na) and b (nb) in the normalized frame, and the tests
+/// that decide whether a triangle may come between them, i.e. cut a segment from a
+/// point of a to a point of b (all with [`PLANE_TOLERANCE`]): it may not when
+/// 1. it belongs to one of the two ignored faces, or
+/// 2. its box misses the box of the two polygons, or
+/// 3. all corners of both polygons lie on one side of its plane (segments between
+///    them never cross it), or
+/// 4. it lies entirely behind the plane of a or of b (every segment between the
+///    polygons stays in front of both planes), or
+/// 5. an axis of [`HullAxes`] separates it from their convex hull.
+struct PairHull {
+    pts: [DVec3; MAX_PAIR_POINTS],
+    np: usize,
+    na_len: usize,
+    /// The box of the points, shrunk by the tolerance (faces merely touching the hull,
+    /// like the walls around a corner, do not count).
+    qlo: DVec3,
+    qhi: DVec3,
+    na: DVec3,
+    oa: f64,
+    nb: DVec3,
+    ob: f64,
+    ignore: (u32, u32),
+}
+
+impl PairHull {
+    /// `None` when there is nothing to test (no hierarchy, or an empty polygon).
+    fn new(occ: &Occluders, q: &Between<'_>) -> Option<Self> {
+        let Between {
+            a,
+            na,
+            b,
+            nb,
+            ignore,
+        } = *q;
+        if occ.bvh.is_none() || a.is_empty() || b.is_empty() {
+            return None;
+        }
+        // Foreign occluders: triangles on the planes of a or b are rejected by test 4.
+        let ignore = if occ.foreign {
+            (u32::MAX, u32::MAX)
+        } else {
+            ignore
+        };
+        let mut pts = [DVec3::ZERO; MAX_PAIR_POINTS];
+        let mut np = 0;
+        for p in a.iter().chain(b.iter()).take(MAX_PAIR_POINTS) {
+            pts[np] = occ.to_norm(*p);
+            np += 1;
+        }
+        let (mut lo, mut hi) = (pts[0], pts[0]);
+        for p in &pts[..np] {
+            lo = lo.min(*p);
+            hi = hi.max(*p);
+        }
+        let mid = 0.5 * (lo + hi);
+        Some(PairHull {
+            pts,
+            np,
+            na_len: a.len().min(MAX_PAIR_POINTS),
+            qlo: (lo + DVec3::splat(PLANE_TOLERANCE)).min(mid),
+            qhi: (hi - DVec3::splat(PLANE_TOLERANCE)).max(mid),
+            na,
+            oa: na.dot(occ.to_norm(a[0])),
+            nb,
+            ob: nb.dot(occ.to_norm(b[0])),
+            ignore,
+        })
+    }
+
+    /// The axes of test 5.
+    fn hull_axes(&self) -> HullAxes {
+        HullAxes::new(&self.pts[..self.np], self.na_len, self.np - self.na_len)
+    }
+
+    /// Tests 1 and 2 (cheap: a triangle passing them counts as examined in detail).
+    #[inline]
+    fn near(&self, t: &OccluderTriangle) -> bool {
+        t.face != self.ignore.0
+            && t.face != self.ignore.1
+            && !(t.max.cmplt(self.qlo).any() || t.min.cmpgt(self.qhi).any())
+    }
+
+    /// Tests 3 and 4, for a triangle that passed [`PairHull::near`].
+    #[inline]
+    fn crosses(&self, t: &OccluderTriangle) -> bool {
+        let off = t.normal.dot(t.v[0]);
+        let (mut above, mut below) = (false, false);
+        for p in &self.pts[..self.np] {
+            let s = t.normal.dot(*p) - off;
+            above |= s > PLANE_TOLERANCE;
+            below |= s < -PLANE_TOLERANCE;
+        }
+        if !(above && below) {
+            return false;
+        }
+        let behind = |n: DVec3, o: f64| t.v.iter().all(|v| n.dot(*v) - o <= PLANE_TOLERANCE);
+        !(behind(self.na, self.oa) || behind(self.nb, self.ob))
+    }
+}
+
 /// Triangles that block light, in a hierarchy. Immutable after [`Occluders::new`], so
 /// it is `Send + Sync` and shared by all threads.
 #[derive(Clone, Debug)]
@@ -568,15 +697,8 @@ impl Occluders {
     /// The work is bounded: after [`MAX_REJECTED_CANDIDATES`] triangles that overlap
     /// the box but were rejected by 2–3, the answer is `true` (rays will decide), so a
     /// pair in a cluttered region costs a short traversal, never a scan.
-    pub fn any_between(
-        &self,
-        a: &[DVec3],
-        na: DVec3,
-        b: &[DVec3],
-        nb: DVec3,
-        ignore: (u32, u32),
-    ) -> bool {
-        self.scan_between(a, na, b, nb, ignore, |_| true) != Scan::Done
+    pub fn any_between(&self, q: &Between<'_>) -> bool {
+        self.scan_between(q, MAX_REJECTED_CANDIDATES, |_| true) != Scan::Done
     }
 
     /// The triangles that may come between polygons `a` and `b` (the candidates of
@@ -588,103 +710,100 @@ impl Occluders {
     /// `a` to a point of `b`, so [`Occluders::occluded_by`] with these candidates
     /// answers as the hierarchy would for such segments (up to rays grazing a
     /// triangle that only touches the pair's hull, which `any_between` ignores too).
-    pub fn collect_between(
-        &self,
-        a: &[DVec3],
-        na: DVec3,
-        b: &[DVec3],
-        nb: DVec3,
-        ignore: (u32, u32),
-        out: &mut Vec<u32>,
-    ) -> bool {
-        out.clear();
-        let scan = self.scan_between(a, na, b, nb, ignore, |k| {
-            out.push(k as u32);
-            out.len() > MAX_PAIR_CANDIDATES
-        });
-        scan == Scan::Done
+    pub fn collect_between(&self, q: &Between<'_>, out: &mut Vec<u32>) -> bool {
+        self.collect_between_up_to(q, MAX_PAIR_CANDIDATES, MAX_REJECTED_CANDIDATES, out)
     }
 
     /// The search behind [`Occluders::any_between`] and
     /// [`Occluders::collect_between`]: calls `found` with every triangle that may come
-    /// between the polygons, until it returns `true`.
+    /// between the polygons, until it returns `true`; gives up after `max_rejected`
+    /// triangles examined in detail.
     fn scan_between(
         &self,
-        a: &[DVec3],
-        na: DVec3,
-        b: &[DVec3],
-        nb: DVec3,
-        ignore: (u32, u32),
+        q: &Between<'_>,
+        max_rejected: usize,
         mut found: impl FnMut(usize) -> bool,
     ) -> Scan {
-        if self.bvh.is_none() || a.is_empty() || b.is_empty() {
+        let Some(pair) = PairHull::new(self, q) else {
             return Scan::Done;
-        }
-        // Foreign occluders: triangles on the planes of a or b are rejected by test 3.
-        let ignore = if self.foreign {
-            (u32::MAX, u32::MAX)
-        } else {
-            ignore
         };
-        const CAP: usize = 16;
-        let mut pts = [DVec3::ZERO; CAP];
-        let mut np = 0;
-        for p in a.iter().chain(b.iter()).take(CAP) {
-            pts[np] = self.to_norm(*p);
-            np += 1;
-        }
-        let pts = &pts[..np];
-        let (mut lo, mut hi) = (pts[0], pts[0]);
-        for p in pts {
-            lo = lo.min(*p);
-            hi = hi.max(*p);
-        }
-        // Shrink by the tolerance so that faces merely touching the hull (the walls
-        // around a corner) do not count; keep the box non-empty.
-        let mid = 0.5 * (lo + hi);
-        let qlo = (lo + DVec3::splat(PLANE_TOLERANCE)).min(mid);
-        let qhi = (hi - DVec3::splat(PLANE_TOLERANCE)).max(mid);
-        let oa = na.dot(self.to_norm(a[0]));
-        let ob = nb.dot(self.to_norm(b[0]));
+        let hull = pair.hull_axes();
         let tris = &self.tris;
         let mut rejected = 0usize;
         let mut gave_up = false;
-        let (na_len, nb_len) = (a.len().min(CAP), b.len().min(CAP - a.len().min(CAP)));
-        let hull = HullAxes::new(pts, na_len, nb_len);
-        let stopped = self.for_each_in_hull(qlo, qhi, &hull, |k| {
+        let stopped = self.for_each_in_hull(pair.qlo, pair.qhi, &hull, |k| {
             let t = &tris[k];
-            if t.face == ignore.0 || t.face == ignore.1 {
-                return false;
-            }
-            if t.max.cmplt(qlo).any() || t.min.cmpgt(qhi).any() {
+            if !pair.near(t) {
                 return false;
             }
             rejected += 1;
-            if rejected > MAX_REJECTED_CANDIDATES {
+            if rejected > max_rejected {
                 gave_up = true;
                 return true;
             }
-            let off = t.normal.dot(t.v[0]);
-            let (mut above, mut below) = (false, false);
-            for p in pts {
-                let s = t.normal.dot(*p) - off;
-                above |= s > PLANE_TOLERANCE;
-                below |= s < -PLANE_TOLERANCE;
-            }
-            if !(above && below) {
-                return false;
-            }
-            let verts = t.vertices();
-            let behind = |n: DVec3, o: f64| verts.iter().all(|v| n.dot(*v) - o <= PLANE_TOLERANCE);
-            if behind(na, oa) || behind(nb, ob) {
-                return false;
-            }
-            !hull.separates(&verts) && found(k)
+            pair.crosses(t) && !hull.separates(&t.v) && found(k)
         });
         match (stopped, gave_up) {
             (_, true) => Scan::GaveUp,
             (true, false) => Scan::Stopped,
             (false, false) => Scan::Done,
+        }
+    }
+
+    /// As [`Occluders::collect_between`] with the limits given (`max_found`
+    /// candidates, `max_rejected` triangles examined in detail), for queries between
+    /// larger polygons whose lists are then narrowed pair by pair with
+    /// [`Occluders::filter_between`].
+    pub fn collect_between_up_to(
+        &self,
+        q: &Between<'_>,
+        max_found: usize,
+        max_rejected: usize,
+        out: &mut Vec<u32>,
+    ) -> bool {
+        out.clear();
+        let scan = self.scan_between(q, max_rejected, |k| {
+            out.push(k as u32);
+            out.len() > max_found
+        });
+        scan == Scan::Done
+    }
+
+    /// The triangles of `list` that may come between polygons `a` and `b`, into `out`
+    /// (in the order of `list`). When `list` holds every triangle that may come
+    /// between two polygons containing `a` and `b` (a [`Occluders::collect_between_up_to`]
+    /// answer for them, with the same planes and ignored faces), `out` is within the
+    /// set [`Occluders::collect_between`] finds for `a` and `b` and holds every
+    /// triangle that can block a segment between them, without walking the hierarchy:
+    /// a triangle that cannot come between the larger polygons cannot come between the
+    /// smaller ones. Stops once `out` holds more than `max_found` (0: "is there any").
+    pub fn filter_between(
+        &self,
+        q: &Between<'_>,
+        list: &[u32],
+        max_found: usize,
+        out: &mut Vec<u32>,
+    ) {
+        out.clear();
+        if list.is_empty() {
+            return;
+        }
+        let Some(pair) = PairHull::new(self, q) else {
+            return;
+        };
+        // Test 5's axes cost more than the other tests: built on first need.
+        let mut hull = None;
+        for &k in list {
+            let t = &self.tris[k as usize];
+            if pair.near(t)
+                && pair.crosses(t)
+                && !hull.get_or_insert_with(|| pair.hull_axes()).separates(&t.v)
+            {
+                out.push(k);
+                if out.len() > max_found {
+                    return;
+                }
+            }
         }
     }
 
@@ -839,13 +958,16 @@ mod tests {
                 let a = square(ca, ha, za, true);
                 let b = square(cb, hb, zb, false);
                 let (na, nb) = (DVec3::Z, -DVec3::Z);
-                if !o.collect_between(&a, na, &b, nb, (8, 9), &mut ids) {
+                if !o.collect_between(&Between::new(&a, na, &b, nb, (8, 9)), &mut ids) {
                     continue;
                 }
                 listed += 1;
                 empty += ids.is_empty() as usize;
                 let mut first = 0;
-                assert_eq!(ids.is_empty(), !o.any_between(&a, na, &b, nb, (8, 9)));
+                assert_eq!(
+                    ids.is_empty(),
+                    !o.any_between(&Between::new(&a, na, &b, nb, (8, 9)))
+                );
                 for _ in 0..50 {
                     let x = point_in(&a, rng.next_f64(), rng.next_f64());
                     let y = point_in(&b, rng.next_f64(), rng.next_f64());
@@ -996,9 +1118,9 @@ mod tests {
             Occluders::new(t)
         };
         let beside = blocker_at(dvec3(0.8, 0.1, 0.5));
-        assert!(!beside.any_between(&floor, n_up, &ceiling, -n_up, (8, 9)));
+        assert!(!beside.any_between(&Between::new(&floor, n_up, &ceiling, -n_up, (8, 9))));
         let inside = blocker_at(dvec3(0.5, 0.5, 0.5));
-        assert!(inside.any_between(&floor, n_up, &ceiling, -n_up, (8, 9)));
+        assert!(inside.any_between(&Between::new(&floor, n_up, &ceiling, -n_up, (8, 9))));
         // And the ray test agrees: the centre blocker stops the centre ray.
         assert!(inside.occluded(dvec3(0.05, 0.05, 0.0), dvec3(0.95, 0.95, 1.0), (8, 9)));
     }
@@ -1050,7 +1172,7 @@ mod tests {
             dvec3(1.0, 1.0, 1.0),
             dvec3(1.0, 0.0, 1.0),
         ];
-        assert!(o.any_between(&lower, n_up, &upper, -n_up, (8, 9)));
+        assert!(o.any_between(&Between::new(&lower, n_up, &upper, -n_up, (8, 9))));
         // Patches on the floor and ceiling away from the blocker's column, only the
         // walls (faces 8, 9 ignored) around: a corner patch pair at x, y ∈ [0, 0.2].
         let lo = [
@@ -1065,7 +1187,7 @@ mod tests {
             dvec3(0.2, 0.2, 1.0),
             dvec3(0.2, 0.0, 1.0),
         ];
-        assert!(!o.any_between(&lo, n_up, &hi, -n_up, (8, 9)));
+        assert!(!o.any_between(&Between::new(&lo, n_up, &hi, -n_up, (8, 9))));
         // Both below the blocker's plane: it is on one side of the whole hull.
         let mid = [
             dvec3(0.0, 0.0, 0.3),
@@ -1073,7 +1195,13 @@ mod tests {
             dvec3(1.0, 1.0, 0.3),
             dvec3(1.0, 0.0, 0.3),
         ];
-        assert!(!o.any_between(&lower, n_up, &mid, -n_up, (8, 9)));
-        assert!(!Occluders::empty().any_between(&lower, n_up, &upper, -n_up, (8, 9)));
+        assert!(!o.any_between(&Between::new(&lower, n_up, &mid, -n_up, (8, 9))));
+        assert!(!Occluders::empty().any_between(&Between::new(
+            &lower,
+            n_up,
+            &upper,
+            -n_up,
+            (8, 9)
+        )));
     }
 }

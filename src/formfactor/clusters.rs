@@ -1,0 +1,394 @@
+//! Patch clusters: the occluder query of a pair, answered once per pair of clusters.
+//!
+//! Deciding which occluder triangles may come between two patches (the hull query of
+//! `Occluders::collect_between`) walks the hierarchy once per pair, and was the largest
+//! single cost of a `contour` row (bench/PERF.md §7). Neighbouring patches of one face
+//! ask almost the same question. So the patches of each face are grouped into clusters
+//! of about [`CLUSTER_PATCHES`] (cells of a grid in the face's plane), each with a
+//! rectangle in that plane that contains all its patches. The query runs once between
+//! two clusters' rectangles; a triangle that cannot come between the rectangles cannot
+//! come between any patch of one and any patch of the other (every such segment lies
+//! in the rectangles' hull, and the planes are the same), so each pair then only
+//! narrows that short list (`Occluders::filter_between`). The result is within the set
+//! the pair's own query would find (sometimes smaller: the clusters' hull axes can
+//! separate a triangle the pair's axes do not) and holds every triangle that can block
+//! one of the pair's segments, so rays get the same answers.
+//!
+//! A cluster pair's list depends on the two clusters only (it is always computed with
+//! the lower cluster id first), so what a thread has cached changes the time, never a
+//! value: rows stay bitwise equal on any thread or rank.
+
+use std::collections::HashMap;
+
+use glam::DVec3;
+
+use super::engine::PatchGeom;
+use crate::geometry::bvh::{Between, Occluders};
+
+/// Patches per cluster the grid aims at (4 × 4 on a quad grid).
+pub const CLUSTER_PATCHES: f64 = 16.0;
+
+/// Clustering is used only when clusters hold at least this many patches on average
+/// (scenes whose faces are single patches would only pay for a second query).
+const MIN_MEAN_CLUSTER: f64 = 4.0;
+
+/// Most triangles a cluster pair's list holds; with more, the pairs of the two clusters
+/// query the hierarchy themselves.
+pub const MAX_CLUSTER_CANDIDATES: usize = 48;
+
+/// Work bound of a cluster pair's query (triangles examined in detail).
+const MAX_CLUSTER_REJECTED: usize = 256;
+
+/// Cluster pairs' lists a thread keeps, by the cluster of one side: the rows of a
+/// thread come in index order, which walks a face's grid row by row, so the clusters
+/// of a few grid rows are in use at a time.
+const CACHED_CLUSTERS: usize = 32;
+
+/// The cluster of each patch and each cluster's rectangle.
+#[derive(Debug)]
+pub(crate) struct Clusters {
+    of: Vec<u32>,
+    rects: Vec<ClusterRect>,
+}
+
+/// A planar convex quadrilateral containing every patch of a cluster.
+#[derive(Clone, Copy, Debug)]
+struct ClusterRect {
+    corners: [DVec3; 4],
+    normal: DVec3,
+    face: u32,
+}
+
+/// No cluster (the patch's pairs query the hierarchy themselves).
+const NONE: u32 = u32::MAX;
+
+impl Clusters {
+    /// Clusters the valid patches face by face; `None` when clusters would be too
+    /// small to pay off ([`MIN_MEAN_CLUSTER`]).
+    pub(crate) fn new(geom: &[PatchGeom], valid: &[bool]) -> Option<Self> {
+        let mut by_face: HashMap<u32, Vec<usize>> = HashMap::new();
+        for (i, g) in geom.iter().enumerate() {
+            if valid[i] {
+                by_face.entry(g.face).or_default().push(i);
+            }
+        }
+        let mut faces: Vec<(u32, Vec<usize>)> = by_face.into_iter().collect();
+        faces.sort_unstable_by_key(|(f, _)| *f);
+        let mut c = Clusters {
+            of: vec![NONE; geom.len()],
+            rects: Vec::new(),
+        };
+        let mut clustered = 0usize;
+        for (face, members) in &faces {
+            clustered += c.add_face(*face, members, geom);
+        }
+        let mean = clustered as f64 / c.rects.len().max(1) as f64;
+        (mean >= MIN_MEAN_CLUSTER).then_some(c)
+    }
+
+    /// Grid cells over one face's patches (all with the same normal, else the face is
+    /// left out); returns the number of patches clustered.
+    fn add_face(&mut self, face: u32, members: &[usize], geom: &[PatchGeom]) -> usize {
+        let g0 = &geom[members[0]];
+        let normal = g0.normal;
+        if members.iter().any(|&i| geom[i].normal != normal) {
+            return 0;
+        }
+        // A frame in the plane: eu along the first patch's first edge.
+        let v = g0.poly.verts();
+        let eu = (v[1] - v[0]).reject_from(normal).normalize_or_zero();
+        if eu == DVec3::ZERO {
+            return 0;
+        }
+        let ev = normal.cross(eu);
+        let origin = v[0];
+        let uv = |p: DVec3| ((p - origin).dot(eu), (p - origin).dot(ev));
+        let (mut lo, mut hi) = (
+            (f64::INFINITY, f64::INFINITY),
+            (f64::NEG_INFINITY, f64::NEG_INFINITY),
+        );
+        let mut area = 0.0;
+        for &i in members {
+            let (u, v) = uv(geom[i].centroid);
+            lo = (lo.0.min(u), lo.1.min(v));
+            hi = (hi.0.max(u), hi.1.max(v));
+            area += geom[i].area;
+        }
+        let cell = (CLUSTER_PATCHES * area / members.len() as f64).sqrt();
+        if !(cell.is_finite() && cell > 0.0) {
+            return 0;
+        }
+        let cells = |lo: f64, hi: f64| (((hi - lo) / cell).floor() as usize + 1).min(1 << 16);
+        let (nu, nv) = (cells(lo.0, hi.0), cells(lo.1, hi.1));
+        let cell_of = |p: DVec3| {
+            let (u, v) = uv(p);
+            let ku = (((u - lo.0) / cell).floor().max(0.0) as usize).min(nu - 1);
+            let kv = (((v - lo.1) / cell).floor().max(0.0) as usize).min(nv - 1);
+            kv * nu + ku
+        };
+        // Cells in order of first use, so cluster ids follow patch order.
+        let mut id_of_cell: HashMap<usize, u32> = HashMap::new();
+        let mut bounds: Vec<((f64, f64), (f64, f64))> = Vec::new();
+        let first = self.rects.len() as u32;
+        for &i in members {
+            let next = first + id_of_cell.len() as u32;
+            let id = *id_of_cell.entry(cell_of(geom[i].centroid)).or_insert(next);
+            let k = (id - first) as usize;
+            if k == bounds.len() {
+                bounds.push((
+                    (f64::INFINITY, f64::INFINITY),
+                    (f64::NEG_INFINITY, f64::NEG_INFINITY),
+                ));
+            }
+            let b = &mut bounds[k];
+            for p in geom[i].poly.verts() {
+                let (u, v) = uv(*p);
+                b.0 = (b.0 .0.min(u), b.0 .1.min(v));
+                b.1 = (b.1 .0.max(u), b.1 .1.max(v));
+            }
+            self.of[i] = id;
+        }
+        for (lo, hi) in bounds {
+            // Widened by a hair so that rounding in the frame cannot put a patch corner
+            // outside; the tests' own tolerance is 1e-9 of the scene diagonal.
+            let pad = 1e-12 * ((hi.0 - lo.0) + (hi.1 - lo.1)) + 1e-300;
+            let at = |u: f64, v: f64| origin + eu * u + ev * v;
+            self.rects.push(ClusterRect {
+                corners: [
+                    at(lo.0 - pad, lo.1 - pad),
+                    at(hi.0 + pad, lo.1 - pad),
+                    at(hi.0 + pad, hi.1 + pad),
+                    at(lo.0 - pad, hi.1 + pad),
+                ],
+                normal,
+                face,
+            });
+        }
+        members.len()
+    }
+
+    /// Number of clusters.
+    pub(crate) fn len(&self) -> usize {
+        self.rects.len()
+    }
+
+    /// The cluster of patch `i`, if it has one.
+    #[inline]
+    pub(crate) fn of(&self, i: u32) -> Option<u32> {
+        let c = self.of[i as usize];
+        (c != NONE).then_some(c)
+    }
+
+    /// The list of clusters `a` and `b` (lower id first): `false` when it would be
+    /// longer than [`MAX_CLUSTER_CANDIDATES`] or the query gave up.
+    fn query(&self, occ: &Occluders, a: u32, b: u32, out: &mut Vec<u32>) -> bool {
+        let (a, b) = (a.min(b), a.max(b));
+        let (ra, rb) = (&self.rects[a as usize], &self.rects[b as usize]);
+        let q = Between::new(
+            &ra.corners,
+            ra.normal,
+            &rb.corners,
+            rb.normal,
+            (ra.face, rb.face),
+        );
+        occ.collect_between_up_to(&q, MAX_CLUSTER_CANDIDATES, MAX_CLUSTER_REJECTED, out)
+    }
+}
+
+/// A thread's cluster pairs' lists (in its [`super::Scratch`]).
+#[derive(Debug, Default)]
+pub(crate) struct ClusterCache {
+    /// Engine the lists belong to.
+    engine: Option<u64>,
+    /// Most recently used last.
+    entries: Vec<CacheEntry>,
+    /// Query output buffer.
+    found: Vec<u32>,
+}
+
+#[derive(Debug)]
+struct CacheEntry {
+    cluster: u32,
+    /// Per other cluster: [`UNKNOWN`], [`TOO_MANY`], or (start, len) in `pool`.
+    slots: Vec<(u32, u32)>,
+    pool: Vec<u32>,
+}
+
+const UNKNOWN: (u32, u32) = (u32::MAX, 0);
+const TOO_MANY: (u32, u32) = (u32::MAX, 1);
+
+impl ClusterCache {
+    /// The triangles that may come between any patch of cluster `a` and any of `b`
+    /// (computed on first use); `None` when there are too many for a list.
+    pub(crate) fn list(
+        &mut self,
+        engine: u64,
+        clusters: &Clusters,
+        occ: &Occluders,
+        a: u32,
+        b: u32,
+    ) -> Option<&[u32]> {
+        if self.engine != Some(engine) {
+            self.engine = Some(engine);
+            self.entries.clear();
+        }
+        let found = self
+            .entries
+            .iter()
+            .rposition(|e| e.cluster == a || e.cluster == b);
+        let at = match found {
+            Some(k) => {
+                if k + 1 != self.entries.len() {
+                    let e = self.entries.remove(k);
+                    self.entries.push(e);
+                }
+                self.entries.len() - 1
+            }
+            None => {
+                let mut e = if self.entries.len() == CACHED_CLUSTERS {
+                    self.entries.remove(0)
+                } else {
+                    CacheEntry {
+                        cluster: a,
+                        slots: Vec::new(),
+                        pool: Vec::new(),
+                    }
+                };
+                e.cluster = a;
+                e.slots.clear();
+                e.slots.resize(clusters.len(), UNKNOWN);
+                e.pool.clear();
+                self.entries.push(e);
+                self.entries.len() - 1
+            }
+        };
+        let e = &mut self.entries[at];
+        let other = if e.cluster == a { b } else { a };
+        let mut slot = e.slots[other as usize];
+        if slot == UNKNOWN {
+            slot = if clusters.query(occ, a, b, &mut self.found) {
+                let start = e.pool.len() as u32;
+                e.pool.extend_from_slice(&self.found);
+                (start, self.found.len() as u32)
+            } else {
+                TOO_MANY
+            };
+            e.slots[other as usize] = slot;
+        }
+        (slot != TOO_MANY).then(|| &e.pool[slot.0 as usize..(slot.0 + slot.1) as usize])
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::formfactor::sampling::SplitMix64;
+    use crate::geometry::subdivide::{default_max_edge, subdivide};
+    use crate::scene::builtin;
+
+    /// On the 16-box room: every patch lies in its cluster's rectangle (same plane);
+    /// a cluster pair's list, narrowed to a pair of patches, is within the set the
+    /// hierarchy query finds for that pair and gives every segment between the two
+    /// patches the hierarchy's answer; the list is the same from either side and
+    /// whatever the cache held before.
+    #[test]
+    fn narrowed_cluster_lists_answer_like_the_hierarchy() {
+        let scene = builtin("room", None).unwrap();
+        let patches = subdivide(&scene, default_max_edge(&scene, 2500));
+        let occ = Occluders::new(scene.triangles().collect());
+        let geom: Vec<PatchGeom> = patches.patches.iter().map(PatchGeom::new).collect();
+        let valid: Vec<bool> = geom.iter().map(PatchGeom::is_valid).collect();
+        let c = Clusters::new(&geom, &valid).expect("the room's faces are subdivided");
+        assert!(c.len() > 2 * CACHED_CLUSTERS && c.len() < geom.len() / 4);
+        for (i, g) in geom.iter().enumerate() {
+            let r = &c.rects[c.of(i as u32).unwrap() as usize];
+            assert_eq!((r.face, r.normal), (g.face, g.normal));
+            let (e1, e2) = (r.corners[1] - r.corners[0], r.corners[3] - r.corners[0]);
+            for p in g.poly.verts() {
+                let d = *p - r.corners[0];
+                assert!(
+                    d.dot(r.normal).abs() < 1e-9,
+                    "patch {i} off its cluster's plane"
+                );
+                let (u, v) = (
+                    d.dot(e1) / e1.length_squared(),
+                    d.dot(e2) / e2.length_squared(),
+                );
+                assert!(
+                    (0.0..=1.0).contains(&u) && (0.0..=1.0).contains(&v),
+                    "patch {i} outside"
+                );
+            }
+        }
+        let mut cache = ClusterCache::default();
+        let mut rng = SplitMix64::new(11);
+        let (mut narrowed, mut reference) = (Vec::new(), Vec::new());
+        let (mut pairs, mut empty, mut some, mut tighter, mut blocked) = (0, 0, 0, 0, 0);
+        let n = geom.len() as u32;
+        while pairs < 3000 {
+            let (i, j) = (rng.below(n), rng.below(n));
+            let (gi, gj) = (&geom[i as usize], &geom[j as usize]);
+            // Pairs fully in front of each other (the engine clips the others first).
+            let front = |a: &PatchGeom, b: &PatchGeom| {
+                a.poly
+                    .verts()
+                    .iter()
+                    .all(|p| b.normal.dot(*p - b.centroid) > 1e-9)
+            };
+            if !(front(gi, gj) && front(gj, gi)) {
+                continue;
+            }
+            pairs += 1;
+            let (ci, cj) = (c.of(i).unwrap(), c.of(j).unwrap());
+            // Alternate the side first asked, and sometimes forget everything.
+            if rng.below(50) == 0 {
+                cache = ClusterCache::default();
+            }
+            let (a, b) = if rng.below(2) == 0 {
+                (ci, cj)
+            } else {
+                (cj, ci)
+            };
+            let Some(list) = cache.list(1, &c, &occ, a, b).map(|l| l.to_vec()) else {
+                continue;
+            };
+            let other = cache.list(1, &c, &occ, b, a).map(|l| l.to_vec());
+            assert_eq!(Some(&list), other.as_ref(), "clusters {a}, {b}");
+            let q = gi.between(gj);
+            occ.filter_between(&q, &list, usize::MAX, &mut narrowed);
+            let all = usize::MAX;
+            assert!(occ.collect_between_up_to(&q, all, all, &mut reference));
+            narrowed.sort_unstable();
+            reference.sort_unstable();
+            assert!(
+                narrowed.iter().all(|k| reference.binary_search(k).is_ok()),
+                "pair ({i}, {j}): {narrowed:?} not within {reference:?}"
+            );
+            tighter += (narrowed.len() < reference.len()) as usize;
+            empty += narrowed.is_empty() as usize;
+            some += !narrowed.is_empty() as usize;
+            // What the list leaves out blocks nothing: segments between the patches
+            // get the hierarchy's answer.
+            let mut first = 0;
+            for _ in 0..20 {
+                let mut r = || rng.next_f64();
+                let x = gi.map.eval(r(), r()).0;
+                let y = gj.map.eval(r(), r()).0;
+                let by_list = occ.occluded_by(x, y, &narrowed, None, &mut first);
+                assert_eq!(
+                    by_list,
+                    occ.occluded(x, y, q.ignore),
+                    "pair ({i}, {j}): {x} -> {y}"
+                );
+                blocked += by_list as usize;
+            }
+        }
+        assert!(
+            empty > 300 && some > 300 && blocked > 1000,
+            "{empty} pairs with no candidate, {some} with some, {blocked} blocked segments"
+        );
+        // Tighter than the pair's own query at times: the clusters' hull axes
+        // separate some triangles the pair's axes do not.
+        assert!(tighter > 0);
+    }
+}
