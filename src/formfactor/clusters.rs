@@ -195,11 +195,19 @@ impl Clusters {
     }
 }
 
-/// A thread's cluster pairs' lists (in its [`super::Scratch`]).
+/// A thread's lists (in its [`super::Scratch`]): those of cluster pairs, and those of
+/// the current patch with each cluster.
 #[derive(Debug, Default)]
 pub(crate) struct ClusterCache {
     /// Engine the lists belong to.
     engine: Option<u64>,
+    pairs: PairLists,
+    patch: PatchLists,
+}
+
+/// Lists of cluster pairs, by the cluster of one side ([`CACHED_CLUSTERS`] of them).
+#[derive(Debug, Default)]
+struct PairLists {
     /// Most recently used last.
     entries: Vec<CacheEntry>,
     /// Query output buffer.
@@ -217,21 +225,79 @@ struct CacheEntry {
 const UNKNOWN: (u32, u32) = (u32::MAX, 0);
 const TOO_MANY: (u32, u32) = (u32::MAX, 1);
 
+/// Lists of one patch (the first patch of the pairs asked about, the row's patch in a
+/// row) with each cluster: the cluster pair's list narrowed to that patch, so that
+/// each pair narrows a shorter list.
+#[derive(Debug, Default)]
+struct PatchLists {
+    patch: Option<u32>,
+    /// Generation of the current patch: a slot is valid when it carries it.
+    generation: u32,
+    /// Per cluster: (generation, start, len) in `pool`; len u32::MAX = too many.
+    slots: Vec<(u32, u32, u32)>,
+    pool: Vec<u32>,
+    found: Vec<u32>,
+}
+
 impl ClusterCache {
-    /// The triangles that may come between any patch of cluster `a` and any of `b`
-    /// (computed on first use); `None` when there are too many for a list.
+    /// The triangles that may come between patch `i` (unclipped, `gi`) and any patch
+    /// of cluster `b`, computed on first use from the list of `i`'s cluster and `b`;
+    /// `None` when that list would be too long.
     pub(crate) fn list(
         &mut self,
         engine: u64,
         clusters: &Clusters,
         occ: &Occluders,
-        a: u32,
+        (i, gi): (u32, &PatchGeom),
         b: u32,
     ) -> Option<&[u32]> {
         if self.engine != Some(engine) {
-            self.engine = Some(engine);
-            self.entries.clear();
+            *self = ClusterCache {
+                engine: Some(engine),
+                ..ClusterCache::default()
+            };
         }
+        let p = &mut self.patch;
+        if p.patch != Some(i) {
+            p.patch = Some(i);
+            p.pool.clear();
+            p.generation = p.generation.wrapping_add(1);
+            if p.generation == 0 || p.slots.len() != clusters.len() {
+                p.generation = 1;
+                p.slots.clear();
+                p.slots.resize(clusters.len(), (0, 0, 0));
+            }
+        }
+        let (generation, mut start, mut len) = p.slots[b as usize];
+        if generation != p.generation {
+            let a = clusters.of(i)?;
+            (start, len) = match self.pairs.list(clusters, occ, a, b) {
+                Some(list) => {
+                    let rb = &clusters.rects[b as usize];
+                    let q = Between::new(
+                        gi.poly.verts(),
+                        gi.normal,
+                        &rb.corners,
+                        rb.normal,
+                        (gi.face, rb.face),
+                    );
+                    occ.filter_between(&q, list, usize::MAX, &mut p.found);
+                    let start = p.pool.len() as u32;
+                    p.pool.extend_from_slice(&p.found);
+                    (start, p.found.len() as u32)
+                }
+                None => (0, u32::MAX),
+            };
+            p.slots[b as usize] = (p.generation, start, len);
+        }
+        (len != u32::MAX).then(|| &p.pool[start as usize..(start + len) as usize])
+    }
+}
+
+impl PairLists {
+    /// The triangles that may come between any patch of cluster `a` and any of `b`
+    /// (computed on first use); `None` when there are too many for a list.
+    fn list(&mut self, clusters: &Clusters, occ: &Occluders, a: u32, b: u32) -> Option<&[u32]> {
         let found = self
             .entries
             .iter()
@@ -287,7 +353,7 @@ mod tests {
     use crate::scene::builtin;
 
     /// On the 16-box room: every patch lies in its cluster's rectangle (same plane);
-    /// a cluster pair's list, narrowed to a pair of patches, is within the set the
+    /// a cluster pair's list, narrowed to one patch and then to a pair, is within the set the
     /// hierarchy query finds for that pair and gives every segment between the two
     /// patches the hierarchy's answer; the list is the same from either side and
     /// whatever the cache held before.
@@ -320,7 +386,7 @@ mod tests {
                 );
             }
         }
-        let mut cache = ClusterCache::default();
+        let (mut cache, mut pair_lists) = (ClusterCache::default(), PairLists::default());
         let mut rng = SplitMix64::new(11);
         let (mut narrowed, mut reference) = (Vec::new(), Vec::new());
         let (mut pairs, mut empty, mut some, mut tighter, mut blocked) = (0, 0, 0, 0, 0);
@@ -342,20 +408,25 @@ mod tests {
             let (ci, cj) = (c.of(i).unwrap(), c.of(j).unwrap());
             // Alternate the side first asked, and sometimes forget everything.
             if rng.below(50) == 0 {
-                cache = ClusterCache::default();
+                pair_lists = PairLists::default();
             }
             let (a, b) = if rng.below(2) == 0 {
                 (ci, cj)
             } else {
                 (cj, ci)
             };
-            let Some(list) = cache.list(1, &c, &occ, a, b).map(|l| l.to_vec()) else {
+            let Some(list) = pair_lists.list(&c, &occ, a, b).map(|l| l.to_vec()) else {
                 continue;
             };
-            let other = cache.list(1, &c, &occ, b, a).map(|l| l.to_vec());
+            let other = pair_lists.list(&c, &occ, b, a).map(|l| l.to_vec());
             assert_eq!(Some(&list), other.as_ref(), "clusters {a}, {b}");
+            // Narrowed to patch i, then to the pair.
+            let of_i = cache
+                .list(1, &c, &occ, (i, gi), cj)
+                .expect("the clusters' list exists");
+            assert!(of_i.iter().all(|k| list.contains(k)));
             let q = gi.between(gj);
-            occ.filter_between(&q, &list, usize::MAX, &mut narrowed);
+            occ.filter_between(&q, of_i, usize::MAX, &mut narrowed);
             let all = usize::MAX;
             assert!(occ.collect_between_up_to(&q, all, all, &mut reference));
             narrowed.sort_unstable();

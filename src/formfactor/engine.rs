@@ -579,8 +579,8 @@ impl RowEngine {
         let shared = self
             .clusters
             .as_ref()
-            .and_then(|c| Some((c, c.of(i)?, c.of(j)?)))
-            .and_then(|(c, ci, cj)| scratch.clusters.list(self.id, c, occ, ci, cj));
+            .and_then(|c| Some((c, c.of(j)?)))
+            .and_then(|(c, cj)| scratch.clusters.list(self.id, c, occ, (i, gi), cj));
         if let Some(list) = shared {
             // Lists for rays only with few occluders (see PAIR_LISTS_MAX_OCCLUDERS);
             // else only whether there is any.

@@ -11,7 +11,8 @@
 //! of the 16 edge pairs of the contour integral. Pairs that are close, touching or
 //! need clipping go to the contour integral.
 //!
-//! Maps from [-1, 1]² onto a patch: bilinear for quads (Jacobian |∂x/∂u × ∂x/∂v|),
+//! Maps from [-1, 1]² onto a patch: bilinear for quads (Jacobian |∂x/∂u × ∂x/∂v|;
+//! affine with a constant Jacobian for parallelograms),
 //! the collapsed (Duffy) square for triangles, x = a + s (b − a) + s t (c − b) with
 //! s, t ∈ [0, 1] and Jacobian 2A·s; both are polynomial, so Gauss points stay exact
 //! for polynomial integrands.
@@ -19,6 +20,7 @@
 use glam::DVec3;
 
 use super::quadrature::GaussTable;
+use super::sampling::PatchMap;
 
 /// Largest order per dimension used for far pairs. q = 4 is q⁴ = 256 kernel
 /// evaluations; with the inner loop over j's points in SIMD lanes
@@ -110,22 +112,19 @@ impl PatchPoints {
             w: [0.0; MAX_FAR_ORDER * MAX_FAR_ORDER],
             n: 0,
         };
+        // Quads: the bilinear map of sampling (affine with a constant Jacobian for
+        // parallelograms).
+        let quad = (corners.len() == 4).then(|| PatchMap::new(corners, area));
         for &(xu, wu) in rule {
             for &(xv, wv) in rule {
                 let (s, t) = (0.5 * (xu + 1.0), 0.5 * (xv + 1.0));
                 let w = 0.25 * wu * wv;
-                let (p, j) = if corners.len() == 3 {
-                    let (a, b, c) = (corners[0], corners[1], corners[2]);
-                    (a + (b - a) * s + (c - b) * (s * t), 2.0 * area * s)
-                } else {
-                    let c = corners;
-                    let x = c[0] * ((1.0 - s) * (1.0 - t))
-                        + c[1] * (s * (1.0 - t))
-                        + c[2] * (s * t)
-                        + c[3] * ((1.0 - s) * t);
-                    let du = (c[1] - c[0]) * (1.0 - t) + (c[2] - c[3]) * t;
-                    let dv = (c[3] - c[0]) * (1.0 - s) + (c[2] - c[1]) * s;
-                    (x, du.cross(dv).length())
+                let (p, j) = match &quad {
+                    None => {
+                        let (a, b, c) = (corners[0], corners[1], corners[2]);
+                        (a + (b - a) * s + (c - b) * (s * t), 2.0 * area * s)
+                    }
+                    Some(map) => map.eval(s, t),
                 };
                 out.p[out.n] = p;
                 out.w[out.n] = w * j;

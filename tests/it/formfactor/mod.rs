@@ -628,15 +628,22 @@ fn baselines_point_and_mc_errors() {
     ];
     for (label, b) in &scenes {
         let e_point = l1_error(b, FormFactorConfig::accurate().with_method(Method::Point));
+        // Next to a shared edge the kernel is not square-integrable, so one run's
+        // error has a heavy tail (one seed in ~12 gives 3-4x the typical error of
+        // perpendicular patches at S = 256): the median over 5 seeds is what converges.
         let mut mc = Vec::new();
         for s in [4u32, 16, 64, 256] {
-            let e = l1_error(
-                b,
-                FormFactorConfig::accurate()
-                    .with_method(Method::Mc)
-                    .with_samples(s),
-            );
-            mc.push(e);
+            let mut by_seed: Vec<f64> = (1..=5u64)
+                .map(|seed| {
+                    let cfg = FormFactorConfig::accurate()
+                        .with_method(Method::Mc)
+                        .with_samples(s)
+                        .with_seed(seed);
+                    l1_error(b, cfg)
+                })
+                .collect();
+            by_seed.sort_by(f64::total_cmp);
+            mc.push(by_seed[2]);
         }
         println!(
             "{label}: relative L1 error point={e_point:.3e} mc S=4:{:.3e} S=16:{:.3e} S=64:{:.3e} S=256:{:.3e}",
