@@ -189,15 +189,17 @@ impl ShearedRay {
         let kz = dir.abs().max_position();
         let mut kx = (kz + 1) % 3;
         let mut ky = (kx + 1) % 3;
-        if dir[kz] < 0.0 {
+        let d = dir.to_array();
+        if d[kz] < 0.0 {
             std::mem::swap(&mut kx, &mut ky);
         }
+        let sz = 1.0 / d[kz];
         ShearedRay {
             origin,
             axes: [kx, ky, kz],
-            sx: dir[kx] / dir[kz],
-            sy: dir[ky] / dir[kz],
-            sz: 1.0 / dir[kz],
+            sx: d[kx] * sz,
+            sy: d[ky] * sz,
+            sz,
         }
     }
 }
@@ -632,7 +634,7 @@ impl Occluders {
         if len.is_nan() || len <= 2.0 * RAY_EPSILON {
             return None;
         }
-        let dir = d / len;
+        let dir = d * (1.0 / len);
         Some(Segment {
             f,
             dir,
@@ -846,10 +848,31 @@ impl Occluders {
             return false;
         };
         let planes = self.normalized_planes(planes);
+        // One loop per axis permutation (see OccluderTriangle::hit).
+        match seg.sheared.axes {
+            [1, 2, 0] => self.first_blocker::<1, 2, 0>(&seg, ids, &planes, first),
+            [2, 1, 0] => self.first_blocker::<2, 1, 0>(&seg, ids, &planes, first),
+            [2, 0, 1] => self.first_blocker::<2, 0, 1>(&seg, ids, &planes, first),
+            [0, 2, 1] => self.first_blocker::<0, 2, 1>(&seg, ids, &planes, first),
+            [0, 1, 2] => self.first_blocker::<0, 1, 2>(&seg, ids, &planes, first),
+            [1, 0, 2] => self.first_blocker::<1, 0, 2>(&seg, ids, &planes, first),
+            _ => unreachable!("not a permutation: {:?}", seg.sheared.axes),
+        }
+    }
+
+    /// [`Occluders::occluded_by`] for a segment whose axes are (KX, KY, KZ).
+    #[inline(always)]
+    fn first_blocker<const KX: usize, const KY: usize, const KZ: usize>(
+        &self,
+        seg: &Segment,
+        ids: &[u32],
+        planes: &Option<[(DVec3, f64); 2]>,
+        first: &mut usize,
+    ) -> bool {
         let blocks = |k: usize| {
             self.tris[ids[k] as usize]
-                .hit(&seg.sheared, seg.t0, seg.t1)
-                .is_some_and(|t| seg.counts(t, &planes))
+                .hit_along::<KX, KY, KZ>(&seg.sheared, seg.t0, seg.t1)
+                .is_some_and(|t| seg.counts(t, planes))
         };
         if *first < ids.len() && blocks(*first) {
             return true;
