@@ -53,6 +53,29 @@ pub const MAX_REJECTED_CANDIDATES: usize = 32;
 /// true origin is skipped; the exact test then measures t from the true origin.
 const RAY_BACKOFF: f64 = 1e-3;
 
+/// Runs `$body` with `$kx`, `$ky`, `$kz` bound (as constants, usable as const generic
+/// arguments) to the axis permutation `$axes` of a [`ShearedRay`]: one copy of a ray's
+/// hot loop per permutation.
+macro_rules! by_axes {
+    ($axes:expr, |$kx:ident, $ky:ident, $kz:ident| $body:expr) => {
+        match $axes {
+            [1, 2, 0] => by_axes!(@arm 1, 2, 0, $kx, $ky, $kz, $body),
+            [2, 1, 0] => by_axes!(@arm 2, 1, 0, $kx, $ky, $kz, $body),
+            [2, 0, 1] => by_axes!(@arm 2, 0, 1, $kx, $ky, $kz, $body),
+            [0, 2, 1] => by_axes!(@arm 0, 2, 1, $kx, $ky, $kz, $body),
+            [0, 1, 2] => by_axes!(@arm 0, 1, 2, $kx, $ky, $kz, $body),
+            [1, 0, 2] => by_axes!(@arm 1, 0, 2, $kx, $ky, $kz, $body),
+            axes => unreachable!("not a permutation: {axes:?}"),
+        }
+    };
+    (@arm $x:literal, $y:literal, $z:literal, $kx:ident, $ky:ident, $kz:ident, $body:expr) => {{
+        const $kx: usize = $x;
+        const $ky: usize = $y;
+        const $kz: usize = $z;
+        $body
+    }};
+}
+
 /// A triangle in the normalized frame, with what the exact tests need.
 #[derive(Clone, Copy, Debug)]
 struct OccluderTriangle {
@@ -92,24 +115,12 @@ impl OccluderTriangle {
     /// them. A test that is not (Möller–Trumbore) lets rays slip through the diagonal
     /// of a quad face, which on subdivided scenes happens for whole families of
     /// grid-aligned rays (regression test `ray_through_a_shared_diagonal_is_blocked`).
-    #[inline]
-    fn hit(&self, ray: &ShearedRay, t0: f64, t1: f64) -> Option<f64> {
-        // One copy of the test per axis permutation: constant indices instead of a
-        // branch per vector component (the hottest function of a `contour` row).
-        match ray.axes {
-            [1, 2, 0] => self.hit_along::<1, 2, 0>(ray, t0, t1),
-            [2, 1, 0] => self.hit_along::<2, 1, 0>(ray, t0, t1),
-            [2, 0, 1] => self.hit_along::<2, 0, 1>(ray, t0, t1),
-            [0, 2, 1] => self.hit_along::<0, 2, 1>(ray, t0, t1),
-            [0, 1, 2] => self.hit_along::<0, 1, 2>(ray, t0, t1),
-            [1, 0, 2] => self.hit_along::<1, 0, 2>(ray, t0, t1),
-            _ => unreachable!("not a permutation: {:?}", ray.axes),
-        }
-    }
-
-    /// [`OccluderTriangle::hit`] for a ray whose axes are (KX, KY, KZ).
+    ///
+    /// Const generic in the ray's axis permutation ([`ShearedRay::axes`], dispatched
+    /// once per ray by [`by_axes`]): constant indices instead of a branch per vector
+    /// component in the hottest function of a `contour` row.
     #[inline(always)]
-    fn hit_along<const KX: usize, const KY: usize, const KZ: usize>(
+    fn hit<const KX: usize, const KY: usize, const KZ: usize>(
         &self,
         ray: &ShearedRay,
         t0: f64,
@@ -602,15 +613,32 @@ impl Occluders {
         let origin32 = (seg.f - seg.dir * RAY_BACKOFF).as_vec3a();
         let tmax32 = ((RAY_BACKOFF + seg.len) * (1.0 + 1e-5) + 1e-6) as f32;
         let ray = Ray::new(origin32, seg.dir.as_vec3a(), 0.0, tmax32);
+        let free = by_axes!(seg.sheared.axes, |KX, KY, KZ| {
+            self.misses::<KX, KY, KZ>(bvh, ray, &seg, ignore, &planes)
+        });
+        !free
+    }
+
+    /// Whether the segment (as `ray` for the hierarchy) misses every triangle, for a
+    /// segment whose axes are (KX, KY, KZ).
+    #[inline(always)]
+    fn misses<const KX: usize, const KY: usize, const KZ: usize>(
+        &self,
+        bvh: &CwBvh,
+        ray: Ray,
+        seg: &Segment,
+        ignore: (u32, u32),
+        planes: &Option<[(DVec3, f64); 2]>,
+    ) -> bool {
         let tris = &self.tris;
         // ray_traverse_miss stops at the first primitive whose returned t < tmax.
-        !bvh.ray_traverse_miss(ray, |_, id| {
+        bvh.ray_traverse_miss(ray, |_, id| {
             let tri = &tris[id];
             if tri.face == ignore.0 || tri.face == ignore.1 {
                 return f32::INFINITY;
             }
-            match tri.hit(&seg.sheared, seg.t0, seg.t1) {
-                Some(t) if seg.counts(t, &planes) => 0.0,
+            match tri.hit::<KX, KY, KZ>(&seg.sheared, seg.t0, seg.t1) {
+                Some(t) if seg.counts(t, planes) => 0.0,
                 _ => f32::INFINITY,
             }
         })
@@ -848,16 +876,9 @@ impl Occluders {
             return false;
         };
         let planes = self.normalized_planes(planes);
-        // One loop per axis permutation (see OccluderTriangle::hit).
-        match seg.sheared.axes {
-            [1, 2, 0] => self.first_blocker::<1, 2, 0>(&seg, ids, &planes, first),
-            [2, 1, 0] => self.first_blocker::<2, 1, 0>(&seg, ids, &planes, first),
-            [2, 0, 1] => self.first_blocker::<2, 0, 1>(&seg, ids, &planes, first),
-            [0, 2, 1] => self.first_blocker::<0, 2, 1>(&seg, ids, &planes, first),
-            [0, 1, 2] => self.first_blocker::<0, 1, 2>(&seg, ids, &planes, first),
-            [1, 0, 2] => self.first_blocker::<1, 0, 2>(&seg, ids, &planes, first),
-            _ => unreachable!("not a permutation: {:?}", seg.sheared.axes),
-        }
+        by_axes!(seg.sheared.axes, |KX, KY, KZ| {
+            self.first_blocker::<KX, KY, KZ>(&seg, ids, &planes, first)
+        })
     }
 
     /// [`Occluders::occluded_by`] for a segment whose axes are (KX, KY, KZ).
@@ -871,7 +892,7 @@ impl Occluders {
     ) -> bool {
         let blocks = |k: usize| {
             self.tris[ids[k] as usize]
-                .hit_along::<KX, KY, KZ>(&seg.sheared, seg.t0, seg.t1)
+                .hit::<KX, KY, KZ>(&seg.sheared, seg.t0, seg.t1)
                 .is_some_and(|t| seg.counts(t, planes))
         };
         if *first < ids.len() && blocks(*first) {
