@@ -196,21 +196,31 @@ struct ShearedRay {
 }
 
 impl ShearedRay {
-    fn new(origin: DVec3, dir: DVec3) -> Self {
-        let kz = dir.abs().max_position();
-        let mut kx = (kz + 1) % 3;
-        let mut ky = (kx + 1) % 3;
-        let d = dir.to_array();
-        if d[kz] < 0.0 {
+    /// The ray from `origin` along `d` (not normalized), |d| = `len` > 0. Written with
+    /// the components in registers and two independent divisions (1/|d| for the
+    /// caller's unit direction, 1/d_z here): the set-up runs once per shadow ray.
+    fn new(origin: DVec3, d: DVec3, len: f64) -> Self {
+        let a = d.abs();
+        // z = the largest component (the first one on ties).
+        let (mut kx, mut ky, kz, mut x, mut y, z) = if a.x >= a.y && a.x >= a.z {
+            (1, 2, 0, d.y, d.z, d.x)
+        } else if a.y >= a.z {
+            (2, 0, 1, d.z, d.x, d.y)
+        } else {
+            (0, 1, 2, d.x, d.y, d.z)
+        };
+        if z < 0.0 {
             std::mem::swap(&mut kx, &mut ky);
+            std::mem::swap(&mut x, &mut y);
         }
-        let sz = 1.0 / d[kz];
+        let inv = 1.0 / z;
         ShearedRay {
             origin,
             axes: [kx, ky, kz],
-            sx: d[kx] * sz,
-            sy: d[ky] * sz,
-            sz,
+            sx: x * inv,
+            sy: y * inv,
+            // 1 / (unit direction)_z
+            sz: len * inv,
         }
     }
 }
@@ -669,7 +679,7 @@ impl Occluders {
             len,
             t0: RAY_EPSILON,
             t1: len - RAY_EPSILON,
-            sheared: ShearedRay::new(f, dir),
+            sheared: ShearedRay::new(f, d, len),
         })
     }
 
