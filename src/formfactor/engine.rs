@@ -209,6 +209,18 @@ impl PatchGeom {
     }
 }
 
+/// Bounding sphere and plane of a patch, for [`RowEngine::facing`] (one cache line).
+#[derive(Clone, Copy, Debug)]
+#[repr(C, align(64))]
+struct PatchBound {
+    centre: DVec3,
+    /// Largest distance from the centre to a corner.
+    radius: f64,
+    normal: DVec3,
+    /// normal · x for x on the patch's plane.
+    offset: f64,
+}
+
 /// Computes form-factor rows; shared by all threads of a process.
 #[derive(Debug)]
 pub struct RowEngine {
@@ -219,6 +231,9 @@ pub struct RowEngine {
     occluders: Arc<Occluders>,
     cfg: FormFactorConfig,
     geom: Vec<PatchGeom>,
+    bounds: Vec<PatchBound>,
+    /// Rounding allowance of the sphere tests of [`RowEngine::facing`].
+    bound_slack: f64,
     valid: Vec<bool>,
     gauss: &'static GaussTable,
     params: ContourParams,
@@ -264,6 +279,15 @@ impl RowEngine {
         };
         let params = cfg.contour_params();
         let occluders_len = occluders.len();
+        let bounds = geom
+            .iter()
+            .map(|g| PatchBound {
+                centre: g.centroid,
+                radius: g.radius,
+                normal: g.normal,
+                offset: g.offset,
+            })
+            .collect();
         static NEXT_ID: AtomicU64 = AtomicU64::new(0);
         RowEngine {
             id: NEXT_ID.fetch_add(1, Ordering::Relaxed),
@@ -271,6 +295,8 @@ impl RowEngine {
             occluders,
             cfg,
             geom,
+            bounds,
+            bound_slack: 1e-12 * diag,
             valid,
             gauss: gauss_table(),
             params,
@@ -430,7 +456,7 @@ impl RowEngine {
         if self.cfg.method == Method::Point {
             return point::pair(gi, gj, &self.occluders, &mut scratch.counters);
         }
-        let Some(extent) = self.facing(gi, gj, scratch) else {
+        let Some(extent) = self.facing(iu, ju, scratch) else {
             return 0.0;
         };
         match self.cfg.method {
@@ -444,9 +470,32 @@ impl RowEngine {
 
     /// None when one patch faces away from the other (every corner on or behind the
     /// other's plane; coplanar pairs included), else the lowest signed distance of
-    /// i's corners to j's plane and of j's corners to i's plane. Counts the pair.
+    /// i's corners to j's plane and of j's corners to i's plane (or, when every corner
+    /// is clearly in front, a lower bound above the tolerance: callers only compare it
+    /// with −tolerance). Counts the pair.
+    ///
+    /// Decided from the bounding spheres when they are clear of the planes by a margin
+    /// (the answer of the corners then cannot differ): they sit in a compact array,
+    /// while the corners are in the large per-patch records, and most pairs of a row
+    /// are decided here.
     #[inline]
-    fn facing(&self, gi: &PatchGeom, gj: &PatchGeom, scratch: &mut Scratch) -> Option<(f64, f64)> {
+    fn facing(&self, i: usize, j: usize, scratch: &mut Scratch) -> Option<(f64, f64)> {
+        let (bi, bj) = (&self.bounds[i], &self.bounds[j]);
+        // Signed distance of each centre to the other's plane.
+        let dj = bi.normal.dot(bj.centre) - bi.offset;
+        let di = bj.normal.dot(bi.centre) - bj.offset;
+        let margin = self.tol + self.bound_slack;
+        if dj + bj.radius < self.tol - self.bound_slack
+            || di + bi.radius < self.tol - self.bound_slack
+        {
+            scratch.counters.pairs_facing_away += 1;
+            return None;
+        }
+        if dj - bj.radius > margin && di - bi.radius > margin {
+            scratch.counters.pairs_evaluated += 1;
+            return Some((di - bi.radius, dj - bj.radius));
+        }
+        let (gi, gj) = (&self.geom[i], &self.geom[j]);
         let (j_lo, j_hi) = gj.extent_wrt(gi);
         let (i_lo, i_hi) = gi.extent_wrt(gj);
         if j_hi <= self.tol || i_hi <= self.tol {
@@ -647,7 +696,7 @@ impl RowEngine {
                 if j == iu || !self.valid[j] {
                     continue;
                 }
-                let Some(extent) = self.facing(gi, gj, scratch) else {
+                let Some(extent) = self.facing(iu, j, scratch) else {
                     continue;
                 };
                 if let Some(u) = self.contour_unoccluded((i, j as u32), gi, gj, extent, scratch) {
