@@ -134,10 +134,13 @@ impl Scratch {
 }
 
 /// Everything the kernels need about one patch, computed once.
+///
+/// `repr(C)` keeps the fields in this order: what every evaluated pair reads first
+/// (plane, centre, corners, sampling map), the edges of the contour integral (near
+/// pairs only) last, so a far pair touches a few adjacent cache lines of a record.
 #[derive(Clone, Debug)]
+#[repr(C)]
 pub(crate) struct PatchGeom {
-    pub poly: Polygon,
-    pub edges: EdgeSet,
     pub normal: DVec3,
     /// normal · x for x on the patch's plane.
     pub offset: f64,
@@ -148,7 +151,9 @@ pub(crate) struct PatchGeom {
     /// Largest distance from the centroid to a corner.
     pub radius: f64,
     pub face: u32,
+    pub poly: Polygon,
     pub map: PatchMap,
+    pub edges: EdgeSet,
 }
 
 impl PatchGeom {
