@@ -82,6 +82,8 @@ struct OccluderTriangle {
     v: [DVec3; 3],
     /// Unit normal (either orientation; faces block from both sides).
     normal: DVec3,
+    /// normal · v[0].
+    offset: f64,
     min: DVec3,
     max: DVec3,
     face: u32,
@@ -94,9 +96,11 @@ impl OccluderTriangle {
         if !len.is_finite() || len <= 0.0 {
             return None;
         }
+        let normal = n / len;
         Some(OccluderTriangle {
             v,
-            normal: n / len,
+            normal,
+            offset: normal.dot(v[0]),
             min: v[0].min(v[1]).min(v[2]),
             max: v[0].max(v[1]).max(v[2]),
             face,
@@ -262,6 +266,7 @@ impl HullAxes {
         let (a, b) = (&pts[..na], &pts[na..na + nb]);
         let mean = |p: &[DVec3]| p.iter().sum::<DVec3>() / p.len() as f64;
         let c = mean(b) - mean(a);
+        let c2 = c.length_squared();
         for poly in [a, b] {
             for k in 0..poly.len() {
                 if h.n == MAX_HULL_AXES {
@@ -269,22 +274,23 @@ impl HullAxes {
                 }
                 let e = poly[(k + 1) % poly.len()] - poly[k];
                 let axis = e.cross(c);
-                let len = axis.length();
-                // Edges (nearly) along c give no useful axis.
+                let len2 = axis.length_squared();
+                // Edges (nearly) along c give no useful axis: |e × c| ≤ 1e-12 |e| |c|.
                 // (Written so that NaN lengths are skipped too.)
-                let useful = len > 1e-12 * e.length() * c.length() && len.is_finite();
+                let useful = len2 > 1e-24 * e.length_squared() * c2 && len2.is_finite();
                 if !useful {
                     continue;
                 }
-                let axis = axis / len;
+                let len = len2.sqrt();
                 // Opposite edges of a parallelogram, and the aligned edges of grid
-                // patches, give the same axis: test it once.
+                // patches, give the same axis: test it once (checked before dividing).
                 if h.axes[..h.n]
                     .iter()
-                    .any(|b| b.dot(axis).abs() > 1.0 - 1e-12)
+                    .any(|b| b.dot(axis).abs() > (1.0 - 1e-12) * len)
                 {
                     continue;
                 }
+                let axis = axis / len;
                 let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
                 for p in pts {
                     let s = axis.dot(*p);
@@ -441,10 +447,9 @@ impl PairHull {
     /// Tests 3 and 4, for a triangle that passed [`PairHull::near`].
     #[inline]
     fn crosses(&self, t: &OccluderTriangle) -> bool {
-        let off = t.normal.dot(t.v[0]);
         let (mut above, mut below) = (false, false);
         for p in &self.pts[..self.np] {
-            let s = t.normal.dot(*p) - off;
+            let s = t.normal.dot(*p) - t.offset;
             above |= s > PLANE_TOLERANCE;
             below |= s < -PLANE_TOLERANCE;
         }
