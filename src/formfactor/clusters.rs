@@ -64,8 +64,9 @@ const NONE: u32 = u32::MAX;
 
 impl Clusters {
     /// Clusters the valid patches face by face; `None` when clusters would be too
-    /// small to pay off ([`MIN_MEAN_CLUSTER`]).
-    pub(crate) fn new(geom: &[PatchGeom], valid: &[bool]) -> Option<Self> {
+    /// small to pay off ([`MIN_MEAN_CLUSTER`]). `diag`: the patches' bounding-box
+    /// diagonal (faces must be planar to 1e-12 of it).
+    pub(crate) fn new(geom: &[PatchGeom], valid: &[bool], diag: f64) -> Option<Self> {
         let mut by_face: HashMap<u32, Vec<usize>> = HashMap::new();
         for (i, g) in geom.iter().enumerate() {
             if valid[i] {
@@ -80,28 +81,39 @@ impl Clusters {
         };
         let mut clustered = 0usize;
         for (face, members) in &faces {
-            clustered += c.add_face(*face, members, geom);
+            clustered += c.add_face(*face, members, geom, 1e-12 * diag);
         }
         let mean = clustered as f64 / c.rects.len().max(1) as f64;
         (mean >= MIN_MEAN_CLUSTER).then_some(c)
     }
 
-    /// Grid cells over one face's patches (all with the same normal, else the face is
-    /// left out); returns the number of patches clustered.
-    fn add_face(&mut self, face: u32, members: &[usize], geom: &[PatchGeom]) -> usize {
+    /// Grid cells over one face's patches; returns the number of patches clustered.
+    /// The face is left out (its pairs query the hierarchy themselves) unless all its
+    /// patches have the same normal and every corner lies within `flat` of the plane
+    /// through the first corner: the cluster queries use that plane (an OBJ face may be
+    /// planar only to 1e-6 of its size, far more than the occluder tests' tolerance).
+    fn add_face(&mut self, face: u32, members: &[usize], geom: &[PatchGeom], flat: f64) -> usize {
         let g0 = &geom[members[0]];
         let normal = g0.normal;
         if members.iter().any(|&i| geom[i].normal != normal) {
             return 0;
         }
-        // A frame in the plane: eu along the first patch's first edge.
+        let unit = normal.normalize_or_zero();
         let v = g0.poly.verts();
-        let eu = (v[1] - v[0]).reject_from(normal).normalize_or_zero();
+        let origin = v[0];
+        let on_plane = members
+            .iter()
+            .flat_map(|&i| geom[i].poly.verts())
+            .all(|p| unit.dot(*p - origin).abs() <= flat);
+        if unit == DVec3::ZERO || !on_plane {
+            return 0;
+        }
+        // A frame in the plane: eu along the first patch's first edge.
+        let eu = (v[1] - v[0]).reject_from(unit).normalize_or_zero();
         if eu == DVec3::ZERO {
             return 0;
         }
-        let ev = normal.cross(eu);
-        let origin = v[0];
+        let ev = unit.cross(eu);
         let uv = |p: DVec3| ((p - origin).dot(eu), (p - origin).dot(ev));
         let (mut lo, mut hi) = (
             (f64::INFINITY, f64::INFINITY),
@@ -149,9 +161,11 @@ impl Clusters {
             self.of[i] = id;
         }
         for (lo, hi) in bounds {
-            // Widened by a hair so that rounding in the frame cannot put a patch corner
-            // outside; the tests' own tolerance is 1e-9 of the scene diagonal.
-            let pad = 1e-12 * ((hi.0 - lo.0) + (hi.1 - lo.1)) + 1e-300;
+            // Widened by a hair so that rounding in the frame (relative to the
+            // coordinates' magnitude) cannot put a patch corner outside.
+            let pad = 1e-12 * ((hi.0 - lo.0) + (hi.1 - lo.1))
+                + 1e-14 * origin.abs().max_element()
+                + 1e-300;
             let at = |u: f64, v: f64| origin + eu * u + ev * v;
             self.rects.push(ClusterRect {
                 corners: [
@@ -242,7 +256,10 @@ struct PatchLists {
 impl ClusterCache {
     /// The triangles that may come between patch `i` (unclipped, `gi`) and any patch
     /// of cluster `b`, computed on first use from the list of `i`'s cluster and `b`;
-    /// `None` when that list would be too long.
+    /// `None` when that list would be too long. `row`: the cluster of the row being
+    /// computed, if known: the cluster pairs' lists are kept by it, so that a half row
+    /// asking about pairs (j, i) with j from many clusters does not churn the cache
+    /// (only the time depends on it, never a list).
     pub(crate) fn list(
         &mut self,
         engine: u64,
@@ -250,6 +267,7 @@ impl ClusterCache {
         occ: &Occluders,
         (i, gi): (u32, &PatchGeom),
         b: u32,
+        row: Option<u32>,
     ) -> Option<&[u32]> {
         if self.engine != Some(engine) {
             *self = ClusterCache {
@@ -271,7 +289,8 @@ impl ClusterCache {
         let (generation, mut start, mut len) = p.slots[b as usize];
         if generation != p.generation {
             let a = clusters.of(i)?;
-            (start, len) = match self.pairs.list(clusters, occ, a, b) {
+            let keep = if row == Some(b) { b } else { a };
+            (start, len) = match self.pairs.list(clusters, occ, a, b, keep) {
                 Some(list) => {
                     let rb = &clusters.rects[b as usize];
                     let q = Between::new(
@@ -296,8 +315,16 @@ impl ClusterCache {
 
 impl PairLists {
     /// The triangles that may come between any patch of cluster `a` and any of `b`
-    /// (computed on first use); `None` when there are too many for a list.
-    fn list(&mut self, clusters: &Clusters, occ: &Occluders, a: u32, b: u32) -> Option<&[u32]> {
+    /// (computed on first use); `None` when there are too many for a list. A new
+    /// entry is made for `keep` (`a` or `b`) when neither has one.
+    fn list(
+        &mut self,
+        clusters: &Clusters,
+        occ: &Occluders,
+        a: u32,
+        b: u32,
+        keep: u32,
+    ) -> Option<&[u32]> {
         let found = self
             .entries
             .iter()
@@ -315,12 +342,12 @@ impl PairLists {
                     self.entries.remove(0)
                 } else {
                     CacheEntry {
-                        cluster: a,
+                        cluster: keep,
                         slots: Vec::new(),
                         pool: Vec::new(),
                     }
                 };
-                e.cluster = a;
+                e.cluster = keep;
                 e.slots.clear();
                 e.slots.resize(clusters.len(), UNKNOWN);
                 e.pool.clear();
@@ -352,6 +379,43 @@ mod tests {
     use crate::geometry::subdivide::{default_max_edge, subdivide};
     use crate::scene::builtin;
 
+    /// A face whose patches are off one plane by more than the flatness allowance
+    /// (an OBJ face planar to 1e-7 of its size) gets no clusters: its pairs query the
+    /// hierarchy themselves; a planar face next to it does.
+    #[test]
+    fn faces_not_flat_enough_are_left_out() {
+        let quad = |o: DVec3, face: u32, lift: f64| {
+            let c = [
+                o,
+                o + DVec3::X,
+                o + DVec3::X + DVec3::Y,
+                o + DVec3::Y + DVec3::Z * lift,
+            ];
+            crate::patch::Patch {
+                corners: c,
+                n_corners: 4,
+                normal: DVec3::Z,
+                area: 1.0,
+                group: 0,
+                face,
+                rho: [0.5; 3],
+                emission: [0.0; 3],
+            }
+        };
+        let mut patches = Vec::new();
+        for k in 0..64 {
+            let o = DVec3::new((k % 8) as f64, (k / 8) as f64, 0.0);
+            patches.push(quad(o, 0, 0.0));
+            patches.push(quad(o + DVec3::Z * 5.0, 1, if k == 9 { 1e-7 } else { 0.0 }));
+        }
+        let geom: Vec<PatchGeom> = patches.iter().map(PatchGeom::new).collect();
+        let valid = vec![true; geom.len()];
+        let c = Clusters::new(&geom, &valid, 10.0).expect("face 0 is clustered");
+        for (i, p) in patches.iter().enumerate() {
+            assert_eq!(c.of(i as u32).is_some(), p.face == 0, "patch {i}");
+        }
+    }
+
     /// On the 16-box room: every patch lies in its cluster's rectangle (same plane);
     /// a cluster pair's list, narrowed to one patch and then to a pair, is within the set the
     /// hierarchy query finds for that pair and gives every segment between the two
@@ -364,7 +428,7 @@ mod tests {
         let occ = Occluders::new(scene.triangles().collect());
         let geom: Vec<PatchGeom> = patches.patches.iter().map(PatchGeom::new).collect();
         let valid: Vec<bool> = geom.iter().map(PatchGeom::is_valid).collect();
-        let c = Clusters::new(&geom, &valid).expect("the room's faces are subdivided");
+        let c = Clusters::new(&geom, &valid, 20.0).expect("the room's faces are subdivided");
         assert!(c.len() > 2 * CACHED_CLUSTERS && c.len() < geom.len() / 4);
         for (i, g) in geom.iter().enumerate() {
             let r = &c.rects[c.of(i as u32).unwrap() as usize];
@@ -415,14 +479,14 @@ mod tests {
             } else {
                 (cj, ci)
             };
-            let Some(list) = pair_lists.list(&c, &occ, a, b).map(|l| l.to_vec()) else {
+            let Some(list) = pair_lists.list(&c, &occ, a, b, a).map(|l| l.to_vec()) else {
                 continue;
             };
-            let other = pair_lists.list(&c, &occ, b, a).map(|l| l.to_vec());
+            let other = pair_lists.list(&c, &occ, b, a, a).map(|l| l.to_vec());
             assert_eq!(Some(&list), other.as_ref(), "clusters {a}, {b}");
             // Narrowed to patch i, then to the pair.
             let of_i = cache
-                .list(1, &c, &occ, (i, gi), cj)
+                .list(1, &c, &occ, (i, gi), cj, None)
                 .expect("the clusters' list exists");
             assert!(of_i.iter().all(|k| list.contains(k)));
             let q = gi.between(gj);

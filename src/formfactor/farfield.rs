@@ -278,10 +278,17 @@ fn soa_body(pi: &PatchPoints, ni: DVec3, pj: FarSlice<'_>, nj: DVec3) -> f64 {
     let zs = pj.z.chunks_exact(LANES);
     let ws = pj.w.chunks_exact(LANES);
     // Points of i two at a time: the two kernels of a lane share one division
-    // (1/r⁴_a = r⁴_b / (r⁴_a r⁴_b)), the most expensive operation of the loop.
-    // r⁸ stays a normal f64 for distances between 1e-38 and 1e38 scene units.
+    // (1/r⁴_a = r⁴_b / (r⁴_a r⁴_b)), the most expensive operation of the loop. r⁴_a r⁴_b
+    // must stay a normal f64: checked on one pair of points (the distances of a far
+    // pair differ by a small factor); outside 1e-35..1e35 scene units, one division
+    // per kernel as before. The choice depends on the pair only.
+    let r2 = {
+        let (x, y) = (pi.p[0], DVec3::new(pj.x[0], pj.y[0], pj.z[0]));
+        (y - x).length_squared()
+    };
+    let shared = r2 > 1e-70 && r2 < 1e70;
     let mut a = 0;
-    while a + 1 < pi.n {
+    while shared && a + 1 < pi.n {
         let (xa, xb) = (pi.p[a], pi.p[a + 1]);
         let (mut acc_a, mut acc_b) = ([0.0f64; LANES], [0.0f64; LANES]);
         for (((cx, cy), cz), cw) in xs.clone().zip(ys.clone()).zip(zs.clone()).zip(ws.clone()) {
@@ -298,10 +305,10 @@ fn soa_body(pi: &PatchPoints, ni: DVec3, pj: FarSlice<'_>, nj: DVec3) -> f64 {
         sum += pi.w[a + 1] * ((acc_b[0] + acc_b[1]) + (acc_b[2] + acc_b[3]));
         a += 2;
     }
-    if a < pi.n {
+    while a < pi.n {
         let x = pi.p[a];
         let mut acc = [0.0f64; LANES];
-        for (((cx, cy), cz), cw) in xs.zip(ys).zip(zs).zip(ws) {
+        for (((cx, cy), cz), cw) in xs.clone().zip(ys.clone()).zip(zs.clone()).zip(ws.clone()) {
             let (cx, cy, cz, cw) = lanes(cx, cy, cz, cw);
             for l in 0..LANES {
                 let (d, k) = kernel_terms(x, (cx[l], cy[l], cz[l]), ni, nj);
@@ -309,6 +316,7 @@ fn soa_body(pi: &PatchPoints, ni: DVec3, pj: FarSlice<'_>, nj: DVec3) -> f64 {
             }
         }
         sum += pi.w[a] * ((acc[0] + acc[1]) + (acc[2] + acc[3]));
+        a += 1;
     }
     sum / std::f64::consts::PI
 }
@@ -339,6 +347,40 @@ mod tests {
             assert!((t.w[..t.n].iter().sum::<f64>() - 2f64.sqrt()).abs() < 1e-14);
             let u = PatchPoints::new(&quad, 2.5, q, gauss_table());
             assert!((u.w[..u.n].iter().sum::<f64>() - 2.5).abs() < 1e-14);
+        }
+    }
+
+    /// F_ij does not depend on the unit of length, even at scales where r⁴_a r⁴_b
+    /// would leave the f64 range (the shared division then steps aside): two unit
+    /// squares 10 apart, scaled by 1e-45 … 1e45, agree with scale 1 to 1e-12.
+    #[test]
+    fn far_field_is_scale_free_at_extreme_scales() {
+        let square = |z: f64, up: bool| {
+            let mut c = [
+                dvec3(0.0, 0.0, z),
+                dvec3(1.0, 0.0, z),
+                dvec3(1.0, 1.0, z),
+                dvec3(0.0, 1.0, z),
+            ];
+            if !up {
+                c.reverse();
+            }
+            c
+        };
+        let f_at = |s: f64| {
+            let (a, b) = (
+                square(0.0, true).map(|p| p * s),
+                square(10.0, false).map(|p| p * s),
+            );
+            let pa = PatchPoints::new(&a, s * s, MAX_FAR_ORDER, gauss_table());
+            let pb = PatchPoints::new(&b, s * s, MAX_FAR_ORDER, gauss_table());
+            area_form_factor_soa(&pa, DVec3::Z, PatchLanes::new(&pb).slice(), -DVec3::Z) / (s * s)
+        };
+        let unit = f_at(1.0);
+        assert!(unit > 0.0 && unit < 0.01);
+        for s in [1e-45, 1e-30, 1e-10, 1e10, 1e30, 1e45] {
+            let f = f_at(s);
+            assert!((f - unit).abs() <= 1e-12 * unit, "scale {s}: {f} vs {unit}");
         }
     }
 

@@ -357,8 +357,9 @@ impl<'a> Between<'a> {
     }
 }
 
-/// Most polygon vertices [`PairHull`] takes (the rest are ignored, which only widens
-/// no test: callers pass polygons of at most 8 vertices each).
+/// Most polygon vertices [`PairHull`] takes. Callers pass polygons of at most 8
+/// vertices each (`Polygon`'s capacity), so none is dropped; a vertex dropped would
+/// shrink the hull, which would not be conservative.
 const MAX_PAIR_POINTS: usize = 16;
 
 /// Two polygons a (front normal na) and b (nb) in the normalized frame, and the tests
@@ -751,17 +752,13 @@ impl Occluders {
     /// a point of `b` can be blocked, so the pair needs no rays; `true` means rays are
     /// needed.
     ///
-    /// A triangle cannot block when (all with [`PLANE_TOLERANCE`]):
-    /// 1. its box does not overlap the box of the two polygons (found through the
-    ///    hierarchy), or
-    /// 2. all corners of both polygons lie on one side of its plane (segments between
-    ///    them never cross it), or
-    /// 3. it lies entirely behind the plane of `a` or of `b` (every segment between the
-    ///    polygons stays in front of both planes).
+    /// A triangle cannot block when one of the tests of [`PairHull`] rejects it (its
+    /// box, its plane, the planes of `a` and `b`, the hull's side axes; all with
+    /// [`PLANE_TOLERANCE`]).
     ///
-    /// The work is bounded: after [`MAX_REJECTED_CANDIDATES`] triangles that overlap
-    /// the box but were rejected by 2–3, the answer is `true` (rays will decide), so a
-    /// pair in a cluttered region costs a short traversal, never a scan.
+    /// The work is bounded: after [`MAX_REJECTED_CANDIDATES`] triangles that pass the
+    /// cheap tests 1–2 (face, box), the answer is `true` (rays will decide), so a pair
+    /// in a cluttered region costs a short traversal, never a scan.
     pub fn any_between(&self, q: &Between<'_>) -> bool {
         self.scan_between(q, MAX_REJECTED_CANDIDATES, |_| true) != Scan::Done
     }
@@ -839,7 +836,9 @@ impl Occluders {
     /// between two polygons containing `a` and `b` (a [`Occluders::collect_between_up_to`]
     /// answer for them, with the same planes and ignored faces), `out` is within the
     /// set [`Occluders::collect_between`] finds for `a` and `b` and holds every
-    /// triangle that can block a segment between them, without walking the hierarchy:
+    /// triangle that can block a segment between them (up to triangles that only touch
+    /// the hull within [`PLANE_TOLERANCE`], as every test here), without walking the
+    /// hierarchy:
     /// a triangle that cannot come between the larger polygons cannot come between the
     /// smaller ones. Stops once `out` holds more than `max_found` (0: "is there any").
     pub fn filter_between(
