@@ -29,7 +29,7 @@ use glam::DVec3;
 
 use super::clusters::{ClusterCache, Clusters};
 use super::contour::{area_form_factor_edges, ContourParams};
-use super::farfield::{self, far_order, PatchLanes, PatchPoints, MAX_FAR_ORDER};
+use super::farfield::{self, FarOrders, PatchLanes, PatchPoints, MAX_FAR_ORDER};
 use super::polygon::{EdgeSet, Polygon};
 use super::quadrature::{gauss_table, GaussTable};
 use super::sampling::{pair_seed, PatchMap, SplitMix64};
@@ -245,6 +245,7 @@ pub struct RowEngine {
     valid: Vec<bool>,
     gauss: &'static GaussTable,
     params: ContourParams,
+    far_orders: FarOrders,
     tol: f64,
     /// Rays of a pair test the pair's candidate list instead of the Bvh (see
     /// [`PAIR_LISTS_MAX_OCCLUDERS`]).
@@ -310,6 +311,7 @@ impl RowEngine {
             bound_slack: 1e-12 * diag + 1e-14 * magnitude,
             valid,
             gauss: gauss_table(),
+            far_orders: FarOrders::new(params.tol),
             params,
             tol: PLANE_RELATIVE_TOLERANCE * diag,
             pair_lists: occluders_len <= PAIR_LISTS_MAX_OCCLUDERS,
@@ -572,7 +574,7 @@ impl RowEngine {
         let far = if clip {
             None
         } else {
-            far_order(gap, gi.radius.max(gj.radius), self.params.tol)
+            self.far_orders.order(gap, gi.radius.max(gj.radius))
         };
         let af = if let Some(q) = far {
             scratch.counters.pairs_far_field += 1;

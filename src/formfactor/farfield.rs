@@ -193,6 +193,38 @@ pub fn far_order(gap: f64, radius: f64, tol: f64) -> Option<usize> {
     }
 }
 
+/// [`far_order`] for one tolerance, without logarithms: q ≤ Q exactly when
+/// ln ρ ≥ ln(SAFETY/tol) / 2Q, i.e. (ρ = b + √(b² + 1) = e^asinh(b)) when
+/// b = gap / radius ≥ sinh(ln(SAFETY/tol) / 2Q). The thresholds are computed once; a
+/// pair then costs a division and up to [`MAX_FAR_ORDER`] comparisons instead of two
+/// logarithms and a square root (it runs for every pair that faces the other).
+#[derive(Clone, Copy, Debug)]
+pub struct FarOrders {
+    /// `min_b[q - 1]`: the smallest gap / radius for which order q is enough.
+    min_b: [f64; MAX_FAR_ORDER],
+}
+
+impl FarOrders {
+    pub fn new(tol: f64) -> Self {
+        let l = (SAFETY / tol).ln();
+        let mut min_b = [0.0; MAX_FAR_ORDER];
+        for (k, b) in min_b.iter_mut().enumerate() {
+            *b = (l / (2.0 * (k + 1) as f64)).sinh();
+        }
+        FarOrders { min_b }
+    }
+
+    /// As [`far_order`]`(gap, radius, tol)` (up to rounding exactly at a threshold).
+    #[inline]
+    pub fn order(&self, gap: f64, radius: f64) -> Option<usize> {
+        if gap.is_nan() || gap <= 0.0 || radius <= 0.0 {
+            return None;
+        }
+        let b = gap / radius;
+        self.min_b.iter().position(|&m| b >= m).map(|k| k + 1)
+    }
+}
+
 /// A_i F_ij (unoccluded) by the tensor rule: Σ_a Σ_b w_a w_b (n_i·d)(−n_j·d) / (π |d|⁴).
 /// Valid only when both cosines are non-negative over the whole pair (the caller
 /// checks that neither patch reaches behind the other's plane).
@@ -287,8 +319,27 @@ fn soa_body(pi: &PatchPoints, ni: DVec3, pj: FarSlice<'_>, nj: DVec3) -> f64 {
         (y - x).length_squared()
     };
     let shared = r2 > 1e-70 && r2 < 1e70;
+    // One point of i, one division per kernel.
+    let single = |a: usize| {
+        let x = pi.p[a];
+        let mut acc = [0.0f64; LANES];
+        for (((cx, cy), cz), cw) in xs.clone().zip(ys.clone()).zip(zs.clone()).zip(ws.clone()) {
+            let (cx, cy, cz, cw) = lanes(cx, cy, cz, cw);
+            for l in 0..LANES {
+                let (d, k) = kernel_terms(x, (cx[l], cy[l], cz[l]), ni, nj);
+                acc[l] -= cw[l] * k / d;
+            }
+        }
+        pi.w[a] * ((acc[0] + acc[1]) + (acc[2] + acc[3]))
+    };
+    if !shared {
+        for a in 0..pi.n {
+            sum += single(a);
+        }
+        return sum / std::f64::consts::PI;
+    }
     let mut a = 0;
-    while shared && a + 1 < pi.n {
+    while a + 1 < pi.n {
         let (xa, xb) = (pi.p[a], pi.p[a + 1]);
         let (mut acc_a, mut acc_b) = ([0.0f64; LANES], [0.0f64; LANES]);
         for (((cx, cy), cz), cw) in xs.clone().zip(ys.clone()).zip(zs.clone()).zip(ws.clone()) {
@@ -305,18 +356,8 @@ fn soa_body(pi: &PatchPoints, ni: DVec3, pj: FarSlice<'_>, nj: DVec3) -> f64 {
         sum += pi.w[a + 1] * ((acc_b[0] + acc_b[1]) + (acc_b[2] + acc_b[3]));
         a += 2;
     }
-    while a < pi.n {
-        let x = pi.p[a];
-        let mut acc = [0.0f64; LANES];
-        for (((cx, cy), cz), cw) in xs.clone().zip(ys.clone()).zip(zs.clone()).zip(ws.clone()) {
-            let (cx, cy, cz, cw) = lanes(cx, cy, cz, cw);
-            for l in 0..LANES {
-                let (d, k) = kernel_terms(x, (cx[l], cy[l], cz[l]), ni, nj);
-                acc[l] -= cw[l] * k / d;
-            }
-        }
-        sum += pi.w[a] * ((acc[0] + acc[1]) + (acc[2] + acc[3]));
-        a += 1;
+    if a < pi.n {
+        sum += single(a);
     }
     sum / std::f64::consts::PI
 }
@@ -347,6 +388,32 @@ mod tests {
             assert!((t.w[..t.n].iter().sum::<f64>() - 2f64.sqrt()).abs() < 1e-14);
             let u = PatchPoints::new(&quad, 2.5, q, gauss_table());
             assert!((u.w[..u.n].iter().sum::<f64>() - 2.5).abs() < 1e-14);
+        }
+    }
+
+    /// The threshold table gives far_order's answer for gap / radius from 0.1 to 5e7
+    /// (and None for touching pairs), at the three presets' tolerances.
+    #[test]
+    fn order_table_matches_far_order() {
+        for tol in [1e-6, 1e-8, 1e-13] {
+            let t = FarOrders::new(tol);
+            let mut seen = [false; MAX_FAR_ORDER + 1];
+            for k in 0..40_000 {
+                let b = 0.1 * 1.0005f64.powi(k);
+                let (want, got) = (far_order(b, 1.0, tol), t.order(b, 1.0));
+                // Exactly at a threshold the two roundings may differ by one order.
+                let near = t.min_b.iter().any(|&m| ((b - m) / m).abs() < 1e-12);
+                assert!(want == got || near, "tol {tol} b {b}: {want:?} vs {got:?}");
+                if let Some(q) = got {
+                    seen[q] = true;
+                }
+            }
+            assert!(
+                seen[1..].iter().all(|&x| x) || tol == 1e-13,
+                "every order used: {seen:?}"
+            );
+            assert_eq!(t.order(0.0, 1.0), None);
+            assert_eq!(t.order(-1.0, 1.0), None);
         }
     }
 
