@@ -132,7 +132,7 @@ impl Scratch {
             self.far_row = Some((engine, i));
             self.far_points = [None; MAX_FAR_ORDER + 1];
         }
-        self.far_points[q].get_or_insert_with(|| PatchPoints::new(g.poly.verts(), g.area, q, gauss))
+        self.far_points[q].get_or_insert_with(|| PatchPoints::on(&g.map, q, gauss))
     }
 }
 
@@ -580,7 +580,7 @@ impl RowEngine {
             scratch.counters.pairs_far_field += 1;
             let pts_i = scratch.far_points_of(self.id, i, q, gi, self.gauss);
             {
-                let pts_j = PatchPoints::new(gj.poly.verts(), gj.area, q, self.gauss);
+                let pts_j = PatchPoints::on(&gj.map, q, self.gauss);
                 let lanes = PatchLanes::new(&pts_j);
                 farfield::area_form_factor_soa(pts_i, gi.normal, lanes.slice(), gj.normal)
             }

@@ -88,7 +88,7 @@ pub struct FarSlice<'a> {
     pub w: &'a [f64],
 }
 
-/// Constant in front of the error bound ρ^(−2q) (see [`far_order`]). The kernel has
+/// Constant in front of the error bound ρ^(−2q) (see [`FarOrders`]). The kernel has
 /// double poles, which put a factor growing with q in front of ρ^(−2q); measured on
 /// cube pairs (test below) the actual error reaches ~250·ρ^(−6) at q = 3, so 1000
 /// leaves a margin of 4.
@@ -105,6 +105,13 @@ pub struct PatchPoints {
 impl PatchPoints {
     /// The q × q rule (q clamped to 1..=MAX_FAR_ORDER) on a triangle or quad.
     pub fn new(corners: &[DVec3], area: f64, q: usize, gauss: &GaussTable) -> Self {
+        Self::on(&PatchMap::new(corners, area), q, gauss)
+    }
+
+    /// As [`PatchPoints::new`] on the patch whose map is `map` (built once per patch,
+    /// not once per pair): triangles through the collapsed square, quads through the
+    /// bilinear map of sampling (affine with a constant Jacobian for parallelograms).
+    pub fn on(map: &PatchMap, q: usize, gauss: &GaussTable) -> Self {
         let q = q.clamp(1, MAX_FAR_ORDER);
         let rule = gauss.rule(q);
         let mut out = PatchPoints {
@@ -112,10 +119,7 @@ impl PatchPoints {
             w: [0.0; MAX_FAR_ORDER * MAX_FAR_ORDER],
             n: 0,
         };
-        // Quads: the bilinear map of sampling (affine with a constant Jacobian for
-        // parallelograms).
-        let quad = (corners.len() == 4).then(|| PatchMap::new(corners, area));
-        if let (MAX_FAR_ORDER, Some(PatchMap::Parallelogram { o, e1, e2, area })) = (q, quad) {
+        if let (MAX_FAR_ORDER, PatchMap::Parallelogram { o, e1, e2, area }) = (q, *map) {
             // Under an affine map a polynomial keeps its total degree, so the 12-point
             // rule of total degree 7 does what the 4 × 4 product rule (16 points, also
             // degree 7 in each variable) does for these integrands: the same ρ^(−8)
@@ -131,12 +135,11 @@ impl PatchPoints {
             for &(xv, wv) in rule {
                 let (s, t) = (0.5 * (xu + 1.0), 0.5 * (xv + 1.0));
                 let w = 0.25 * wu * wv;
-                let (p, j) = match &quad {
-                    None => {
-                        let (a, b, c) = (corners[0], corners[1], corners[2]);
+                let (p, j) = match *map {
+                    PatchMap::Triangle { a, b, c, area } => {
                         (a + (b - a) * s + (c - b) * (s * t), 2.0 * area * s)
                     }
-                    Some(map) => map.eval(s, t),
+                    _ => map.eval(s, t),
                 };
                 out.p[out.n] = p;
                 out.w[out.n] = w * j;
@@ -174,30 +177,16 @@ fn degree7_square_rule() -> [(f64, f64, f64); 12] {
     ]
 }
 
-/// The order per dimension that meets relative error `tol` for two patches with a gap
-/// of at least `gap` and radii (centroid to farthest corner) at most `radius`, or
-/// `None` when more than [`MAX_FAR_ORDER`] points would be needed (or they touch).
-#[inline]
-pub fn far_order(gap: f64, radius: f64, tol: f64) -> Option<usize> {
-    if gap.is_nan() || gap <= 0.0 || radius <= 0.0 {
-        return None;
-    }
-    let b = gap / radius;
-    let rho = b + (b * b + 1.0).sqrt();
-    // Four dimensions, each contributing its own ρ^(−2q) error, times SAFETY.
-    let q = ((SAFETY / tol).ln() / (2.0 * rho.ln())).ceil();
-    if q.is_finite() && q <= MAX_FAR_ORDER as f64 {
-        Some((q as usize).max(1))
-    } else {
-        None
-    }
-}
-
-/// [`far_order`] for one tolerance, without logarithms: q ≤ Q exactly when
-/// ln ρ ≥ ln(SAFETY/tol) / 2Q, i.e. (ρ = b + √(b² + 1) = e^asinh(b)) when
-/// b = gap / radius ≥ sinh(ln(SAFETY/tol) / 2Q). The thresholds are computed once; a
-/// pair then costs a division and up to [`MAX_FAR_ORDER`] comparisons instead of two
-/// logarithms and a square root (it runs for every pair that faces the other).
+/// The far-field order for one tolerance `tol`: for two patches with a gap of at least
+/// `gap` and radii (centroid to farthest corner) at most `radius`, the smallest order
+/// q per dimension with SAFETY · ρ^(−2q) ≤ tol (four dimensions, each contributing its
+/// own ρ^(−2q) error), ρ = b + √(b² + 1), b = gap / radius; `None` when more than
+/// [`MAX_FAR_ORDER`] would be needed (or they touch).
+///
+/// Without logarithms: q ≤ Q exactly when ln ρ ≥ ln(SAFETY/tol) / 2Q, i.e.
+/// (ρ = e^asinh(b)) when b ≥ sinh(ln(SAFETY/tol) / 2Q). The thresholds are computed
+/// once; a pair then costs a division and up to [`MAX_FAR_ORDER`] comparisons (it runs
+/// for every pair that faces the other).
 #[derive(Clone, Copy, Debug)]
 pub struct FarOrders {
     /// `min_b[q - 1]`: the smallest gap / radius for which order q is enough.
@@ -214,7 +203,7 @@ impl FarOrders {
         FarOrders { min_b }
     }
 
-    /// As [`far_order`]`(gap, radius, tol)` (up to rounding exactly at a threshold).
+    /// The order for these two patches (see [`FarOrders`]).
     #[inline]
     pub fn order(&self, gap: f64, radius: f64) -> Option<usize> {
         if gap.is_nan() || gap <= 0.0 || radius <= 0.0 {
@@ -391,6 +380,22 @@ mod tests {
         }
     }
 
+    /// The rule of [`FarOrders`] in its logarithmic form (the definition the table
+    /// is checked against).
+    fn far_order(gap: f64, radius: f64, tol: f64) -> Option<usize> {
+        if gap.is_nan() || gap <= 0.0 || radius <= 0.0 {
+            return None;
+        }
+        let b = gap / radius;
+        let rho = b + (b * b + 1.0).sqrt();
+        let q = ((SAFETY / tol).ln() / (2.0 * rho.ln())).ceil();
+        if q.is_finite() && q <= MAX_FAR_ORDER as f64 {
+            Some((q as usize).max(1))
+        } else {
+            None
+        }
+    }
+
     /// The threshold table gives far_order's answer for gap / radius from 0.1 to 5e7
     /// (and None for touching pairs), at the three presets' tolerances.
     #[test]
@@ -520,7 +525,7 @@ mod tests {
                 .fold(0.0, f64::max);
             let gap = (ci - cj).length() - 2.0 * radius;
             for tol in [1e-6, 1e-9] {
-                let Some(q) = far_order(gap, radius, tol) else {
+                let Some(q) = FarOrders::new(tol).order(gap, radius) else {
                     continue;
                 };
                 let v = area_form_factor(
@@ -580,7 +585,7 @@ mod calibrate {
     use crate::formfactor::quadrature::gauss_table;
     use glam::dvec3;
 
-    /// The bound behind [`far_order`], checked on every pair of a cube corner patch
+    /// The bound behind [`FarOrders`], checked on every pair of a cube corner patch
     /// (18 × 18 per face) with the patches of the adjacent and the opposite face:
     /// actual relative error ≤ SAFETY · ρ^(−2q) for q = 1..=MAX_FAR_ORDER (or below
     /// REFERENCE_FLOOR, the accuracy of the contour reference for far pairs: at gap /
