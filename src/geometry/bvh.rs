@@ -401,11 +401,7 @@ impl PairHull {
             return None;
         }
         // Foreign occluders: triangles on the planes of a or b are rejected by test 4.
-        let ignore = if occ.foreign {
-            (u32::MAX, u32::MAX)
-        } else {
-            ignore
-        };
+        let ignore = occ.ignored_faces(ignore);
         let mut pts = [DVec3::ZERO; MAX_PAIR_POINTS];
         let mut np = 0;
         for p in a.iter().chain(b.iter()).take(MAX_PAIR_POINTS) {
@@ -418,16 +414,18 @@ impl PairHull {
             hi = hi.max(*p);
         }
         let mid = 0.5 * (lo + hi);
+        let na_len = a.len().min(MAX_PAIR_POINTS);
         Some(PairHull {
             pts,
             np,
-            na_len: a.len().min(MAX_PAIR_POINTS),
+            na_len,
             qlo: (lo + DVec3::splat(PLANE_TOLERANCE)).min(mid),
             qhi: (hi - DVec3::splat(PLANE_TOLERANCE)).max(mid),
             na,
-            oa: na.dot(occ.to_norm(a[0])),
+            // The planes through the first corner of each (already normalized above).
+            oa: na.dot(pts[0]),
             nb,
-            ob: nb.dot(occ.to_norm(b[0])),
+            ob: nb.dot(pts[na_len]),
             ignore,
         })
     }
@@ -617,11 +615,7 @@ impl Occluders {
         planes: Option<[(DVec3, f64); 2]>,
     ) -> bool {
         let Some(bvh) = &self.bvh else { return false };
-        let ignore = if self.foreign {
-            (u32::MAX, u32::MAX)
-        } else {
-            ignore
-        };
+        let ignore = self.ignored_faces(ignore);
         let planes = self.normalized_planes(planes);
         let Some(seg) = self.segment(from, to) else {
             return false;
@@ -658,6 +652,16 @@ impl Occluders {
                 _ => f32::INFINITY,
             }
         })
+    }
+
+    /// The faces whose triangles a query ignores: `ignore` for native occluders, none
+    /// for foreign ones (their face ids mean nothing to the patches; planes decide).
+    fn ignored_faces(&self, ignore: (u32, u32)) -> (u32, u32) {
+        if self.foreign {
+            (u32::MAX, u32::MAX)
+        } else {
+            ignore
+        }
     }
 
     /// For foreign occluders, the planes of the two end patches in the normalized frame
