@@ -114,6 +114,12 @@ impl Scratch {
         self.counters
     }
 
+    /// Counts row `i` and notes it as the row being computed.
+    fn start_row(&mut self, i: u32) {
+        self.counters.rows += 1;
+        self.row = Some(i);
+    }
+
     /// Returns the counters and resets them.
     pub fn take_counters(&mut self) -> Counters {
         std::mem::take(&mut self.counters)
@@ -269,7 +275,6 @@ impl RowEngine {
     pub fn new(patches: Arc<PatchSet>, occluders: Arc<Occluders>, cfg: FormFactorConfig) -> Self {
         let geom: Vec<PatchGeom> = patches.patches.iter().map(PatchGeom::new).collect();
         let valid: Vec<bool> = geom.iter().map(PatchGeom::is_valid).collect();
-
         let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
         for g in &geom {
             for c in g.poly.verts() {
@@ -416,8 +421,7 @@ impl RowEngine {
         );
         own.clear();
         mirrored.clear();
-        scratch.counters.rows += 1;
-        scratch.row = Some(i);
+        scratch.start_row(i);
         let ai = self.geom[i as usize].area;
         for (j, &computed) in in_run.iter().enumerate().take(i as usize) {
             if !computed {
@@ -447,8 +451,7 @@ impl RowEngine {
         assert!((i as usize) < n, "row {i} out of range (n = {n})");
         out.clear();
         out.resize(n, 0.0);
-        scratch.counters.rows += 1;
-        scratch.row = Some(i);
+        scratch.start_row(i);
         if !self.valid[i as usize] {
             return;
         }
@@ -697,8 +700,7 @@ impl RowEngine {
     ///    when there are at most `t`).
     fn top_k_row_bounded(&self, i: u32, k: usize, t: usize, scratch: &mut Scratch) -> Row {
         let n = self.n();
-        scratch.counters.rows += 1;
-        scratch.row = Some(i);
+        scratch.start_row(i);
         let mut f0 = std::mem::take(&mut scratch.values);
         let mut order = std::mem::take(&mut scratch.order);
         let mut rays = std::mem::take(&mut scratch.flags);

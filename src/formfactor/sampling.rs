@@ -40,12 +40,12 @@ impl SplitMix64 {
     /// small n used here and the result is deterministic either way).
     #[inline]
     pub fn below(&mut self, n: u32) -> u32 {
-        (((self.next_u64() >> 32) * n as u64) >> 32) as u32
+        below_from(self.next_u64() >> 32, n)
     }
 }
 
-/// A draw below `n` from 32 random bits: ⌊r · n / 2³²⌋ (bias < n / 2³², as
-/// [`SplitMix64::below`]).
+/// A draw below `n` from 32 random bits r: ⌊r · n / 2³²⌋ (multiply-shift, bias
+/// < n / 2³²); [`SplitMix64::below`] and the permutations use it.
 #[inline]
 fn below_from(r: u64, n: u32) -> u32 {
     ((r * n as u64) >> 32) as u32
