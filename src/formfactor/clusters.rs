@@ -231,13 +231,56 @@ struct PairLists {
 #[derive(Debug)]
 struct CacheEntry {
     cluster: u32,
-    /// Per other cluster: [`UNKNOWN`], [`TOO_MANY`], or (start, len) in `pool`.
-    slots: Vec<(u32, u32)>,
-    pool: Vec<u32>,
+    /// Per other cluster.
+    slots: Vec<Slot>,
+    pool: ListPool,
 }
 
-const UNKNOWN: (u32, u32) = (u32::MAX, 0);
-const TOO_MANY: (u32, u32) = (u32::MAX, 1);
+/// Where a list is in a [`ListPool`], or that it is not known yet, or that there
+/// were too many triangles for a list.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct Slot {
+    start: u32,
+    len: u32,
+}
+
+impl Slot {
+    const UNKNOWN: Slot = Slot {
+        start: u32::MAX,
+        len: 0,
+    };
+    const TOO_MANY: Slot = Slot {
+        start: u32::MAX,
+        len: 1,
+    };
+}
+
+/// Triangle lists stored back to back.
+#[derive(Debug, Default)]
+struct ListPool {
+    ids: Vec<u32>,
+}
+
+impl ListPool {
+    fn clear(&mut self) {
+        self.ids.clear();
+    }
+
+    fn store(&mut self, list: &[u32]) -> Slot {
+        let start = self.ids.len() as u32;
+        self.ids.extend_from_slice(list);
+        Slot {
+            start,
+            len: list.len() as u32,
+        }
+    }
+
+    /// The list of a stored slot; `None` for [`Slot::TOO_MANY`].
+    fn get(&self, slot: Slot) -> Option<&[u32]> {
+        (slot != Slot::TOO_MANY)
+            .then(|| &self.ids[slot.start as usize..(slot.start + slot.len) as usize])
+    }
+}
 
 /// Lists of one patch (the first patch of the pairs asked about, the row's patch in a
 /// row) with each cluster: the cluster pair's list narrowed to that patch, so that
@@ -247,9 +290,9 @@ struct PatchLists {
     patch: Option<u32>,
     /// Generation of the current patch: a slot is valid when it carries it.
     generation: u32,
-    /// Per cluster: (generation, start, len) in `pool`; len u32::MAX = too many.
-    slots: Vec<(u32, u32, u32)>,
-    pool: Vec<u32>,
+    /// Per cluster: (generation, where the list is).
+    slots: Vec<(u32, Slot)>,
+    pool: ListPool,
     found: Vec<u32>,
 }
 
@@ -283,14 +326,14 @@ impl ClusterCache {
             if p.generation == 0 || p.slots.len() != clusters.len() {
                 p.generation = 1;
                 p.slots.clear();
-                p.slots.resize(clusters.len(), (0, 0, 0));
+                p.slots.resize(clusters.len(), (0, Slot::UNKNOWN));
             }
         }
-        let (generation, mut start, mut len) = p.slots[b as usize];
+        let (generation, mut slot) = p.slots[b as usize];
         if generation != p.generation {
             let a = clusters.of(i)?;
             let keep = if row == Some(b) { b } else { a };
-            (start, len) = match self.pairs.list(clusters, occ, a, b, keep) {
+            slot = match self.pairs.list(clusters, occ, a, b, keep) {
                 Some(list) => {
                     let rb = &clusters.rects[b as usize];
                     let q = Between::new(
@@ -301,15 +344,13 @@ impl ClusterCache {
                         (gi.face, rb.face),
                     );
                     occ.filter_between(&q, list, usize::MAX, &mut p.found);
-                    let start = p.pool.len() as u32;
-                    p.pool.extend_from_slice(&p.found);
-                    (start, p.found.len() as u32)
+                    p.pool.store(&p.found)
                 }
-                None => (0, u32::MAX),
+                None => Slot::TOO_MANY,
             };
-            p.slots[b as usize] = (p.generation, start, len);
+            p.slots[b as usize] = (p.generation, slot);
         }
-        (len != u32::MAX).then(|| &p.pool[start as usize..(start + len) as usize])
+        p.pool.get(slot)
     }
 }
 
@@ -344,12 +385,12 @@ impl PairLists {
                     CacheEntry {
                         cluster: keep,
                         slots: Vec::new(),
-                        pool: Vec::new(),
+                        pool: ListPool::default(),
                     }
                 };
                 e.cluster = keep;
                 e.slots.clear();
-                e.slots.resize(clusters.len(), UNKNOWN);
+                e.slots.resize(clusters.len(), Slot::UNKNOWN);
                 e.pool.clear();
                 self.entries.push(e);
                 self.entries.len() - 1
@@ -358,17 +399,15 @@ impl PairLists {
         let e = &mut self.entries[at];
         let other = if e.cluster == a { b } else { a };
         let mut slot = e.slots[other as usize];
-        if slot == UNKNOWN {
+        if slot == Slot::UNKNOWN {
             slot = if clusters.query(occ, a, b, &mut self.found) {
-                let start = e.pool.len() as u32;
-                e.pool.extend_from_slice(&self.found);
-                (start, self.found.len() as u32)
+                e.pool.store(&self.found)
             } else {
-                TOO_MANY
+                Slot::TOO_MANY
             };
             e.slots[other as usize] = slot;
         }
-        (slot != TOO_MANY).then(|| &e.pool[slot.0 as usize..(slot.0 + slot.1) as usize])
+        e.pool.get(slot)
     }
 }
 
