@@ -9,27 +9,25 @@
 //!   all? When not, the pair needs no rays (DESIGN.md §3 "pairs with no possible
 //!   occluder need no rays"), decided from the hierarchy, not from a flag.
 //!
-//! The hierarchy is obvhs' compressed wide BVH (CWBVH, Ylitie et al. 2017) built by
-//! PLOC; it works in f32. To make results independent of the scene's units and
-//! position, everything is mapped to a normalized frame first: x ↦ (x − centre) / d
-//! with d the diagonal of the triangles' bounding box. The exact triangle tests run
-//! in f64 on the normalized triangles; the f32 hierarchy only culls. Ray offsets are
+//! The hierarchy is built by obvhs (PLOC, then its collapse to an eight-wide tree,
+//! Ylitie et al. 2017) and laid out for SIMD traversal by [`super::bvh8`]; it works in
+//! f32. To make results independent of the scene's units and position, everything is
+//! mapped to a normalized frame first: x ↦ (x − centre) / d with d the diagonal of the
+//! triangles' bounding box. The exact triangle tests run in f64 on the normalized
+//! triangles; the f32 hierarchy and its triangle filter only cull. Ray offsets are
 //! fractions of d ([`RAY_EPSILON`]), so scaling a scene by 10⁻³ or 10³ changes no
 //! visibility decision.
 //!
-//! Traversal takes closures (`Occluders::for_each_in_box`), so the geometry tests
-//! stay out of the hierarchy and the accelerator can be swapped (STYLE.md point 6).
+//! Traversal takes closures (`Bvh8::any_hit`, `Bvh8::for_each_in_box`), so the
+//! geometry tests stay out of the hierarchy and the accelerator can be swapped
+//! (STYLE.md point 6).
 
 use std::time::Duration;
 
-// UVec2 is named (unqualified) by obvhs' traverse! macro expansion.
-use glam::{DVec3, UVec2, Vec3A};
-use obvhs::{
-    cwbvh::{builder::build_cwbvh_from_tris, CwBvh},
-    ray::Ray,
-    triangle::Triangle,
-    BvhBuildParams,
-};
+use glam::DVec3;
+use obvhs::{cwbvh::builder::build_cwbvh_from_tris, triangle::Triangle, BvhBuildParams};
+
+use super::bvh8::{Bvh8, SegmentRay};
 
 /// Rays ignore hits closer than this to either end point (normalized units, i.e. a
 /// fraction of the scene diagonal).
@@ -46,12 +44,6 @@ pub const MAX_PAIR_CANDIDATES: usize = 16;
 /// Work bound of [`Occluders::any_between`]: candidate triangles examined in detail
 /// before it gives up and answers "rays needed".
 pub const MAX_REJECTED_CANDIDATES: usize = 32;
-
-/// obvhs' node test clamps the entry distance to a fixed 1e-4 (ray units,
-/// `cwbvh::node::EPSILON`), which would skip boxes lying entirely within 1e-4 of the
-/// origin. Rays start this far behind their true origin so that no box beyond the
-/// true origin is skipped; the exact test then measures t from the true origin.
-const RAY_BACKOFF: f64 = 1e-3;
 
 /// Runs `$body` with `$kx`, `$ky`, `$kz` bound (as constants, usable as const generic
 /// arguments) to the axis permutation `$axes` of a [`ShearedRay`]: one copy of a ray's
@@ -78,15 +70,15 @@ macro_rules! by_axes {
 
 /// A triangle in the normalized frame, with what the exact tests need.
 #[derive(Clone, Copy, Debug)]
-struct OccluderTriangle {
-    v: [DVec3; 3],
+pub(super) struct OccluderTriangle {
+    pub(super) v: [DVec3; 3],
     /// Unit normal (either orientation; faces block from both sides).
-    normal: DVec3,
+    pub(super) normal: DVec3,
     /// normal · v[0].
-    offset: f64,
+    pub(super) offset: f64,
     min: DVec3,
     max: DVec3,
-    face: u32,
+    pub(super) face: u32,
 }
 
 impl OccluderTriangle {
@@ -155,8 +147,9 @@ impl OccluderTriangle {
 /// A shadow segment in the normalized frame, ready for [`OccluderTriangle::hit`].
 struct Segment {
     f: DVec3,
+    /// to − from.
+    d: DVec3,
     dir: DVec3,
-    len: f64,
     t0: f64,
     t1: f64,
     sheared: ShearedRay,
@@ -464,7 +457,7 @@ impl PairHull {
 /// it is `Send + Sync` and shared by all threads.
 #[derive(Clone, Debug)]
 pub struct Occluders {
-    bvh: Option<CwBvh>,
+    bvh: Option<Bvh8>,
     /// Triangles in hierarchy primitive order (so no index indirection at traversal).
     tris: Vec<OccluderTriangle>,
     center: DVec3,
@@ -552,7 +545,7 @@ impl Occluders {
             .map(|&k| norm[k as usize])
             .collect();
         Occluders {
-            bvh: Some(bvh),
+            bvh: Bvh8::from_cwbvh(&bvh, &ordered),
             tris: ordered,
             center,
             scale: diag,
@@ -620,37 +613,17 @@ impl Occluders {
         let Some(seg) = self.segment(from, to) else {
             return false;
         };
-        let origin32 = (seg.f - seg.dir * RAY_BACKOFF).as_vec3a();
-        let tmax32 = ((RAY_BACKOFF + seg.len) * (1.0 + 1e-5) + 1e-6) as f32;
-        let ray = Ray::new(origin32, seg.dir.as_vec3a(), 0.0, tmax32);
-        let free = by_axes!(seg.sheared.axes, |KX, KY, KZ| {
-            self.misses::<KX, KY, KZ>(bvh, ray, &seg, ignore, &planes)
-        });
-        !free
-    }
-
-    /// Whether the segment (as `ray` for the hierarchy) misses every triangle, for a
-    /// segment whose axes are (KX, KY, KZ).
-    #[inline(always)]
-    fn misses<const KX: usize, const KY: usize, const KZ: usize>(
-        &self,
-        bvh: &CwBvh,
-        ray: Ray,
-        seg: &Segment,
-        ignore: (u32, u32),
-        planes: &Option<[(DVec3, f64); 2]>,
-    ) -> bool {
-        let tris = &self.tris;
-        // ray_traverse_miss stops at the first primitive whose returned t < tmax.
-        bvh.ray_traverse_miss(ray, |_, id| {
-            let tri = &tris[id];
-            if tri.face == ignore.0 || tri.face == ignore.1 {
-                return f32::INFINITY;
-            }
-            match tri.hit::<KX, KY, KZ>(&seg.sheared, seg.t0, seg.t1) {
-                Some(t) if seg.counts(t, planes) => 0.0,
-                _ => f32::INFINITY,
-            }
+        let Some(ray) = SegmentRay::new(seg.f, seg.d) else {
+            return false;
+        };
+        // The exact test runs only for the few triangles the f32 filter cannot
+        // decide: one dispatch per test keeps a single copy of the walk.
+        bvh.any_hit(&ray, ignore, planes.is_none(), |id| {
+            by_axes!(seg.sheared.axes, |KX, KY, KZ| {
+                self.tris[id]
+                    .hit::<KX, KY, KZ>(&seg.sheared, seg.t0, seg.t1)
+                    .is_some_and(|t| seg.counts(t, &planes))
+            })
         })
     }
 
@@ -685,8 +658,8 @@ impl Occluders {
         let dir = d * (1.0 / len);
         Some(Segment {
             f,
+            d,
             dir,
-            len,
             t0: RAY_EPSILON,
             t1: len - RAY_EPSILON,
             sheared: ShearedRay::new(f, d, len),
@@ -702,51 +675,10 @@ impl Occluders {
         lo: DVec3,
         hi: DVec3,
         hull: &HullAxes,
-        mut visit: impl FnMut(usize) -> bool,
+        visit: impl FnMut(usize) -> bool,
     ) -> bool {
         let Some(bvh) = &self.bvh else { return false };
-        // Child boxes are decoded in f32 (one rounding of min·e + p), so they are
-        // widened by BOX_SLACK before the exact tests.
-        const BOX_SLACK: f64 = 1e-6;
-        let mut state = bvh.new_traversal(Vec3A::ONE);
-        let mut node;
-        let mut stopped = false;
-        'walk: {
-            obvhs::traverse!(
-                bvh,
-                node,
-                state,
-                {
-                    let (child_bits8, bit_index8) = node.get_child_and_index_bits(state.oct_inv4);
-                    let mut mask = 0u32;
-                    for child in 0..8 {
-                        if node.is_child_empty(child) {
-                            continue;
-                        }
-                        let b = node.child_aabb(child);
-                        let bmin = b.min.as_dvec3() - DVec3::splat(BOX_SLACK);
-                        let bmax = b.max.as_dvec3() + DVec3::splat(BOX_SLACK);
-                        if bmax.cmplt(lo).any() || bmin.cmpgt(hi).any() {
-                            continue;
-                        }
-                        if hull.separates_box(bmin, bmax) {
-                            continue;
-                        }
-                        let child_bits = obvhs::cwbvh::node::extract_byte64(child_bits8, child);
-                        let bit_index = obvhs::cwbvh::node::extract_byte64(bit_index8, child);
-                        mask |= child_bits << bit_index;
-                    }
-                    mask
-                },
-                {
-                    if visit(state.primitive_id as usize) {
-                        stopped = true;
-                        break 'walk;
-                    }
-                }
-            );
-        }
-        stopped
+        bvh.for_each_in_box(lo, hi, |blo, bhi| !hull.separates_box(blo, bhi), visit)
     }
 
     /// Can any triangle (other than those of faces `ignore.0`, `ignore.1`) come between
@@ -936,12 +868,7 @@ impl Occluders {
             }
         }
         if let Some(bvh) = &self.bvh {
-            assert_eq!(bvh.primitive_indices.len(), self.tris.len());
-            let mut seen = vec![false; self.tris.len()];
-            for &k in &bvh.primitive_indices {
-                assert!(!seen[k as usize]);
-                seen[k as usize] = true;
-            }
+            bvh.validate(&self.tris);
         }
     }
 }
@@ -1285,5 +1212,238 @@ mod tests {
             -n_up,
             (8, 9)
         )));
+    }
+
+    /// A cluttered scene for the f32-filter tests: random triangles of all shapes
+    /// (slivers, needles, large ones) and sizes, a few sharing edges or planes, in a
+    /// box of `scale`.
+    fn clutter(seed: u64, scale: f64) -> Vec<(u32, [DVec3; 3])> {
+        let mut rng = crate::formfactor::sampling::SplitMix64::new(seed);
+        let mut r = move || rng.next_f64();
+        let mut tris = Vec::new();
+        for f in 0..300u32 {
+            let c = dvec3(r(), r(), r()) * scale;
+            let size = scale * [0.3, 0.05, 0.005][f as usize % 3];
+            let a = c + (dvec3(r(), r(), r()) - 0.5) * size;
+            let b = c + (dvec3(r(), r(), r()) - 0.5) * size;
+            let t = match f % 5 {
+                // a sliver: the third vertex almost on the first edge
+                0 => a + (b - a) * r() + dvec3(r(), r(), r()) * size * 1e-9,
+                // axis-aligned, in the plane z = c.z (shared by the next ones)
+                1 => dvec3(a.x, b.y, a.z),
+                _ => c + (dvec3(r(), r(), r()) - 0.5) * size,
+            };
+            let t = if f % 5 == 1 {
+                [
+                    dvec3(a.x, a.y, c.z),
+                    dvec3(b.x, b.y, c.z),
+                    dvec3(t.x, t.y, c.z),
+                ]
+            } else {
+                [a, b, t]
+            };
+            tris.push((f, t));
+            // every seventh triangle gets a neighbour across its first edge
+            if f % 7 == 0 {
+                tris.push((
+                    f + 1000,
+                    [t[1], t[0], c + (dvec3(r(), r(), r()) - 0.5) * size],
+                ));
+            }
+        }
+        tris
+    }
+
+    /// Segments of every kind through `occ`'s scene: random, along the axes, grazing
+    /// or ending on triangles, through shared edges, in triangle planes, and reaching
+    /// far outside the scene.
+    fn test_segments(
+        tris: &[(u32, [DVec3; 3])],
+        seed: u64,
+        scale: f64,
+        n: usize,
+    ) -> Vec<(DVec3, DVec3)> {
+        let mut rng = crate::formfactor::sampling::SplitMix64::new(seed);
+        let mut r = move || rng.next_f64();
+        (0..n)
+            .map(|k| {
+                let t = &tris[(r() * tris.len() as f64) as usize % tris.len()].1;
+                let u = &tris[(r() * tris.len() as f64) as usize % tris.len()].1;
+                let on = |t: &[DVec3; 3], a: f64, b: f64| {
+                    let (a, b) = if a + b > 1.0 {
+                        (1.0 - a, 1.0 - b)
+                    } else {
+                        (a, b)
+                    };
+                    t[0] + (t[1] - t[0]) * a + (t[2] - t[0]) * b
+                };
+                let p = dvec3(r(), r(), r()) * scale;
+                match k % 8 {
+                    0 => (p, dvec3(r(), r(), r()) * scale),
+                    // along an axis
+                    1 => (p, p + DVec3::AXES[k / 8 % 3] * scale * (r() - 0.5)),
+                    // from a point of one triangle to a point of another
+                    2 => (on(t, r(), r()), on(u, r(), r())),
+                    // through a vertex or an edge of a triangle
+                    3 => {
+                        let x = if r() < 0.5 {
+                            t[0]
+                        } else {
+                            t[0] + (t[1] - t[0]) * r()
+                        };
+                        let d = dvec3(r(), r(), r()) - 0.5;
+                        (x - d * scale, x + d * scale)
+                    }
+                    // in the plane of a triangle, across it
+                    4 => (on(t, -0.5, r()), on(t, 1.5, r() * 0.5)),
+                    // far outside on both sides
+                    5 => (
+                        p - dvec3(r(), r(), r()) * scale * 1e3,
+                        p + dvec3(r(), r(), r()) * scale * 1e3,
+                    ),
+                    // short, near a triangle
+                    6 => {
+                        let x = on(t, r(), r());
+                        (
+                            x + dvec3(r(), r(), r()) * scale * 1e-6,
+                            x - dvec3(r(), r(), r()) * scale * 1e-6,
+                        )
+                    }
+                    // grazing: almost parallel to a triangle, just above it
+                    _ => {
+                        let n = (t[1] - t[0]).cross(t[2] - t[0]).normalize_or_zero();
+                        let lift = n * scale * 1e-7 * (r() - 0.5);
+                        (on(t, -0.2, 0.3) + lift, on(t, 1.2, 0.1) - lift)
+                    }
+                }
+            })
+            .collect()
+    }
+
+    /// The f32 filter never contradicts the exact test: a triangle it misses for
+    /// sure is missed by the exact test, and one it crosses for sure is hit (every
+    /// triangle, every kind of segment, at three scales).
+    #[test]
+    fn f32_filter_agrees_with_the_exact_test() {
+        let (mut sure, mut maybe, mut hits) = (0usize, 0usize, 0usize);
+        for (seed, scale) in [(1u64, 1.0), (2, 1e-3), (3, 1e4)] {
+            let tris = clutter(seed, scale);
+            let occ = Occluders::new(tris.clone());
+            occ.validate();
+            let bvh = occ.bvh.as_ref().unwrap();
+            for (from, to) in test_segments(&tris, seed + 10, scale, 6000) {
+                let Some(seg) = occ.segment(from, to) else {
+                    continue;
+                };
+                let Some(ray) = SegmentRay::new(seg.f, seg.d) else {
+                    continue;
+                };
+                for (id, (s, m)) in bvh
+                    .classify_all(&ray, occ.tris.len())
+                    .into_iter()
+                    .enumerate()
+                {
+                    let exact = by_axes!(seg.sheared.axes, |KX, KY, KZ| {
+                        occ.tris[id].hit::<KX, KY, KZ>(&seg.sheared, seg.t0, seg.t1)
+                    })
+                    .is_some();
+                    assert!(
+                        !s || exact,
+                        "sure hit that the exact test misses: tri {id}, {from} -> {to}"
+                    );
+                    assert!(s || m || !exact, "missed a hit: tri {id}, {from} -> {to}");
+                    sure += s as usize;
+                    maybe += m as usize;
+                    hits += exact as usize;
+                }
+            }
+        }
+        // The filter must decide most hits itself, or it saves nothing.
+        assert!(
+            hits > 3000 && sure > hits / 2,
+            "{hits} hits, {sure} sure, {maybe} maybe"
+        );
+    }
+
+    /// The walk answers as the exact test over every triangle does (random faces
+    /// ignored), native and foreign, on the cluttered scenes.
+    #[test]
+    fn walk_answers_like_a_scan_of_every_triangle() {
+        let (mut blocked, mut free) = (0, 0);
+        for (seed, scale) in [(4u64, 1.0), (5, 1e-3)] {
+            let tris = clutter(seed, scale);
+            for foreign in [false, true] {
+                let occ = if foreign {
+                    Occluders::new_foreign(tris.clone())
+                } else {
+                    Occluders::new(tris.clone())
+                };
+                for (k, (from, to)) in test_segments(&tris, seed + 20, scale, 5000)
+                    .into_iter()
+                    .enumerate()
+                {
+                    let ignore = (tris[k % tris.len()].0, tris[k * 7 % tris.len()].0);
+                    let planes = foreign.then(|| {
+                        let n = (to - from).normalize_or_zero().any_orthonormal_vector();
+                        [(n, n.dot(from)), (n, n.dot(to))]
+                    });
+                    let got = occ.occluded_between_planes(from, to, ignore, planes);
+                    let scan = occ.segment(from, to).is_some_and(|seg| {
+                        let skip = occ.ignored_faces(ignore);
+                        let planes = occ.normalized_planes(planes);
+                        occ.tris.iter().any(|t| {
+                            t.face != skip.0
+                                && t.face != skip.1
+                                && by_axes!(seg.sheared.axes, |KX, KY, KZ| {
+                                    t.hit::<KX, KY, KZ>(&seg.sheared, seg.t0, seg.t1)
+                                })
+                                .is_some_and(|t| seg.counts(t, &planes))
+                        })
+                    });
+                    assert_eq!(
+                        got, scan,
+                        "{from} -> {to}, ignoring {ignore:?}, foreign {foreign}"
+                    );
+                    blocked += got as usize;
+                    free += !got as usize;
+                }
+            }
+        }
+        assert!(
+            blocked > 1000 && free > 1000,
+            "{blocked} blocked, {free} free"
+        );
+    }
+
+    /// The box walk offers every triangle whose box meets the query box (a superset is
+    /// fine: the callers test each triangle again).
+    #[test]
+    fn box_walk_offers_every_overlapping_triangle() {
+        let tris = clutter(6, 1.0);
+        let occ = Occluders::new(tris.clone());
+        let bvh = occ.bvh.as_ref().unwrap();
+        let mut rng = crate::formfactor::sampling::SplitMix64::new(7);
+        for _ in 0..500 {
+            let c = dvec3(rng.next_f64(), rng.next_f64(), rng.next_f64()) - 0.5;
+            let h = DVec3::splat(0.2 * rng.next_f64());
+            let (lo, hi) = (c - h, c + h);
+            let mut seen = vec![false; occ.tris.len()];
+            bvh.for_each_in_box(
+                lo,
+                hi,
+                |_, _| true,
+                |id| {
+                    seen[id] = true;
+                    false
+                },
+            );
+            for (id, t) in occ.tris.iter().enumerate() {
+                let overlaps = !(t.max.cmplt(lo).any() || t.min.cmpgt(hi).any());
+                assert!(
+                    !overlaps || seen[id],
+                    "triangle {id} overlapping the box not offered"
+                );
+            }
+        }
     }
 }

@@ -2,4 +2,5 @@
 //! volume hierarchy used for visibility ([`bvh`]).
 
 pub mod bvh;
+mod bvh8;
 pub mod subdivide;

@@ -1,0 +1,651 @@
+//! The eight-wide hierarchy the [`Occluders`](super::bvh::Occluders) traverse, laid
+//! out for SIMD, with its two walks: a shadow segment looking for any blocker
+//! ([`Bvh8::any_hit`]) and the box of a pair query ([`Bvh8::for_each_in_box`]).
+//!
+//! Why not obvhs' own traversal: obvhs builds very good trees (PLOC, then an
+//! SAH-optimal collapse to eight-wide nodes, Ylitie et al. 2017), but its compressed
+//! nodes are made for GPUs: on a CPU one ray decodes the quantized box of one child at
+//! a time. Here the topology of obvhs' tree is kept and laid out again, as Embree lays
+//! out its BVH8 (Wald et al., "Embree: a kernel framework for efficient CPU ray
+//! tracing", 2014):
+//!
+//! - a node holds the exact boxes of its eight children as six rows of eight f32 (all
+//!   min x, all min y, ..., all max z), rounded outward and padded by [`BOX_PAD`], so a
+//!   ray meets all eight children in six fused multiply-adds and four min/max of one
+//!   AVX register each;
+//! - the triangles are stored in the tree's primitive order, four to a [`Block`], as
+//!   lanes of planes (the triangle's plane and its three edge planes). A leaf (at most
+//!   three triangles in obvhs' trees, consecutive in that order, and the leaves of one
+//!   node next to each other) is a range of lanes, in one block or two. A
+//!   conservative f32 test ([`Block::classify`]) sorts the lanes into triangles the
+//!   segment misses for sure, crosses for sure, and may meet; the exact f64 test of the
+//!   caller decides only the last kind. So answers are those of the exact test alone:
+//!   the f32 parts have error allowances many times their rounding errors (worked out
+//!   at [`Block::classify`]).
+//!
+//! Children are visited in the order obvhs' builder prepared for the ray's octant
+//! (its slot assignment: the child in slot `s ^ octant` comes `s`-th), near ones first,
+//! so an occluded segment tends to meet its blocker early.
+//!
+//! Everything is in the normalized frame of the occluders (coordinates within ±0.5).
+
+use glam::DVec3;
+use obvhs::cwbvh::CwBvh;
+
+use super::bvh::OccluderTriangle as Tri;
+use wide::{f32x4, f32x8};
+
+/// Padding of every box (normalized units, i.e. a fraction of the scene diagonal):
+/// about 50 times the largest f32 rounding error of a slab test on the clipped
+/// segments of [`SegmentRay`], so that no box a segment passes through is missed.
+pub const BOX_PAD: f64 = 1e-5;
+
+/// Error allowance of the f32 triangle filter ([`Block::classify`]), normalized units:
+/// at least 50 times the f32 rounding of its inputs and products, plus
+/// [`TRUST`] for the planes' own f64 error.
+const FILTER_SLACK: f32 = 1e-5;
+
+/// How far (normalized units) a triangle's vertices may sit off its f64 plane or
+/// outside its f64 edge planes before the triangle is left to the exact test alone
+/// (a lane of zeros, which [`Block::classify`] never decides). Thin slivers, whose cross
+/// products lose digits, are the ones this catches.
+const TRUST: f64 = 1e-7;
+
+/// Segments are clipped to the box ±`CLIP` (the triangles lie within ±0.5) before
+/// their f32 set-up, which bounds the coordinates, and so the rounding errors, of
+/// every traversal.
+const CLIP: f64 = 1.0;
+
+/// Child reference: a leaf when this bit is set; then bits 2–30 hold its first
+/// triangle and bits 0–1 its triangle count minus one.
+const LEAF_BIT: u32 = 1 << 31;
+/// Child reference of an empty slot; face of an unused lane.
+const NONE: u32 = u32::MAX;
+
+/// The (first triangle, count) of a leaf reference.
+#[inline(always)]
+fn leaf_range(r: u32) -> (usize, usize) {
+    (((r & !LEAF_BIT) >> 2) as usize, (r & 3) as usize + 1)
+}
+
+/// Triangles [`Bvh8::any_hit`] puts off before it runs their exact tests.
+const DEFERRED: usize = 16;
+
+/// Stack entries kept on the machine stack; deeper trees allocate one per walk.
+const INLINE_STACK: usize = 128;
+
+/// Eight children: their boxes as rows of lanes (min x, min y, min z, max x, max y,
+/// max z), and what each slot holds. An empty slot has the box +∞..−∞, which no ray
+/// or box meets.
+#[derive(Clone, Copy, Debug)]
+#[repr(C, align(32))]
+struct Node {
+    b: [[f32; 8]; 6],
+    child: [u32; 8],
+}
+
+/// Four consecutive triangles, one per lane: rows 0–3 the plane (n, o) with n·x = o
+/// on it, rows 4–15 the three edge planes (m, c) with m·x ≥ c inside the triangle (n,
+/// m unit), and the scene face of each. An unused lane has n = 0, o = 1 (missed by
+/// every segment); a lane of zeros is never decided ([`TRUST`]).
+#[derive(Clone, Copy, Debug)]
+#[repr(C, align(16))]
+struct Block {
+    p: [[f32; 4]; 16],
+    face: [u32; 4],
+}
+
+/// A shadow segment prepared for the traversal: f32 origin and inverse direction for
+/// the slab tests (t ∈ [0, 1] over the clipped segment), and the end points as lanes for
+/// the triangle filter.
+pub struct SegmentRay {
+    inv: [f32x8; 3],
+    /// origin × inverse direction, per axis.
+    oi: [f32x8; 3],
+    /// Row of [`Node::b`] holding the near / far side of the boxes along each axis.
+    near: [usize; 3],
+    far: [usize; 3],
+    tmin: f32x8,
+    tmax: f32x8,
+    octant: usize,
+    p0: [f32x4; 3],
+    p1: [f32x4; 3],
+}
+
+impl SegmentRay {
+    /// The segment from `f` to `f + d` (normalized frame), clipped to ±[`CLIP`];
+    /// `None` when nothing of it lies in that box (then no triangle can meet it).
+    pub fn new(f: DVec3, d: DVec3) -> Option<Self> {
+        let (mut a, mut b) = (0.0f64, 1.0f64);
+        if f.abs().max_element() > CLIP || (f + d).abs().max_element() > CLIP {
+            for k in 0..3 {
+                if d[k] == 0.0 {
+                    if f[k].abs() > CLIP {
+                        return None;
+                    }
+                    continue;
+                }
+                let inv = 1.0 / d[k];
+                let (t0, t1) = ((-CLIP - f[k]) * inv, (CLIP - f[k]) * inv);
+                a = a.max(t0.min(t1));
+                b = b.min(t0.max(t1));
+            }
+            if a.is_nan() || b.is_nan() || a > b {
+                return None;
+            }
+        }
+        let (p0, p1) = (f + d * a, f + d * b);
+        let o = p0.as_vec3();
+        let dd = (p1 - p0).as_vec3();
+        let mut inv = [0f32; 3];
+        for k in 0..3 {
+            let i = 1.0 / dd[k];
+            // A zero (or vanishing) component: a large finite inverse of the same
+            // sign keeps the slab products free of ∞ − ∞.
+            inv[k] = if i.abs() < 1e30 {
+                i
+            } else {
+                1e30f32.copysign(dd[k])
+            };
+        }
+        let near = [0, 1, 2].map(|k| if inv[k] >= 0.0 { k } else { k + 3 });
+        let far = near.map(|r| (r + 3) % 6);
+        let octant =
+            ((dd.x < 0.0) as usize) << 2 | ((dd.y < 0.0) as usize) << 1 | (dd.z < 0.0) as usize;
+        let lanes = |p: DVec3| [p.x, p.y, p.z].map(|c| f32x4::splat(c as f32));
+        Some(SegmentRay {
+            inv: inv.map(f32x8::splat),
+            oi: [0, 1, 2].map(|k| f32x8::splat(o[k] * inv[k])),
+            near,
+            far,
+            tmin: f32x8::splat(-1e-3),
+            tmax: f32x8::splat(1.0 + 1e-3),
+            octant,
+            p0: lanes(p0),
+            p1: lanes(p1),
+        })
+    }
+}
+
+/// `ORDER[octant][mask]`: the hit mask of a node (bit s = slot s) with bit s moved
+/// to s ^ octant, the visiting rank of the slot for rays of that octant.
+static ORDER: [[u8; 256]; 8] = {
+    let mut t = [[0u8; 256]; 8];
+    let mut oct = 0;
+    while oct < 8 {
+        let mut m = 0;
+        while m < 256 {
+            let mut s = 0;
+            while s < 8 {
+                if m & (1 << s) != 0 {
+                    t[oct][m] |= 1 << (s ^ oct);
+                }
+                s += 1;
+            }
+            m += 1;
+        }
+        oct += 1;
+    }
+    t
+};
+
+impl Node {
+    #[inline(always)]
+    fn row(&self, r: usize) -> f32x8 {
+        f32x8::from(self.b[r])
+    }
+
+    /// Slots whose (padded) box the ray's parameter range [tmin, tmax] passes through.
+    #[inline(always)]
+    fn hit(&self, r: &SegmentRay) -> u32 {
+        let slab = |k: usize, row: usize| self.row(row).mul_sub(r.inv[k], r.oi[k]);
+        let t_near = slab(0, r.near[0])
+            .fast_max(slab(1, r.near[1]))
+            .fast_max(slab(2, r.near[2]).fast_max(r.tmin));
+        let t_far = slab(0, r.far[0])
+            .fast_min(slab(1, r.far[1]))
+            .fast_min(slab(2, r.far[2]).fast_min(r.tmax));
+        t_near.simd_le(t_far).to_bitmask()
+    }
+
+    /// Slots whose box overlaps the box [lo, hi].
+    #[inline(always)]
+    fn overlap(&self, lo: &[f32x8; 3], hi: &[f32x8; 3]) -> u32 {
+        let axis = |k: usize| self.row(k).simd_le(hi[k]) & self.row(k + 3).simd_ge(lo[k]);
+        (axis(0) & axis(1) & axis(2)).to_bitmask()
+    }
+
+    fn child_box(&self, s: usize) -> (DVec3, DVec3) {
+        let v = |r: usize| self.b[r][s] as f64;
+        (DVec3::new(v(0), v(1), v(2)), DVec3::new(v(3), v(4), v(5)))
+    }
+}
+
+impl Block {
+    /// Sorts the lanes by what the segment p0 → p1 does to their triangle: (`sure`,
+    /// `maybe`), the lanes it certainly crosses in their interior, away from both end
+    /// points, and those it may meet; it misses the other lanes for sure.
+    ///
+    /// With D = n·x − o (signed distance to the plane) and E_k = m_k·x − c_k (to edge
+    /// plane k) at the two end points, the segment crosses the plane at
+    /// x = (D0 p1 − D1 p0)/(D0 − D1), where E_k(x) = N_k/σ with N_k = D0 E_k(p1) −
+    /// D1 E_k(p0) and σ = D0 − D1 (no division needed). With the slack δ and
+    /// B_k = δ·(|D0| + |D1| + |E_k(p0)| + |E_k(p1)|) + δ², a lane is
+    /// - missed when both end points lie beyond δ on the same side of the plane, or
+    ///   σ is clear of zero (|σ| > 4δ) and sign(σ)·N_k < −B_k for some edge k;
+    /// - certainly crossed when the end points lie beyond δ on opposite sides and
+    ///   sign(σ)·N_k > B_k for every edge k. The crossing is then more than δ (more
+    ///   than [`super::bvh::RAY_EPSILON`]) from either end point along the segment,
+    ///   so the exact test would count it.
+    ///
+    /// B_k covers the f32 errors of the four factors (each at most a few 1e-7 for
+    /// coordinates within ±[`CLIP`]) and the triangle's own thickness ([`TRUST`]): a
+    /// point of the segment within that thickness of the plane lies where |D| ≤ η, and
+    /// there σ·E_k = N_k ∓ η (E_k(p1) − E_k(p0)), which B_k bounds. Segments in (or
+    /// nearly in) the plane (|σ| ≤ 4δ) are never missed by the edges.
+    #[inline(always)]
+    fn classify(&self, r: &SegmentRay) -> (u32, u32) {
+        let row = |k: usize| f32x4::from(self.p[k]);
+        let slack = f32x4::splat(FILTER_SLACK);
+        let plane = |k: usize, p: &[f32x4; 3]| {
+            row(k).mul_add(
+                p[0],
+                row(k + 1).mul_add(p[1], row(k + 2).mul_sub(p[2], row(k + 3))),
+            )
+        };
+        let (d0, d1) = (plane(0, &r.p0), plane(0, &r.p1));
+        let (above0, below0) = (d0.simd_gt(slack), d0.simd_lt(-slack));
+        let (above1, below1) = (d1.simd_gt(slack), d1.simd_lt(-slack));
+        let mut live = !((above0 & above1) | (below0 & below1));
+        if live.to_bitmask() & 0xf == 0 {
+            return (0, 0);
+        }
+        let mut inside = (above0 & below1) | (below0 & above1);
+        let sigma = d0 - d1;
+        let flat = sigma.abs().simd_le(slack * f32x4::splat(4.0));
+        // The sign bit of σ, to turn N_k into sign(σ)·N_k.
+        let sign = sigma & f32x4::splat(-0.0);
+        let dsum = d0.abs() + d1.abs();
+        for k in [4, 8, 12] {
+            let (e0, e1) = (plane(k, &r.p0), plane(k, &r.p1));
+            let n = d0.mul_sub(e1, d1 * e0) ^ sign;
+            let bound = slack.mul_add(dsum + e0.abs() + e1.abs(), slack * slack);
+            live &= flat | n.simd_ge(-bound);
+            inside &= n.simd_gt(bound);
+        }
+        let sure = inside.to_bitmask() & 0xf;
+        (sure, live.to_bitmask() & 0xf & !sure)
+    }
+}
+
+/// The child references still to visit in a walk ([`Bvh8::walk`]); sized by the
+/// tree's depth.
+struct Stack<'a> {
+    items: &'a mut [u32],
+    len: usize,
+}
+
+impl Stack<'_> {
+    #[inline(always)]
+    fn push(&mut self, r: u32) {
+        self.items[self.len] = r;
+        self.len += 1;
+    }
+}
+
+/// The hierarchy: nodes, leaves and the root reference.
+#[derive(Clone, Debug)]
+pub struct Bvh8 {
+    nodes: Vec<Node>,
+    blocks: Vec<Block>,
+    root: u32,
+    /// Most stack entries a walk needs (7 per level below the root, plus one).
+    stack_len: usize,
+}
+
+fn round_down(x: f64) -> f32 {
+    let y = x as f32;
+    if y as f64 > x {
+        y.next_down()
+    } else {
+        y
+    }
+}
+
+fn round_up(x: f64) -> f32 {
+    let y = x as f32;
+    if (y as f64) < x {
+        y.next_up()
+    } else {
+        y
+    }
+}
+
+/// The filter rows of one triangle ([`Block`]), or zeros when its f64 planes do not
+/// hold its own vertices within [`TRUST`].
+fn lane_rows(t: &Tri) -> [f32; 16] {
+    let mut rows = [0f64; 16];
+    let (n, v) = (t.normal, t.v);
+    rows[..3].copy_from_slice(&n.to_array());
+    rows[3] = t.offset;
+    let mut trusted = v.iter().all(|p| (n.dot(*p) - t.offset).abs() <= TRUST);
+    for k in 0..3 {
+        let m = n.cross(v[(k + 1) % 3] - v[k]).normalize_or_zero();
+        let c = m.dot(v[k]);
+        trusted &= m != DVec3::ZERO && v.iter().all(|p| m.dot(*p) - c >= -TRUST);
+        rows[4 + 4 * k..7 + 4 * k].copy_from_slice(&m.to_array());
+        rows[7 + 4 * k] = c;
+    }
+    trusted &= rows.iter().all(|x| x.is_finite());
+    if trusted {
+        rows.map(|x| x as f32)
+    } else {
+        [0.0; 16]
+    }
+}
+
+impl Bvh8 {
+    /// Lays out `cw` (built over `tris`, which must be in `cw`'s primitive order, so
+    /// that a leaf's triangles are `tris[start..start + count]`). `None` for an empty
+    /// tree.
+    pub fn from_cwbvh(cw: &CwBvh, tris: &[Tri]) -> Option<Self> {
+        if cw.nodes.is_empty() || tris.is_empty() || tris.len() >= 1 << 29 {
+            return None;
+        }
+        let blocks = tris
+            .chunks(4)
+            .map(|four| {
+                let mut block = Block {
+                    p: [[0.0; 4]; 16],
+                    face: [NONE; 4],
+                };
+                block.p[3] = [1.0; 4];
+                for (lane, t) in four.iter().enumerate() {
+                    for (row, x) in lane_rows(t).into_iter().enumerate() {
+                        block.p[row][lane] = x;
+                    }
+                    block.face[lane] = t.face;
+                }
+                block
+            })
+            .collect();
+        let mut b = Bvh8 {
+            nodes: Vec::with_capacity(cw.nodes.len()),
+            blocks,
+            root: 0,
+            stack_len: 1,
+        };
+        let (_, depth) = b.lay_out(cw, 0, tris);
+        b.stack_len = 7 * depth + 2;
+        Some(b)
+    }
+
+    /// Lays out node `i` of `cw` and everything below it; returns its bounds (the
+    /// union of its children's padded boxes) and its height in levels.
+    fn lay_out(&mut self, cw: &CwBvh, i: usize, tris: &[Tri]) -> ((DVec3, DVec3), usize) {
+        let at = self.nodes.len();
+        self.nodes.push(Node {
+            b: [
+                [f32::INFINITY; 8],
+                [f32::INFINITY; 8],
+                [f32::INFINITY; 8],
+                [f32::NEG_INFINITY; 8],
+                [f32::NEG_INFINITY; 8],
+                [f32::NEG_INFINITY; 8],
+            ],
+            child: [NONE; 8],
+        });
+        let src = &cw.nodes[i];
+        let mut height = 1;
+        let (mut lo, mut hi) = (DVec3::INFINITY, DVec3::NEG_INFINITY);
+        for s in 0..8 {
+            if src.is_child_empty(s) {
+                continue;
+            }
+            let (reference, (clo, chi)) = if src.is_leaf(s) {
+                let (start, count) = src.child_primitives(s);
+                debug_assert!((1..=4).contains(&count));
+                let (mut blo, mut bhi) = (DVec3::INFINITY, DVec3::NEG_INFINITY);
+                for t in &tris[start as usize..(start + count) as usize] {
+                    for p in t.v {
+                        blo = blo.min(p);
+                        bhi = bhi.max(p);
+                    }
+                }
+                let pad = DVec3::splat(BOX_PAD);
+                (LEAF_BIT | start << 2 | (count - 1), (blo - pad, bhi + pad))
+            } else {
+                let index = self.nodes.len() as u32;
+                let (bounds, h) = self.lay_out(cw, src.child_node_index(s) as usize, tris);
+                height = height.max(h + 1);
+                (index, bounds)
+            };
+            let node = &mut self.nodes[at];
+            let (flo, fhi) = (clo.to_array().map(round_down), chi.to_array().map(round_up));
+            for k in 0..3 {
+                node.b[k][s] = flo[k];
+                node.b[k + 3][s] = fhi[k];
+            }
+            node.child[s] = reference;
+            lo = lo.min(DVec3::new(flo[0] as f64, flo[1] as f64, flo[2] as f64));
+            hi = hi.max(DVec3::new(fhi[0] as f64, fhi[1] as f64, fhi[2] as f64));
+        }
+        ((lo, hi), height)
+    }
+
+    /// Asks the cache for the first line of child `c` (a hint: nothing else).
+    #[inline(always)]
+    fn prefetch(&self, c: u32) {
+        #[cfg(target_arch = "x86_64")]
+        {
+            use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
+            let p = if c & LEAF_BIT != 0 {
+                self.blocks.as_ptr().wrapping_add(leaf_range(c).0 / 4) as *const i8
+            } else {
+                self.nodes.as_ptr().wrapping_add(c as usize) as *const i8
+            };
+            // SAFETY: a prefetch reads nothing and cannot fault, whatever the address
+            // (and this one lies within `blocks` or `nodes`).
+            unsafe { _mm_prefetch::<_MM_HINT_T0>(p) };
+        }
+    }
+
+    /// Depth-first walk from the root: `leaf(first triangle, count)` for every leaf
+    /// popped (true: stop, and the walk returns true), `node` for every node popped,
+    /// which pushes the children to visit (the last pushed is popped first).
+    #[inline(always)]
+    fn walk(
+        &self,
+        mut leaf: impl FnMut(usize, usize) -> bool,
+        mut node: impl FnMut(&Node, &mut Stack<'_>),
+    ) -> bool {
+        let mut run = |items: &mut [u32]| {
+            let mut stack = Stack { items, len: 0 };
+            stack.push(self.root);
+            while stack.len > 0 {
+                stack.len -= 1;
+                let r = stack.items[stack.len];
+                if r & LEAF_BIT != 0 {
+                    let (start, count) = leaf_range(r);
+                    if leaf(start, count) {
+                        return true;
+                    }
+                } else {
+                    node(&self.nodes[r as usize], &mut stack);
+                }
+            }
+            false
+        };
+        if self.stack_len <= INLINE_STACK {
+            run(&mut [0u32; INLINE_STACK])
+        } else {
+            run(&mut vec![0u32; self.stack_len])
+        }
+    }
+
+    /// Whether a triangle of a face other than `ignore` blocks the segment `ray`.
+    /// Triangles the segment certainly crosses ([`Block::classify`]) block when
+    /// `trust_sure` (for foreign occluders the caller has more to check); for the
+    /// triangles it may meet, `exact` (given the triangle's id) decides. Those are
+    /// put off until the walk has found no certain blocker: an occluded segment
+    /// usually has one, and then never reads the f64 triangles. Near children are
+    /// visited first.
+    #[inline(always)]
+    pub fn any_hit(
+        &self,
+        ray: &SegmentRay,
+        ignore: (u32, u32),
+        trust_sure: bool,
+        mut exact: impl FnMut(usize) -> bool,
+    ) -> bool {
+        let counts = |face: u32| face != ignore.0 && face != ignore.1;
+        let mut later = [0u32; DEFERRED];
+        let mut n_later = 0;
+        let found = self.walk(
+            |start, count| {
+                // The leaf's lanes, in one block or across two.
+                let (first, lanes) = (start / 4, ((1u32 << count) - 1) << (start % 4));
+                for (k, mask) in [(first, lanes & 0xf), (first + 1, lanes >> 4)] {
+                    if mask == 0 {
+                        continue;
+                    }
+                    let block = &self.blocks[k];
+                    let (sure, maybe) = block.classify(ray);
+                    let (mut sure, mut maybe) = (sure & mask, maybe & mask);
+                    if !trust_sure {
+                        maybe |= sure;
+                        sure = 0;
+                    }
+                    while sure != 0 {
+                        let lane = sure.trailing_zeros() as usize;
+                        sure &= sure - 1;
+                        if counts(block.face[lane]) {
+                            return true;
+                        }
+                    }
+                    while maybe != 0 {
+                        let lane = maybe.trailing_zeros() as usize;
+                        maybe &= maybe - 1;
+                        if !counts(block.face[lane]) {
+                            continue;
+                        }
+                        if n_later == DEFERRED {
+                            if later.iter().any(|&id| exact(id as usize)) {
+                                return true;
+                            }
+                            n_later = 0;
+                        }
+                        later[n_later] = (4 * k + lane) as u32;
+                        n_later += 1;
+                    }
+                }
+                false
+            },
+            |node, stack| {
+                // Ranks of the slots hit; pushed far first, so the nearest is popped next.
+                let mut ranks = ORDER[ray.octant][node.hit(ray) as usize] as u32;
+                while ranks != 0 {
+                    let rank = 31 - ranks.leading_zeros();
+                    ranks &= !(1 << rank);
+                    let c = node.child[rank as usize ^ ray.octant];
+                    self.prefetch(c);
+                    stack.push(c);
+                }
+            },
+        );
+        found || later[..n_later].iter().any(|&id| exact(id as usize))
+    }
+
+    /// Calls `visit` with every triangle in a leaf whose box overlaps [lo, hi] and
+    /// which `keep` (asked about each child box, f64) keeps, until `visit` returns true
+    /// ("stop"). Returns whether a visit stopped the walk.
+    pub fn for_each_in_box(
+        &self,
+        lo: DVec3,
+        hi: DVec3,
+        mut keep: impl FnMut(DVec3, DVec3) -> bool,
+        mut visit: impl FnMut(usize) -> bool,
+    ) -> bool {
+        let lo8 = lo.to_array().map(|x| f32x8::splat(round_down(x)));
+        let hi8 = hi.to_array().map(|x| f32x8::splat(round_up(x)));
+        self.walk(
+            |start, count| (start..start + count).any(&mut visit),
+            |node, stack| {
+                let mut m = node.overlap(&lo8, &hi8);
+                while m != 0 {
+                    let s = m.trailing_zeros() as usize;
+                    m &= m - 1;
+                    let (clo, chi) = node.child_box(s);
+                    if keep(clo, chi) {
+                        stack.push(node.child[s]);
+                    }
+                }
+            },
+        )
+    }
+
+    /// Checks the layout (for tests): every triangle of `tris` sits in exactly one leaf
+    /// lane, inside the boxes of its leaf and of every node above it; the stack bound
+    /// holds.
+    pub fn validate(&self, tris: &[Tri]) {
+        let mut seen = vec![false; tris.len()];
+        let mut levels = 0;
+        let mut todo = vec![(self.root, DVec3::NEG_INFINITY, DVec3::INFINITY, 1usize)];
+        while let Some((r, lo, hi, level)) = todo.pop() {
+            levels = levels.max(level);
+            if r & LEAF_BIT != 0 {
+                let (start, count) = leaf_range(r);
+                for id in start..start + count {
+                    assert!(!seen[id], "triangle {id} in two leaves");
+                    seen[id] = true;
+                    for p in tris[id].v {
+                        assert!(
+                            p.cmpge(lo).all() && p.cmple(hi).all(),
+                            "triangle {id} outside its box"
+                        );
+                    }
+                    let block = &self.blocks[id / 4];
+                    assert_eq!(block.face[id % 4], tris[id].face);
+                }
+                continue;
+            }
+            let node = &self.nodes[r as usize];
+            for s in 0..8 {
+                if node.child[s] == NONE {
+                    continue;
+                }
+                let (clo, chi) = node.child_box(s);
+                assert!(
+                    clo.cmpge(lo).all() && chi.cmple(hi).all(),
+                    "child box outside its parent"
+                );
+                todo.push((node.child[s], clo, chi, level + 1));
+            }
+        }
+        assert!(seen.iter().all(|&s| s), "triangle missing from the leaves");
+        let lanes = self.blocks.len() * 4;
+        for id in tris.len()..lanes {
+            assert_eq!(
+                self.blocks[id / 4].p[3][id % 4],
+                1.0,
+                "unused lane not missed"
+            );
+        }
+        assert!(
+            7 * levels + 2 <= self.stack_len + 7,
+            "stack bound too small"
+        );
+    }
+
+    /// For tests: what [`Block::classify`] says of every triangle for `ray`, as
+    /// (sure, maybe) per triangle id (neither: missed for sure).
+    #[cfg(test)]
+    pub fn classify_all(&self, ray: &SegmentRay, n: usize) -> Vec<(bool, bool)> {
+        (0..n)
+            .map(|id| {
+                let (sure, maybe) = self.blocks[id / 4].classify(ray);
+                (sure >> (id % 4) & 1 == 1, maybe >> (id % 4) & 1 == 1)
+            })
+            .collect()
+    }
+}
