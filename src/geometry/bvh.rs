@@ -10,7 +10,7 @@
 //!   occluder need no rays"), decided from the hierarchy, not from a flag.
 //!
 //! The hierarchy is built by obvhs (PLOC, then its collapse to an eight-wide tree,
-//! Ylitie et al. 2017) and laid out for SIMD traversal by [`super::bvh8`]; it works in
+//! Ylitie et al. 2017) and laid out for SIMD traversal by `geometry/bvh8.rs`; it works in
 //! f32. To make results independent of the scene's units and position, everything is
 //! mapped to a normalized frame first: x ↦ (x − centre) / d with d the diagonal of the
 //! triangles' bounding box. The exact triangle tests run in f64 on the normalized
@@ -74,7 +74,7 @@ pub(super) struct OccluderTriangle {
     pub(super) v: [DVec3; 3],
     /// Unit normal (either orientation; faces block from both sides).
     pub(super) normal: DVec3,
-    /// normal · v[0].
+    /// normal · v₀.
     pub(super) offset: f64,
     min: DVec3,
     max: DVec3,
