@@ -76,8 +76,8 @@ pub(super) struct OccluderTriangle {
     pub(super) normal: DVec3,
     /// normal · v₀.
     pub(super) offset: f64,
-    min: DVec3,
-    max: DVec3,
+    pub(super) min: DVec3,
+    pub(super) max: DVec3,
     pub(super) face: u32,
 }
 

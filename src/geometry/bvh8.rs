@@ -407,10 +407,8 @@ impl Bvh8 {
                 debug_assert!((1..=4).contains(&count));
                 let (mut blo, mut bhi) = (DVec3::INFINITY, DVec3::NEG_INFINITY);
                 for t in &tris[start as usize..(start + count) as usize] {
-                    for p in t.v {
-                        blo = blo.min(p);
-                        bhi = bhi.max(p);
-                    }
+                    blo = blo.min(t.min);
+                    bhi = bhi.max(t.max);
                 }
                 let pad = DVec3::splat(BOX_PAD);
                 (LEAF_BIT | start << 2 | (count - 1), (blo - pad, bhi + pad))
@@ -427,8 +425,9 @@ impl Bvh8 {
                 node.b[k + 3][s] = fhi[k];
             }
             node.child[s] = reference;
-            lo = lo.min(DVec3::new(flo[0] as f64, flo[1] as f64, flo[2] as f64));
-            hi = hi.max(DVec3::new(fhi[0] as f64, fhi[1] as f64, fhi[2] as f64));
+            let (blo, bhi) = node.child_box(s);
+            lo = lo.min(blo);
+            hi = hi.max(bhi);
         }
         ((lo, hi), height)
     }
