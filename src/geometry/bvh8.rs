@@ -348,8 +348,17 @@ impl Bvh8 {
     /// Lays out `cw` (built over `tris`, which must be in `cw`'s primitive order, so
     /// that a leaf's triangles are `tris[start..start + count]`). `None` for an empty
     /// tree.
+    ///
+    /// # Panics
+    /// With 2²⁹ triangles or more (a leaf reference holds its first triangle in 29
+    /// bits); such a mesh would need some 60 GB for its f64 triangles alone.
     pub fn from_cwbvh(cw: &CwBvh, tris: &[Tri]) -> Option<Self> {
-        if cw.nodes.is_empty() || tris.is_empty() || tris.len() >= 1 << 29 {
+        assert!(
+            tris.len() < 1 << 29,
+            "{} occluder triangles: at most 2^29 are supported",
+            tris.len()
+        );
+        if cw.nodes.is_empty() || tris.is_empty() {
             return None;
         }
         let blocks = tris
