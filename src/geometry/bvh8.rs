@@ -29,7 +29,7 @@
 //!
 //! Everything is in the normalized frame of the occluders (coordinates within ±0.5).
 
-use glam::DVec3;
+use glam::{DVec3, Vec3A};
 use obvhs::cwbvh::CwBvh;
 
 use super::bvh::OccluderTriangle as Tri;
@@ -136,18 +136,12 @@ impl SegmentRay {
         }
         let (p0, p1) = (f + d * a, f + d * b);
         let o = p0.as_vec3();
-        let dd = (p1 - p0).as_vec3();
-        let mut inv = [0f32; 3];
-        for k in 0..3 {
-            let i = 1.0 / dd[k];
-            // A zero (or vanishing) component: a large finite inverse of the same
-            // sign keeps the slab products free of ∞ − ∞.
-            inv[k] = if i.abs() < 1e30 {
-                i
-            } else {
-                1e30f32.copysign(dd[k])
-            };
-        }
+        let dd = (p1 - p0).as_vec3a();
+        // A zero (or vanishing) component: a large finite inverse of the same sign
+        // keeps the slab products free of ∞ − ∞.
+        let i = Vec3A::ONE / dd;
+        let big = Vec3A::splat(1e30).copysign(dd);
+        let inv = Vec3A::select(i.abs().cmplt(Vec3A::splat(1e30)), i, big).to_array();
         let near = [0, 1, 2].map(|k| if inv[k] >= 0.0 { k } else { k + 3 });
         let far = near.map(|r| (r + 3) % 6);
         let octant =
