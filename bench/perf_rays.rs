@@ -17,7 +17,7 @@ use std::process::Command;
 use std::time::Instant;
 
 use ffstream::formfactor::sampling::SplitMix64;
-use ffstream::geometry::bvh::{Between, Occluders, RAY_EPSILON};
+use ffstream::geometry::bvh::{Between, Occluders, PACKET, RAY_EPSILON};
 use glam::DVec3;
 
 fn point_on(t: &[DVec3; 3], rng: &mut SplitMix64) -> DVec3 {
@@ -29,11 +29,15 @@ fn point_on(t: &[DVec3; 3], rng: &mut SplitMix64) -> DVec3 {
 fn main() {
     let mut boxes: Vec<usize> = Vec::new();
     let mut rays = 1_000_000usize;
+    let mut reps = 3usize;
+    let mut only: Option<String> = None;
     let mut it = std::env::args().skip(1);
     while let Some(a) = it.next() {
         match a.as_str() {
             "--bench" => {}
             "--rays" => rays = it.next().and_then(|v| v.parse().ok()).unwrap_or(rays),
+            "--reps" => reps = it.next().and_then(|v| v.parse().ok()).unwrap_or(reps),
+            "--only" => only = it.next(),
             _ => {
                 if let Ok(b) = a.parse() {
                     boxes.push(b)
@@ -65,31 +69,38 @@ fn main() {
         let time_it = |f: &dyn Fn() -> usize| {
             let mut best = f64::INFINITY;
             let mut blocked = 0usize;
-            for _ in 0..3 {
+            for _ in 0..reps {
                 let t0 = Instant::now();
                 blocked = f();
                 best = best.min(t0.elapsed().as_secs_f64());
             }
             (best, blocked)
         };
-        let (best, blocked) = time_it(&|| {
-            segs.iter()
-                .filter(|(a, b)| occ.occluded(*a, *b, (u32::MAX, u32::MAX)))
-                .count()
-        });
-        let ours = rays as f64 / best;
-        println!(
+        let wants = |part: &str| only.as_deref().is_none_or(|o| o == part);
+        if wants("incoherent") {
+            let (best, blocked) = time_it(&|| {
+                segs.iter()
+                    .filter(|(a, b)| occ.occluded(*a, *b, (u32::MAX, u32::MAX)))
+                    .count()
+            });
+            let ours = rays as f64 / best;
+            println!(
             "room:{b} triangles {} build {build:.3} s | incoherent | ffstream rays {rays} occluded {blocked} seconds {best:.4} rays_per_s {ours:.4e}",
             occ.len()
         );
-        report_embree(
-            embree,
-            &tris,
-            &segs,
-            b,
-            "incoherent",
-            &[("through the Bvh", ours)],
-        );
+            report_embree(
+                embree,
+                &tris,
+                &segs,
+                b,
+                "incoherent",
+                &[1],
+                &[("through the Bvh", ours)],
+            );
+        }
+        if !(wants("pairs") || wants("packets")) {
+            continue;
+        }
 
         // The rays of the form-factor workload: 16 per pair of triangles that face
         // each other, from random points of one to random points of the other. ffstream
@@ -130,53 +141,65 @@ fn main() {
             })
             .collect();
         let n_pair_rays = pair_segs.len();
-        let (best_bvh, blocked_bvh) = time_it(&|| {
-            pair_segs
-                .iter()
-                .enumerate()
-                .filter(|(k, (a, b))| {
-                    let (i, j, _, _) = pairs[k / PAIR_RAYS];
-                    occ.occluded(*a, *b, (tris[i].0, tris[j].0))
-                })
-                .count()
-        });
-        let (best_pairs, blocked_pairs) = time_it(&|| {
-            let mut ids = Vec::new();
+        // The pair's rays in packets (`occluded_packet`, as the `contour` kernel casts
+        // them when it walks the hierarchy); Embree gets them one by one and in packets
+        // of 16 (rtcOccluded16).
+        let (best_packets, blocked_packets) = time_it(&|| {
             let mut blocked = 0;
-            for (p, &(i, j, ni, nj)) in pairs.iter().enumerate() {
+            for (p, &(i, j, _, _)) in pairs.iter().enumerate() {
                 let faces = (tris[i].0, tris[j].0);
-                let listed = occ.collect_between(
-                    &Between::new(&tris[i].1, ni, &tris[j].1, nj, faces),
-                    &mut ids,
-                );
-                let mut first = 0;
-                for (a, b) in &pair_segs[p * PAIR_RAYS..(p + 1) * PAIR_RAYS] {
-                    let hit = if listed {
-                        occ.occluded_by(*a, *b, &ids, None, &mut first)
-                    } else {
-                        occ.occluded(*a, *b, faces)
-                    };
-                    blocked += hit as usize;
+                for packet in pair_segs[p * PAIR_RAYS..(p + 1) * PAIR_RAYS].chunks(PACKET) {
+                    blocked += occ.occluded_packet(packet, faces, None).count_ones() as usize;
                 }
             }
             blocked
         });
-        let rate_bvh = n_pair_rays as f64 / best_bvh;
-        let rate_pairs = n_pair_rays as f64 / best_pairs;
+        let rate_packets = n_pair_rays as f64 / best_packets;
         println!(
-            "room:{b} | pairs of {PAIR_RAYS} | ffstream per ray through the Bvh: occluded {blocked_bvh} rays_per_s {rate_bvh:.4e} | per pair (candidate list): occluded {blocked_pairs} rays_per_s {rate_pairs:.4e}"
+            "room:{b} | pairs of {PAIR_RAYS} | ffstream packets of {PACKET}: occluded {blocked_packets} rays_per_s {rate_packets:.4e}"
         );
-        report_embree(
-            embree,
-            &tris,
-            &pair_segs,
-            b,
-            "pairs",
-            &[
-                ("through the Bvh", rate_bvh),
-                ("candidate list", rate_pairs),
-            ],
-        );
+        let mut ours = vec![("packets", rate_packets)];
+        if wants("pairs") {
+            let (best_bvh, blocked_bvh) = time_it(&|| {
+                pair_segs
+                    .iter()
+                    .enumerate()
+                    .filter(|(k, (a, b))| {
+                        let (i, j, _, _) = pairs[k / PAIR_RAYS];
+                        occ.occluded(*a, *b, (tris[i].0, tris[j].0))
+                    })
+                    .count()
+            });
+            let (best_pairs, blocked_pairs) = time_it(&|| {
+                let mut ids = Vec::new();
+                let mut blocked = 0;
+                for (p, &(i, j, ni, nj)) in pairs.iter().enumerate() {
+                    let faces = (tris[i].0, tris[j].0);
+                    let listed = occ.collect_between(
+                        &Between::new(&tris[i].1, ni, &tris[j].1, nj, faces),
+                        &mut ids,
+                    );
+                    let mut first = 0;
+                    for (a, b) in &pair_segs[p * PAIR_RAYS..(p + 1) * PAIR_RAYS] {
+                        let hit = if listed {
+                            occ.occluded_by(*a, *b, &ids, None, &mut first)
+                        } else {
+                            occ.occluded(*a, *b, faces)
+                        };
+                        blocked += hit as usize;
+                    }
+                }
+                blocked
+            });
+            let rate_bvh = n_pair_rays as f64 / best_bvh;
+            let rate_pairs = n_pair_rays as f64 / best_pairs;
+            println!(
+                "room:{b} | pairs of {PAIR_RAYS} | ffstream per ray through the Bvh: occluded {blocked_bvh} rays_per_s {rate_bvh:.4e} | per pair (candidate list): occluded {blocked_pairs} rays_per_s {rate_pairs:.4e}"
+            );
+            ours.push(("one ray at a time", rate_bvh));
+            ours.push(("candidate list", rate_pairs));
+        }
+        report_embree(embree, &tris, &pair_segs, b, "pairs", &[1, 16], &ours);
     }
 }
 
@@ -191,6 +214,7 @@ fn report_embree(
     segs: &[(DVec3, DVec3)],
     b: usize,
     what: &str,
+    embree_packets: &[usize],
     ours: &[(&str, f64)],
 ) {
     if !embree.exists() {
@@ -240,26 +264,29 @@ fn report_embree(
     std::fs::File::create(&path)
         .and_then(|mut f| f.write_all(&buf))
         .expect("ray file");
-    let out = Command::new(embree)
-        .arg(&path)
-        .arg("3")
-        .output()
-        .expect("embree-shadow");
-    let text = String::from_utf8_lossy(&out.stdout);
-    let theirs: f64 = text
-        .split_whitespace()
-        .skip_while(|w| *w != "rays_per_s")
-        .nth(1)
-        .and_then(|v| v.parse().ok())
-        .unwrap_or(f64::NAN);
-    let ratios: Vec<String> = ours
-        .iter()
-        .map(|(label, rate)| format!("ratio ffstream/embree {:.3} ({label})", rate / theirs))
-        .collect();
-    println!(
-        "room:{b} | {what} | {} | {}",
-        text.trim(),
-        ratios.join(", ")
-    );
+    for &packet in embree_packets {
+        let out = Command::new(embree)
+            .arg(&path)
+            .arg("3")
+            .arg(packet.to_string())
+            .output()
+            .expect("embree-shadow");
+        let text = String::from_utf8_lossy(&out.stdout);
+        let theirs: f64 = text
+            .split_whitespace()
+            .skip_while(|w| *w != "rays_per_s")
+            .nth(1)
+            .and_then(|v| v.parse().ok())
+            .unwrap_or(f64::NAN);
+        let ratios: Vec<String> = ours
+            .iter()
+            .map(|(label, rate)| format!("ratio ffstream/embree {:.3} ({label})", rate / theirs))
+            .collect();
+        println!(
+            "room:{b} | {what} | {} | {}",
+            text.trim(),
+            ratios.join(", ")
+        );
+    }
     let _ = std::fs::remove_file(&path);
 }

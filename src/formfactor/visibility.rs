@@ -31,7 +31,8 @@ use super::engine::PatchGeom;
 use super::polygon::Polygon;
 use super::sampling::{latin_pairs, pair_seed, SplitMix64};
 use super::{FormFactorConfig, Scratch};
-use crate::geometry::bvh::Occluders;
+use crate::geometry::bvh::{Occluders, PACKET};
+use glam::DVec3;
 
 /// Stream tags of the two batches (see [`pair_seed`]).
 const STREAM_FIRST: u64 = 0;
@@ -69,6 +70,23 @@ impl Blockers<'_> {
             None => self.occluders.occluded_between_planes(x, y, faces, planes),
         }
     }
+
+    /// [`Blockers::occluded`] for up to [`PACKET`] segments: bit k set when `segs[k]`
+    /// is blocked. Without a candidate list the segments walk the hierarchy together
+    /// ([`Occluders::occluded_packet`]); the answers are those of one at a time.
+    fn occluded_each(
+        &self,
+        segs: &[(glam::DVec3, glam::DVec3)],
+        faces: (u32, u32),
+        planes: Option<[(glam::DVec3, f64); 2]>,
+    ) -> u32 {
+        match self.candidates {
+            Some(_) => segs.iter().enumerate().fold(0, |m, (k, &(x, y))| {
+                m | (self.occluded(x, y, faces, planes) as u32) << k
+            }),
+            None => self.occluders.occluded_packet(segs, faces, planes),
+        }
+    }
 }
 
 /// Weighted sums of one batch.
@@ -98,24 +116,36 @@ fn run_batch(
         .then_some([(gi.normal, gi.offset), (gj.normal, gj.offset)]);
     let mut rng = SplitMix64::new(pair_seed(cfg.seed, i, j, stream));
     latin_pairs(&mut rng, n, &mut scratch.perms, &mut scratch.samples);
-    for q in &scratch.samples {
+    // The rays go out in packets of up to PACKET; sums in sample order.
+    let mut segs = [(DVec3::ZERO, DVec3::ZERO); PACKET];
+    let mut weights = [0.0; PACKET];
+    let mut n_rays = 0;
+    let samples = scratch.samples.len();
+    for (k, q) in scratch.samples.iter().enumerate() {
         let (x, jx) = gi.map.eval(q[0], q[1]);
         let (y, jy) = gj.map.eval(q[2], q[3]);
         let d = y - x;
         let r2 = d.length_squared();
         let ci = gi.normal.dot(d);
         let cj = -gj.normal.dot(d);
-        if !(ci > 0.0 && cj > 0.0 && r2 > 0.0) {
-            continue;
+        if ci > 0.0 && cj > 0.0 && r2 > 0.0 {
+            segs[n_rays] = (x, y);
+            weights[n_rays] = jx * jy * ci * cj / (r2 * r2);
+            n_rays += 1;
         }
-        let w = jx * jy * ci * cj / (r2 * r2);
-        scratch.counters.rays_cast += 1;
-        out.weight += w;
-        if occ.occluded(x, y, (gi.face, gj.face), planes) {
-            out.any_blocked = true;
-        } else {
-            out.any_free = true;
-            out.visible += w;
+        if n_rays == PACKET || (k + 1 == samples && n_rays > 0) {
+            let blocked = occ.occluded_each(&segs[..n_rays], (gi.face, gj.face), planes);
+            scratch.counters.rays_cast += n_rays as u64;
+            for (r, &w) in weights[..n_rays].iter().enumerate() {
+                out.weight += w;
+                if blocked >> r & 1 == 1 {
+                    out.any_blocked = true;
+                } else {
+                    out.any_free = true;
+                    out.visible += w;
+                }
+            }
+            n_rays = 0;
         }
     }
 }

@@ -27,7 +27,10 @@ use std::time::Duration;
 use glam::DVec3;
 use obvhs::{cwbvh::builder::build_cwbvh_from_tris, triangle::Triangle, BvhBuildParams};
 
-use super::bvh8::{Bvh8, SegmentRay};
+use super::bvh8::{Bvh8, SegmentPacket, SegmentRay};
+
+/// Most segments [`Occluders::occluded_packet`] takes at once.
+pub const PACKET: usize = super::bvh8::PACKET;
 
 /// Rays ignore hits closer than this to either end point (normalized units, i.e. a
 /// fraction of the scene diagonal).
@@ -638,6 +641,45 @@ impl Occluders {
         let mut exact_setup: Option<Option<Segment>> = None;
         bvh.any_hit(&ray, ignore, planes.is_none(), |id| {
             let Some(seg) = exact_setup.get_or_insert_with(|| Segment::new(f, d)) else {
+                return false;
+            };
+            by_axes!(seg.sheared.axes, |KX, KY, KZ| {
+                self.tris[id]
+                    .hit::<KX, KY, KZ>(&seg.sheared, seg.t0, seg.t1)
+                    .is_some_and(|t| seg.counts(t, &planes))
+            })
+        })
+    }
+
+    /// [`Occluders::occluded_between_planes`] for up to [`PACKET`] segments at once:
+    /// bit l of the answer is set when segment l is blocked, with the same answer as
+    /// alone. The segments are walked through the hierarchy together, which pays when
+    /// they are close to each other (the rays of one pair of patches).
+    ///
+    /// # Panics
+    /// With more than [`PACKET`] segments.
+    pub fn occluded_packet(
+        &self,
+        segs: &[(DVec3, DVec3)],
+        ignore: (u32, u32),
+        planes: Option<[(DVec3, f64); 2]>,
+    ) -> u32 {
+        assert!(segs.len() <= PACKET, "{} segments in a packet", segs.len());
+        let Some(bvh) = &self.bvh else { return 0 };
+        let ignore = self.ignored_faces(ignore);
+        let planes = self.normalized_planes(planes);
+        let mut ends = [(DVec3::ZERO, DVec3::ZERO); PACKET];
+        for (l, &(from, to)) in segs.iter().enumerate() {
+            let f = self.to_norm(from);
+            ends[l] = (f, self.to_norm(to) - f);
+        }
+        let packet = SegmentPacket::new(&ends[..segs.len()]);
+        // As in `occluded_between_planes`: each lane's exact set-up waits for its
+        // first undecided triangle.
+        let mut exact_setup: [Option<Option<Segment>>; PACKET] = Default::default();
+        bvh.any_hit_packet(&packet, ignore, planes.is_none(), |lane, id| {
+            let (f, d) = ends[lane];
+            let Some(seg) = exact_setup[lane].get_or_insert_with(|| Segment::new(f, d)) else {
                 return false;
             };
             by_axes!(seg.sheared.axes, |KX, KY, KZ| {
@@ -1427,6 +1469,76 @@ mod tests {
             blocked > 1000 && free > 1000,
             "{blocked} blocked, {free} free"
         );
+    }
+
+    /// A packet of segments gets, lane by lane, the answers the segments get alone:
+    /// packets of 1–8 of the test segments (every kind, mixed directions) and
+    /// packets of rays between two random triangles, as a pair casts them; native and
+    /// foreign, the pair's faces ignored.
+    #[test]
+    fn packets_answer_like_single_segments() {
+        let (mut blocked, mut free, mut mixed) = (0, 0, 0);
+        for (seed, scale) in [(8u64, 1.0), (9, 1e3)] {
+            let tris = clutter(seed, scale);
+            let mut rng = crate::formfactor::sampling::SplitMix64::new(seed);
+            let mut pairs = Vec::new();
+            for _ in 0..400 {
+                let a = &tris[rng.below(tris.len() as u32) as usize];
+                let b = &tris[rng.below(tris.len() as u32) as usize];
+                let rays: Vec<_> = (0..PACKET)
+                    .map(|_| (point_in(&a.1, &mut rng), point_in(&b.1, &mut rng)))
+                    .collect();
+                pairs.push(((a.0, b.0), rays));
+            }
+            let singles = test_segments(&tris, seed + 30, scale, 3000);
+            let mut at = 0;
+            while at < singles.len() {
+                let n = (1 + rng.below(PACKET as u32) as usize).min(singles.len() - at);
+                let k = rng.below(tris.len() as u32) as usize;
+                pairs.push((
+                    (tris[k].0, tris[(k * 7) % tris.len()].0),
+                    singles[at..at + n].to_vec(),
+                ));
+                at += n;
+            }
+            for foreign in [false, true] {
+                let occ = if foreign {
+                    Occluders::new_foreign(tris.clone())
+                } else {
+                    Occluders::new(tris.clone())
+                };
+                for (faces, segs) in &pairs {
+                    let (from, to) = segs[0];
+                    let planes = foreign.then(|| {
+                        let n = (to - from).normalize_or_zero().any_orthonormal_vector();
+                        [(n, n.dot(from)), (n, n.dot(to))]
+                    });
+                    let got = occ.occluded_packet(segs, *faces, planes);
+                    let alone = segs.iter().enumerate().fold(0u32, |m, (l, &(a, b))| {
+                        m | (occ.occluded_between_planes(a, b, *faces, planes) as u32) << l
+                    });
+                    assert_eq!(
+                        got, alone,
+                        "packet {segs:?}, faces {faces:?}, foreign {foreign}"
+                    );
+                    let n = segs.len() as u32;
+                    blocked += alone.count_ones();
+                    free += n - alone.count_ones();
+                    mixed += (alone != 0 && alone.count_ones() < n) as usize;
+                }
+            }
+        }
+        assert!(
+            blocked > 2000 && free > 2000 && mixed > 100,
+            "{blocked} blocked, {free} free, {mixed} packets partly blocked"
+        );
+    }
+
+    /// A uniform random point of triangle `t`.
+    fn point_in(t: &[DVec3; 3], rng: &mut crate::formfactor::sampling::SplitMix64) -> DVec3 {
+        let (u, v) = (rng.next_f64(), rng.next_f64());
+        let s = u.sqrt();
+        t[0] * (1.0 - s) + t[1] * (s * (1.0 - v)) + t[2] * (s * v)
     }
 
     /// The box walk offers every triangle whose box meets the query box (a superset is

@@ -27,13 +27,20 @@
 //! (its slot assignment: the child in slot `s ^ octant` comes `s`-th), near ones first,
 //! so an occluded segment tends to meet its blocker early.
 //!
+//! The rays of one pair of patches can also walk together, sixteen to a
+//! [`SegmentPacket`] ([`Bvh8::any_hit_packet`]): lanes are rays, each node is fetched
+//! once and its eight boxes tested against all of them, each triangle is filtered
+//! against all of them. A ray leaves the walk at its first blocker. Its answer is the
+//! one it gets alone, since either walk visits every leaf the segment passes through
+//! and answers are decided by the same filter and exact test.
+//!
 //! Everything is in the normalized frame of the occluders (coordinates within ±0.5).
 
 use glam::{DVec3, Vec3A};
 use obvhs::cwbvh::CwBvh;
 
 use super::bvh::OccluderTriangle as Tri;
-use wide::{f32x4, f32x8};
+use wide::{f32x16 as Lanes16, f32x4, f32x8};
 
 /// Padding of every box (normalized units, i.e. a fraction of the scene diagonal):
 /// about 50 times the largest f32 rounding error of a slab test on the clipped
@@ -95,69 +102,174 @@ struct Block {
     face: [u32; 4],
 }
 
-/// A shadow segment prepared for the traversal: f32 origin and inverse direction for
-/// the slab tests (t ∈ [0, 1] over the clipped segment), and the end points as lanes for
-/// the triangle filter.
+/// A shadow segment prepared for the traversal, f32: its end points (clipped to
+/// ±[`CLIP`]) for the triangle filter, and its inverse direction with origin ×
+/// inverse direction for the slab tests (t ∈ [0, 1] over the clipped segment).
+#[derive(Clone, Copy, Debug)]
 pub struct SegmentRay {
-    inv: [f32x8; 3],
-    /// origin × inverse direction, per axis.
-    oi: [f32x8; 3],
-    /// Row of [`Node::b`] holding the near / far side of the boxes along each axis.
-    near: [usize; 3],
-    far: [usize; 3],
-    tmin: f32x8,
-    tmax: f32x8,
+    p0: [f32; 3],
+    p1: [f32; 3],
+    inv: [f32; 3],
+    oi: [f32; 3],
     octant: usize,
-    p0: [f32x4; 3],
-    p1: [f32x4; 3],
 }
 
 impl SegmentRay {
     /// The segment from `f` to `f + d` (normalized frame), clipped to ±[`CLIP`];
     /// `None` when nothing of it lies in that box (then no triangle can meet it).
     pub fn new(f: DVec3, d: DVec3) -> Option<Self> {
-        let (mut a, mut b) = (0.0f64, 1.0f64);
-        if f.abs().max_element() > CLIP || (f + d).abs().max_element() > CLIP {
-            for k in 0..3 {
-                if d[k] == 0.0 {
-                    if f[k].abs() > CLIP {
-                        return None;
-                    }
-                    continue;
-                }
-                let inv = 1.0 / d[k];
-                let (t0, t1) = ((-CLIP - f[k]) * inv, (CLIP - f[k]) * inv);
-                a = a.max(t0.min(t1));
-                b = b.min(t0.max(t1));
-            }
-            if a.is_nan() || b.is_nan() || a > b {
-                return None;
-            }
-        }
-        let (p0, p1) = (f + d * a, f + d * b);
+        let (p0, p1) = clip(f, d)?;
         let o = p0.as_vec3();
         let dd = (p1 - p0).as_vec3a();
-        // A zero (or vanishing) component: a large finite inverse of the same sign
-        // keeps the slab products free of ∞ − ∞.
-        let i = Vec3A::ONE / dd;
-        let big = Vec3A::splat(1e30).copysign(dd);
-        let inv = Vec3A::select(i.abs().cmplt(Vec3A::splat(1e30)), i, big).to_array();
-        let near = [0, 1, 2].map(|k| if inv[k] >= 0.0 { k } else { k + 3 });
-        let far = near.map(|r| (r + 3) % 6);
-        let octant =
-            ((dd.x < 0.0) as usize) << 2 | ((dd.y < 0.0) as usize) << 1 | (dd.z < 0.0) as usize;
-        let lanes = |p: DVec3| [p.x, p.y, p.z].map(|c| f32x4::splat(c as f32));
+        let inv = inverse(dd);
         Some(SegmentRay {
-            inv: inv.map(f32x8::splat),
-            oi: [0, 1, 2].map(|k| f32x8::splat(o[k] * inv[k])),
-            near,
-            far,
-            tmin: f32x8::splat(-1e-3),
-            tmax: f32x8::splat(1.0 + 1e-3),
-            octant,
-            p0: lanes(p0),
-            p1: lanes(p1),
+            p0: o.to_array(),
+            p1: p1.as_vec3().to_array(),
+            inv: inv.to_array(),
+            oi: (Vec3A::from(o) * inv).to_array(),
+            octant: octant(dd.to_array()),
         })
+    }
+}
+
+/// The end points of the segment from `f` to `f + d` clipped to ±[`CLIP`] (the
+/// segment itself when it lies inside); `None` when nothing of it is inside.
+#[inline(always)]
+fn clip(f: DVec3, d: DVec3) -> Option<(DVec3, DVec3)> {
+    let (mut a, mut b) = (0.0f64, 1.0f64);
+    if f.abs().max_element() > CLIP || (f + d).abs().max_element() > CLIP {
+        for k in 0..3 {
+            if d[k] == 0.0 {
+                if f[k].abs() > CLIP {
+                    return None;
+                }
+                continue;
+            }
+            let inv = 1.0 / d[k];
+            let (t0, t1) = ((-CLIP - f[k]) * inv, (CLIP - f[k]) * inv);
+            a = a.max(t0.min(t1));
+            b = b.min(t0.max(t1));
+        }
+        if a.is_nan() || b.is_nan() || a > b {
+            return None;
+        }
+    }
+    Some((f + d * a, f + d * b))
+}
+
+/// 1/dd per component; a zero (or vanishing) component gets a large finite inverse
+/// of the same sign instead, which keeps the slab products free of ∞ − ∞.
+#[inline(always)]
+fn inverse(dd: Vec3A) -> Vec3A {
+    let i = Vec3A::ONE / dd;
+    let big = Vec3A::splat(INV_MAX).copysign(dd);
+    Vec3A::select(i.abs().cmplt(Vec3A::splat(INV_MAX)), i, big)
+}
+
+/// Largest inverse direction component (see [`inverse`]).
+const INV_MAX: f32 = 1e30;
+
+/// The octant of direction `dd`: bit 2 (1, 0) set when its x (y, z) is negative.
+#[inline(always)]
+fn octant(dd: [f32; 3]) -> usize {
+    ((dd[0] < 0.0) as usize) << 2 | ((dd[1] < 0.0) as usize) << 1 | (dd[2] < 0.0) as usize
+}
+
+/// Slab parameters the boxes must overlap: a little beyond [0, 1], since the boxes
+/// are padded ([`BOX_PAD`]) and the segment's ends may lie on them.
+const T_MIN: f32 = -1e-3;
+const T_MAX: f32 = 1.0 + 1e-3;
+
+/// One [`SegmentRay`] as lanes: its slab terms over the eight children of a node,
+/// its end points over the four triangles of a block.
+struct RayLanes {
+    inv: [f32x8; 3],
+    oi: [f32x8; 3],
+    /// Row of [`Node::b`] holding the near / far side of the boxes along each axis.
+    near: [usize; 3],
+    far: [usize; 3],
+    octant: usize,
+    p0: [f32x4; 3],
+    p1: [f32x4; 3],
+}
+
+impl RayLanes {
+    fn new(r: &SegmentRay) -> Self {
+        let near = [0, 1, 2].map(|k| if r.inv[k] >= 0.0 { k } else { k + 3 });
+        RayLanes {
+            inv: r.inv.map(f32x8::splat),
+            oi: r.oi.map(f32x8::splat),
+            near,
+            far: near.map(|row| (row + 3) % 6),
+            octant: r.octant,
+            p0: r.p0.map(f32x4::splat),
+            p1: r.p1.map(f32x4::splat),
+        }
+    }
+}
+
+/// Most segments a [`SegmentPacket`] holds, one per lane of its vectors (sixteen
+/// f32: two AVX registers, or one AVX-512 register when built for it).
+pub const PACKET: usize = 16;
+
+/// Up to [`PACKET`] shadow segments walked together ([`Bvh8::any_hit_packet`]), one
+/// per lane: the rays of one pair of patches start and end close to each other, so
+/// they pass through mostly the same nodes, and a node is then fetched and tested once
+/// for all of them, with no chain of dependent steps per ray.
+pub struct SegmentPacket {
+    inv: [Lanes16; 3],
+    oi: [Lanes16; 3],
+    p0: [Lanes16; 3],
+    p1: [Lanes16; 3],
+    /// Visiting order of the children: the first segment's octant.
+    octant: usize,
+    /// Lanes that hold a segment.
+    lanes: u32,
+}
+
+impl SegmentPacket {
+    /// The segments from `f` to `f + d` (normalized frame), in lanes `0..ends.len()`;
+    /// the set-up of [`SegmentRay::new`] for all of them at once. A segment with
+    /// nothing inside ±[`CLIP`] leaves its lane empty (never blocked).
+    ///
+    /// # Panics
+    /// With more than [`PACKET`] segments.
+    pub fn new(ends: &[(DVec3, DVec3)]) -> Self {
+        assert!(ends.len() <= PACKET, "{} segments in a packet", ends.len());
+        // p0, p1, p1 − p0; per axis; per lane.
+        let mut v = [[[0f32; PACKET]; 3]; 3];
+        let (mut lanes, mut octant_of) = (0, None);
+        for (l, &(f, d)) in ends.iter().enumerate() {
+            let Some((p0, p1)) = clip(f, d) else { continue };
+            lanes |= 1 << l;
+            let dd = (p1 - p0).as_vec3().to_array();
+            octant_of.get_or_insert(octant(dd));
+            for (rows, x) in
+                v.iter_mut()
+                    .zip([p0.as_vec3().to_array(), p1.as_vec3().to_array(), dd])
+            {
+                for k in 0..3 {
+                    rows[k][l] = x[k];
+                }
+            }
+        }
+        let [p0, p1, dd] = v.map(|rows| rows.map(Lanes16::from));
+        // `inverse`, lane by lane (empty lanes get 1e30 and meet every box; their
+        // results are masked out).
+        let inv = dd.map(|dd| {
+            let i = Lanes16::ONE / dd;
+            let keep = i.abs().simd_lt(Lanes16::splat(INV_MAX));
+            let big = (dd & Lanes16::splat(-0.0)) | Lanes16::splat(INV_MAX);
+            (keep & i) | (!keep & big)
+        });
+        SegmentPacket {
+            inv,
+            oi: [0, 1, 2].map(|k| p0[k] * inv[k]),
+            p0,
+            p1,
+            octant: octant_of.unwrap_or(0),
+            lanes,
+        }
     }
 }
 
@@ -191,15 +303,43 @@ impl Node {
 
     /// Slots whose (padded) box the ray's parameter range [tmin, tmax] passes through.
     #[inline(always)]
-    fn hit(&self, r: &SegmentRay) -> u32 {
+    fn hit(&self, r: &RayLanes) -> u32 {
         let slab = |k: usize, row: usize| self.row(row).mul_sub(r.inv[k], r.oi[k]);
         let t_near = slab(0, r.near[0])
             .fast_max(slab(1, r.near[1]))
-            .fast_max(slab(2, r.near[2]).fast_max(r.tmin));
+            .fast_max(slab(2, r.near[2]).fast_max(f32x8::splat(T_MIN)));
         let t_far = slab(0, r.far[0])
             .fast_min(slab(1, r.far[1]))
-            .fast_min(slab(2, r.far[2]).fast_min(r.tmax));
+            .fast_min(slab(2, r.far[2]).fast_min(f32x8::splat(T_MAX)));
         t_near.simd_le(t_far).to_bitmask()
+    }
+
+    /// For each slot, the lanes of `pk` whose segment passes through its (padded)
+    /// box, as [`Node::hit`] finds for each segment alone (the same slab values; the
+    /// near and far sides picked per lane by min and max). Empty slots: 0.
+    #[inline(always)]
+    fn hit_packet(&self, pk: &SegmentPacket) -> [u32; 8] {
+        let mut lanes = [0; 8];
+        for (s, out) in lanes.iter_mut().enumerate() {
+            if self.child[s] == NONE {
+                continue;
+            }
+            let slab =
+                |row: usize, k: usize| Lanes16::splat(self.b[row][s]).mul_sub(pk.inv[k], pk.oi[k]);
+            let (a0, b0) = (slab(0, 0), slab(3, 0));
+            let (a1, b1) = (slab(1, 1), slab(4, 1));
+            let (a2, b2) = (slab(2, 2), slab(5, 2));
+            let t_near = a0
+                .fast_min(b0)
+                .fast_max(a1.fast_min(b1))
+                .fast_max(a2.fast_min(b2).fast_max(Lanes16::splat(T_MIN)));
+            let t_far = a0
+                .fast_max(b0)
+                .fast_min(a1.fast_max(b1))
+                .fast_min(a2.fast_max(b2).fast_min(Lanes16::splat(T_MAX)));
+            *out = t_near.simd_le(t_far).to_bitmask();
+        }
+        lanes
     }
 
     /// Slots whose box overlaps the box [lo, hi].
@@ -213,6 +353,48 @@ impl Node {
         let v = |r: usize| self.b[r][s] as f64;
         (DVec3::new(v(0), v(1), v(2)), DVec3::new(v(3), v(4), v(5)))
     }
+}
+
+/// The triangle filter of [`Block::classify`] over lanes of type `$v` (f32x4: four
+/// triangles and one segment; [`Lanes16`]: one triangle and sixteen segments): `$row(k)` is
+/// filter row k of the triangles, `$p0`, `$p1` the end points of the segments, as
+/// lanes. Gives (sure, maybe) lane masks.
+macro_rules! filter {
+    ($v:ident, $row:expr, $p0:expr, $p1:expr) => {{
+        let row = $row;
+        let (p0, p1): (&[$v; 3], &[$v; 3]) = ($p0, $p1);
+        let slack = $v::splat(FILTER_SLACK);
+        let plane = |k: usize, p: &[$v; 3]| {
+            row(k).mul_add(
+                p[0],
+                row(k + 1).mul_add(p[1], row(k + 2).mul_sub(p[2], row(k + 3))),
+            )
+        };
+        'filter: {
+            let (d0, d1) = (plane(0, p0), plane(0, p1));
+            let (above0, below0) = (d0.simd_gt(slack), d0.simd_lt(-slack));
+            let (above1, below1) = (d1.simd_gt(slack), d1.simd_lt(-slack));
+            let mut live = !((above0 & above1) | (below0 & below1));
+            if live.to_bitmask() == 0 {
+                break 'filter (0, 0);
+            }
+            let mut inside = (above0 & below1) | (below0 & above1);
+            let sigma = d0 - d1;
+            let flat = sigma.abs().simd_le(slack * $v::splat(4.0));
+            // The sign bit of σ, to turn N_k into sign(σ)·N_k.
+            let sign = sigma & $v::splat(-0.0);
+            let dsum = d0.abs() + d1.abs();
+            for k in [4, 8, 12] {
+                let (e0, e1) = (plane(k, p0), plane(k, p1));
+                let n = d0.mul_sub(e1, d1 * e0) ^ sign;
+                let bound = slack.mul_add(dsum + e0.abs() + e1.abs(), slack * slack);
+                live &= flat | n.simd_ge(-bound);
+                inside &= n.simd_gt(bound);
+            }
+            let sure = inside.to_bitmask();
+            (sure, live.to_bitmask() & !sure)
+        }
+    }};
 }
 
 impl Block {
@@ -238,37 +420,20 @@ impl Block {
     /// there σ·E_k = N_k ∓ η (E_k(p1) − E_k(p0)), which B_k bounds. Segments in (or
     /// nearly in) the plane (|σ| ≤ 4δ) are never missed by the edges.
     #[inline(always)]
-    fn classify(&self, r: &SegmentRay) -> (u32, u32) {
-        let row = |k: usize| f32x4::from(self.p[k]);
-        let slack = f32x4::splat(FILTER_SLACK);
-        let plane = |k: usize, p: &[f32x4; 3]| {
-            row(k).mul_add(
-                p[0],
-                row(k + 1).mul_add(p[1], row(k + 2).mul_sub(p[2], row(k + 3))),
-            )
-        };
-        let (d0, d1) = (plane(0, &r.p0), plane(0, &r.p1));
-        let (above0, below0) = (d0.simd_gt(slack), d0.simd_lt(-slack));
-        let (above1, below1) = (d1.simd_gt(slack), d1.simd_lt(-slack));
-        let mut live = !((above0 & above1) | (below0 & below1));
-        if live.to_bitmask() & 0xf == 0 {
-            return (0, 0);
-        }
-        let mut inside = (above0 & below1) | (below0 & above1);
-        let sigma = d0 - d1;
-        let flat = sigma.abs().simd_le(slack * f32x4::splat(4.0));
-        // The sign bit of σ, to turn N_k into sign(σ)·N_k.
-        let sign = sigma & f32x4::splat(-0.0);
-        let dsum = d0.abs() + d1.abs();
-        for k in [4, 8, 12] {
-            let (e0, e1) = (plane(k, &r.p0), plane(k, &r.p1));
-            let n = d0.mul_sub(e1, d1 * e0) ^ sign;
-            let bound = slack.mul_add(dsum + e0.abs() + e1.abs(), slack * slack);
-            live &= flat | n.simd_ge(-bound);
-            inside &= n.simd_gt(bound);
-        }
-        let sure = inside.to_bitmask() & 0xf;
-        (sure, live.to_bitmask() & 0xf & !sure)
+    fn classify(&self, r: &RayLanes) -> (u32, u32) {
+        filter!(f32x4, |k: usize| f32x4::from(self.p[k]), &r.p0, &r.p1)
+    }
+
+    /// [`Block::classify`] of the triangle in `lane` for each segment of a packet:
+    /// (`sure`, `maybe`) as masks of the packet's lanes.
+    #[inline(always)]
+    fn classify_packet(&self, lane: usize, pk: &SegmentPacket) -> (u32, u32) {
+        filter!(
+            Lanes16,
+            |k: usize| Lanes16::splat(self.p[k][lane]),
+            &pk.p0,
+            &pk.p1
+        )
     }
 }
 
@@ -500,6 +665,7 @@ impl Bvh8 {
         trust_sure: bool,
         mut exact: impl FnMut(usize) -> bool,
     ) -> bool {
+        let ray = &RayLanes::new(ray);
         let counts = |face: u32| face != ignore.0 && face != ignore.1;
         let mut later = [0u32; DEFERRED];
         let mut n_later = 0;
@@ -556,6 +722,101 @@ impl Bvh8 {
             },
         );
         found || later[..n_later].iter().any(|&id| exact(id as usize))
+    }
+
+    /// [`Bvh8::any_hit`] for the segments of a packet: the lanes blocked by a triangle
+    /// of a face other than `ignore`; `exact(lane, id)` is the exact test of triangle
+    /// `id` for the segment in `lane`. Each lane gets the answer it gets alone.
+    ///
+    /// The walk keeps, with every node or leaf to visit, the lanes whose segments pass
+    /// through its box; a lane leaves the walk at its first blocker, and the walk
+    /// stops when no lane is left. Triangles a lane may meet are put off, as in
+    /// [`Bvh8::any_hit`], with the lanes that may meet them.
+    pub fn any_hit_packet(
+        &self,
+        pk: &SegmentPacket,
+        ignore: (u32, u32),
+        trust_sure: bool,
+        mut exact: impl FnMut(usize, usize) -> bool,
+    ) -> u32 {
+        let counts = |face: u32| face != ignore.0 && face != ignore.1;
+        // Lanes not blocked yet.
+        let mut open = pk.lanes;
+        let mut later = [(0u32, 0u32); DEFERRED];
+        let mut n_later = 0;
+        let mut settle = |later: &[(u32, u32)], open: &mut u32| {
+            for &(id, lanes) in later {
+                let mut m = lanes & *open;
+                while m != 0 {
+                    let lane = m.trailing_zeros() as usize;
+                    m &= m - 1;
+                    if exact(lane, id as usize) {
+                        *open &= !(1 << lane);
+                    }
+                }
+            }
+        };
+        let mut inline = [(0u32, 0u32); INLINE_STACK];
+        let mut heap = Vec::new();
+        let stack: &mut [(u32, u32)] = if self.stack_len <= INLINE_STACK {
+            &mut inline
+        } else {
+            heap.resize(self.stack_len, (0, 0));
+            &mut heap
+        };
+        stack[0] = (self.root, open);
+        let mut len = 1;
+        while len > 0 && open != 0 {
+            len -= 1;
+            let (r, lanes) = stack[len];
+            let lanes = lanes & open;
+            if lanes == 0 {
+                continue;
+            }
+            if r & LEAF_BIT != 0 {
+                let (start, count) = leaf_range(r);
+                for id in start..start + count {
+                    let block = &self.blocks[id / 4];
+                    if !counts(block.face[id % 4]) {
+                        continue;
+                    }
+                    let (sure, maybe) = block.classify_packet(id % 4, pk);
+                    let (mut sure, mut maybe) = (sure & lanes & open, maybe & lanes & open);
+                    if !trust_sure {
+                        maybe |= sure;
+                        sure = 0;
+                    }
+                    open &= !sure;
+                    if maybe != 0 {
+                        if n_later == DEFERRED {
+                            settle(&later, &mut open);
+                            n_later = 0;
+                        }
+                        later[n_later] = (id as u32, maybe);
+                        n_later += 1;
+                    }
+                }
+            } else {
+                let node = &self.nodes[r as usize];
+                let hits = node.hit_packet(pk).map(|m| m & lanes);
+                let mut slots = 0u32;
+                for (s, &m) in hits.iter().enumerate() {
+                    slots |= ((m != 0) as u32) << s;
+                }
+                // Far first, so the nearest is popped next.
+                let mut ranks = ORDER[pk.octant][slots as usize] as u32;
+                while ranks != 0 {
+                    let rank = 31 - ranks.leading_zeros();
+                    ranks &= !(1 << rank);
+                    let s = rank as usize ^ pk.octant;
+                    self.prefetch(node.child[s]);
+                    stack[len] = (node.child[s], hits[s]);
+                    len += 1;
+                }
+            }
+        }
+        settle(&later[..n_later], &mut open);
+        pk.lanes & !open
     }
 
     /// Calls `visit` with every triangle in a leaf whose box overlaps [lo, hi] and
@@ -643,6 +904,7 @@ impl Bvh8 {
     /// (sure, maybe) per triangle id (neither: missed for sure).
     #[cfg(test)]
     pub fn classify_all(&self, ray: &SegmentRay, n: usize) -> Vec<(bool, bool)> {
+        let ray = &RayLanes::new(ray);
         (0..n)
             .map(|id| {
                 let (sure, maybe) = self.blocks[id / 4].classify(ray);
