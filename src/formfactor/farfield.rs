@@ -232,9 +232,10 @@ pub fn area_form_factor(pi: &PatchPoints, ni: DVec3, pj: &PatchPoints, nj: DVec3
     sum / std::f64::consts::PI
 }
 
-/// As [`area_form_factor`] with the j side from a [`FarTable`]: the inner loop runs
-/// over j's points in [`LANES`] independent partial sums (a fixed order, so the
-/// result is the same on every machine), which the compiler turns into SIMD.
+/// As [`area_form_factor`] with the j side from a [`FarSlice`] (a slice of the
+/// far-field table): the inner loop runs over j's points in [`LANES`] independent
+/// partial sums (a fixed order, so the result is the same on every machine), which
+/// the compiler turns into SIMD.
 ///
 /// On x86-64 with AVX2 the same code is compiled a second time for 4-wide vectors and
 /// chosen at run time. Only AVX2, not FMA: every operation is the same IEEE

@@ -738,9 +738,9 @@ impl Occluders {
     /// a point of `b` can be blocked, so the pair needs no rays; `true` means rays are
     /// needed.
     ///
-    /// A triangle cannot block when one of the tests of [`PairHull`] rejects it (its
-    /// box, its plane, the planes of `a` and `b`, the hull's side axes; all with
-    /// [`PLANE_TOLERANCE`]).
+    /// A triangle cannot block when one of the tests of the pair's hull (`PairHull`)
+    /// rejects it (its box, its plane, the planes of `a` and `b`, the hull's side axes;
+    /// all with [`PLANE_TOLERANCE`]).
     ///
     /// The work is bounded: after [`MAX_REJECTED_CANDIDATES`] triangles that pass the
     /// cheap tests 1–2 (face, box), the answer is `true` (rays will decide), so a pair
