@@ -1,16 +1,27 @@
-//! Shadow-ray throughput of [`Occluders::occluded`] against Embree, on the same rays.
+//! Shadow-ray throughput of [`Occluders`] against Embree, on the same rays.
 //!
 //! Scenes: the built-in cluttered room with enough boxes for about 10k and 100k
-//! triangles. Rays: incoherent shadow segments from a random point of a random
-//! triangle to a random point of another random triangle (SplitMix64, fixed seed),
-//! both ends offset by [`RAY_EPSILON`] along the segment, no face ignored — the same
-//! query for both tracers. ffstream's rays run on one thread through the public API
-//! (world coordinates in, normalization inside); the same segments, normalized as
-//! the `Occluders` do it, go to `target/embree-shadow` (bench/embree/shadow.c,
-//! `rtcOccluded1`, one thread), which is run from here when it exists.
+//! triangles. Two workloads, the same segments for both tracers:
+//!
+//! - incoherent: from a random point of a random triangle to a random point of another
+//!   random triangle (SplitMix64, fixed seed), both ends offset by [`RAY_EPSILON`]
+//!   along the segment, no face ignored; ffstream one ray at a time
+//!   ([`Occluders::occluded`]), Embree `rtcOccluded1`;
+//! - pairs: 16 rays between random points of two triangles that face each other, as
+//!   the `contour` kernel casts them; ffstream as packets of [`PACKET`]
+//!   ([`Occluders::occluded_packet`]), one ray at a time through the hierarchy, and
+//!   through the pair's candidate list (`collect_between`, as for scenes of few
+//!   occluders); Embree one ray at a time (`rtcOccluded1`) and as packets of 16
+//!   (`rtcOccluded16`).
+//!
+//! ffstream's rays run on one thread through the public API (world coordinates in,
+//! normalization inside); the same segments, normalized as the `Occluders` do it, go to
+//! `target/embree-shadow` (bench/embree/shadow.c, one thread), which is run from here
+//! when it exists. Each rate is the best of `--reps` timings.
 //!
 //! Run: `bench/embree/build.sh && cargo bench --no-default-features --bench perf_rays
-//! [-- BOXES...] [--rays N]`. Prints one line per scene and tracer and the ratio.
+//! [-- BOXES...] [--rays N] [--reps R] [--only incoherent|pairs|packets]`. Prints one
+//! line per scene, workload and tracer, and the ratios.
 
 use std::io::Write;
 use std::process::Command;
