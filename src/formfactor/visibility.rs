@@ -76,9 +76,9 @@ impl Blockers<'_> {
     /// ([`Occluders::occluded_packet`]); the answers are those of one at a time.
     fn occluded_each(
         &self,
-        segs: &[(glam::DVec3, glam::DVec3)],
+        segs: &[(DVec3, DVec3)],
         faces: (u32, u32),
-        planes: Option<[(glam::DVec3, f64); 2]>,
+        planes: Option<[(DVec3, f64); 2]>,
     ) -> u32 {
         match self.candidates {
             Some(_) => segs.iter().enumerate().fold(0, |m, (k, &(x, y))| {

@@ -638,16 +638,30 @@ impl Occluders {
         // segment too short for `Segment::new` answers "not blocked" all the same:
         // the filter is never sure of a crossing within FILTER_SLACK (> RAY_EPSILON)
         // of either end. One dispatch per test keeps a single copy of the walk.
-        let mut exact_setup: Option<Option<Segment>> = None;
+        let mut setup = None;
         bvh.any_hit(&ray, ignore, planes.is_none(), |id| {
-            let Some(seg) = exact_setup.get_or_insert_with(|| Segment::new(f, d)) else {
-                return false;
-            };
-            by_axes!(seg.sheared.axes, |KX, KY, KZ| {
-                self.tris[id]
-                    .hit::<KX, KY, KZ>(&seg.sheared, seg.t0, seg.t1)
-                    .is_some_and(|t| seg.counts(t, &planes))
-            })
+            self.exact_blocks(&mut setup, (f, d), id, &planes)
+        })
+    }
+
+    /// The exact test: does triangle `id` block the segment from `f` to `f + d`
+    /// (normalized frame; with foreign occluders, by a hit off the end patches'
+    /// `planes`)? The segment's set-up is made into `setup` on the first call for it
+    /// (`Some(None)`: too short to be blocked).
+    fn exact_blocks(
+        &self,
+        setup: &mut Option<Option<Segment>>,
+        (f, d): (DVec3, DVec3),
+        id: usize,
+        planes: &Option<[(DVec3, f64); 2]>,
+    ) -> bool {
+        let Some(seg) = setup.get_or_insert_with(|| Segment::new(f, d)) else {
+            return false;
+        };
+        by_axes!(seg.sheared.axes, |KX, KY, KZ| {
+            self.tris[id]
+                .hit::<KX, KY, KZ>(&seg.sheared, seg.t0, seg.t1)
+                .is_some_and(|t| seg.counts(t, planes))
         })
     }
 
@@ -676,17 +690,9 @@ impl Occluders {
         let packet = SegmentPacket::new(&ends[..segs.len()]);
         // As in `occluded_between_planes`: each lane's exact set-up waits for its
         // first undecided triangle.
-        let mut exact_setup: [Option<Option<Segment>>; PACKET] = Default::default();
+        let mut setups: [Option<Option<Segment>>; PACKET] = Default::default();
         bvh.any_hit_packet(&packet, ignore, planes.is_none(), |lane, id| {
-            let (f, d) = ends[lane];
-            let Some(seg) = exact_setup[lane].get_or_insert_with(|| Segment::new(f, d)) else {
-                return false;
-            };
-            by_axes!(seg.sheared.axes, |KX, KY, KZ| {
-                self.tris[id]
-                    .hit::<KX, KY, KZ>(&seg.sheared, seg.t0, seg.t1)
-                    .is_some_and(|t| seg.counts(t, &planes))
-            })
+            self.exact_blocks(&mut setups[lane], ends[lane], id, &planes)
         })
     }
 
