@@ -10,7 +10,8 @@
 pub enum RowValues {
     /// All n values, column j at index j.
     Dense(Vec<f32>),
-    /// Kept entries only: `cols` strictly ascending, `vals[k]` is F_{i, `cols[k]`}.
+    /// Kept entries only: `cols` strictly ascending, `vals[k]` is the entry in column
+    /// `cols[k]`.
     Sparse { cols: Vec<u32>, vals: Vec<f32> },
     /// Deliberately not computed (`--rows needed`: the patch neither reflects nor
     /// emits). Different from a row that is missing after a crash.

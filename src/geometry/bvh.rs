@@ -1478,50 +1478,56 @@ mod tests {
     }
 
     /// A packet of segments gets, lane by lane, the answers the segments get alone:
-    /// packets of 1–8 of the test segments (every kind, mixed directions) and
+    /// packets of 1–16 of the test segments (every kind, mixed directions, some lying
+    /// wholly outside the occluders' box: empty lanes) and
     /// packets of rays between two random triangles, as a pair casts them; native and
     /// foreign, the pair's faces ignored.
     #[test]
     fn packets_answer_like_single_segments() {
-        let (mut blocked, mut free, mut mixed) = (0, 0, 0);
+        let (mut blocked, mut free, mut mixed, mut empty) = (0, 0, 0, 0);
         for (seed, scale) in [(8u64, 1.0), (9, 1e3)] {
             let tris = clutter(seed, scale);
             let mut rng = crate::formfactor::sampling::SplitMix64::new(seed);
-            let mut pairs = Vec::new();
+            // (the two triangles whose faces are ignored and whose planes bound a
+            // foreign pair, the segments)
+            let mut packets = Vec::new();
             for _ in 0..400 {
-                let a = &tris[rng.below(tris.len() as u32) as usize];
-                let b = &tris[rng.below(tris.len() as u32) as usize];
+                let a = rng.below(tris.len() as u32) as usize;
+                let b = rng.below(tris.len() as u32) as usize;
                 let rays: Vec<_> = (0..PACKET)
-                    .map(|_| (point_in(&a.1, &mut rng), point_in(&b.1, &mut rng)))
+                    .map(|_| {
+                        (
+                            point_in(&tris[a].1, &mut rng),
+                            point_in(&tris[b].1, &mut rng),
+                        )
+                    })
                     .collect();
-                pairs.push(((a.0, b.0), rays));
+                packets.push(((a, b), rays));
             }
             let singles = test_segments(&tris, seed + 30, scale, 3000);
             let mut at = 0;
             while at < singles.len() {
                 let n = (1 + rng.below(PACKET as u32) as usize).min(singles.len() - at);
                 let k = rng.below(tris.len() as u32) as usize;
-                pairs.push((
-                    (tris[k].0, tris[(k * 7) % tris.len()].0),
-                    singles[at..at + n].to_vec(),
-                ));
+                packets.push(((k, (k * 7) % tris.len()), singles[at..at + n].to_vec()));
                 at += n;
             }
+            let plane = |t: &[DVec3; 3]| {
+                let n = (t[1] - t[0]).cross(t[2] - t[0]).normalize();
+                (n, n.dot(t[0]))
+            };
             for foreign in [false, true] {
                 let occ = if foreign {
                     Occluders::new_foreign(tris.clone())
                 } else {
                     Occluders::new(tris.clone())
                 };
-                for (faces, segs) in &pairs {
-                    let (from, to) = segs[0];
-                    let planes = foreign.then(|| {
-                        let n = (to - from).normalize_or_zero().any_orthonormal_vector();
-                        [(n, n.dot(from)), (n, n.dot(to))]
-                    });
-                    let got = occ.occluded_packet(segs, *faces, planes);
-                    let alone = segs.iter().enumerate().fold(0u32, |m, (l, &(a, b))| {
-                        m | (occ.occluded_between_planes(a, b, *faces, planes) as u32) << l
+                for ((a, b), segs) in &packets {
+                    let faces = (tris[*a].0, tris[*b].0);
+                    let planes = foreign.then(|| [plane(&tris[*a].1), plane(&tris[*b].1)]);
+                    let got = occ.occluded_packet(segs, faces, planes);
+                    let alone = segs.iter().enumerate().fold(0u32, |m, (l, &(x, y))| {
+                        m | (occ.occluded_between_planes(x, y, faces, planes) as u32) << l
                     });
                     assert_eq!(
                         got, alone,
@@ -1531,12 +1537,23 @@ mod tests {
                     blocked += alone.count_ones();
                     free += n - alone.count_ones();
                     mixed += (alone != 0 && alone.count_ones() < n) as usize;
+                    // Lanes left empty (nothing of the segment inside the box) next to
+                    // lanes that walk.
+                    let outside = segs
+                        .iter()
+                        .filter(|&&(x, y)| {
+                            let f = occ.to_norm(x);
+                            SegmentRay::new(f, occ.to_norm(y) - f).is_none()
+                        })
+                        .count();
+                    empty += (outside > 0 && outside < segs.len()) as usize;
                 }
             }
         }
         assert!(
-            blocked > 2000 && free > 2000 && mixed > 100,
-            "{blocked} blocked, {free} free, {mixed} packets partly blocked"
+            blocked > 5000 && free > 10000 && mixed > 500 && empty > 200,
+            "{blocked} blocked, {free} free, {mixed} packets partly blocked, \
+             {empty} with empty lanes"
         );
     }
 

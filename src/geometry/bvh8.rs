@@ -30,8 +30,9 @@
 //! The rays of one pair of patches can also walk together, sixteen to a
 //! [`SegmentPacket`] ([`Bvh8::any_hit_packet`]): lanes are rays, each node is fetched
 //! once and its eight boxes tested against all of them, each triangle is filtered
-//! against all of them. A ray leaves the walk at its first blocker. Its answer is the
-//! one it gets alone, since either walk visits every leaf the segment passes through
+//! against all of them. A ray leaves the walk once a blocker is certain (at once for a
+//! sure crossing, or when its put-off exact tests are run). Its answer is the one it
+//! gets alone, since either walk visits every leaf the segment passes through
 //! and answers are decided by the same filter and exact test.
 //!
 //! Everything is in the normalized frame of the occluders (coordinates within ±0.5).
@@ -75,7 +76,8 @@ fn leaf_range(r: u32) -> (usize, usize) {
     (((r & !LEAF_BIT) >> 2) as usize, (r & 3) as usize + 1)
 }
 
-/// Triangles [`Bvh8::any_hit`] puts off before it runs their exact tests.
+/// Triangles [`Bvh8::any_hit`] puts off before it runs their exact tests; entries
+/// (triangle, lanes) for [`Bvh8::any_hit_packet`].
 const DEFERRED: usize = 16;
 
 /// Stack entries kept on the machine stack; deeper trees allocate one per walk.
@@ -221,7 +223,8 @@ pub struct SegmentPacket {
     oi: [Lanes16; 3],
     p0: [Lanes16; 3],
     p1: [Lanes16; 3],
-    /// Visiting order of the children: the first segment's octant.
+    /// Visiting order of the children: the octant of the first lane that holds a
+    /// segment (0 for an empty packet).
     octant: usize,
     /// Lanes that hold a segment.
     lanes: u32,
@@ -254,8 +257,8 @@ impl SegmentPacket {
             }
         }
         let [p0, p1, dd] = v.map(|rows| rows.map(Lanes16::from));
-        // `inverse`, lane by lane (empty lanes get 1e30 and meet every box; their
-        // results are masked out).
+        // `inverse`, lane by lane (an empty lane has dd = 0, so 1e30; whatever it
+        // meets is masked out by `lanes`).
         let inv = dd.map(|dd| {
             let i = Lanes16::ONE / dd;
             let keep = i.abs().simd_lt(Lanes16::splat(INV_MAX));
@@ -729,8 +732,9 @@ impl Bvh8 {
     /// `id` for the segment in `lane`. Each lane gets the answer it gets alone.
     ///
     /// The walk keeps, with every node or leaf to visit, the lanes whose segments pass
-    /// through its box; a lane leaves the walk at its first blocker, and the walk
-    /// stops when no lane is left. Triangles a lane may meet are put off, as in
+    /// through its box; a lane leaves the walk once a blocker is certain (a sure
+    /// crossing, or a put-off exact test that hits), and the walk stops when no lane
+    /// is left. Triangles a lane may meet are put off, as in
     /// [`Bvh8::any_hit`], with the lanes that may meet them.
     pub fn any_hit_packet(
         &self,
