@@ -259,6 +259,8 @@ pub struct RowEngine {
     /// Patch clusters whose pairs share one occluder query (None: every pair queries
     /// the hierarchy).
     clusters: Option<Clusters>,
+    /// A pair's rays through the hierarchy go as packets (see `visibility::Blockers`).
+    packets: bool,
 }
 
 /// Pair candidate lists (`Occluders::collect_between`) pay off only with few occluder
@@ -321,7 +323,16 @@ impl RowEngine {
             tol: PLANE_RELATIVE_TOLERANCE * diag,
             pair_lists: occluders_len <= PAIR_LISTS_MAX_OCCLUDERS,
             clusters,
+            packets: true,
         }
+    }
+
+    /// The same engine casting every ray on its own instead of in packets (for tests:
+    /// packets must change no value).
+    #[cfg(test)]
+    pub(crate) fn one_ray_at_a_time(mut self) -> Self {
+        self.packets = false;
+        self
     }
 
     /// The same engine with every pair querying the hierarchy itself (for tests:
@@ -850,6 +861,7 @@ impl RowEngine {
             occluders: &self.occluders,
             candidates,
             last: std::cell::Cell::new(0),
+            packets: self.packets,
         };
         visibility::fraction(i, j, gi, gj, &pi, &pj, &occ, &self.cfg, scratch)
     }
@@ -977,6 +989,45 @@ mod tests {
                 c1.pairs_unoccludable > 0 && c1.rays_cast > 0,
                 "{name}: both kinds of pairs: {c1:?}"
             );
+        }
+    }
+
+    /// Rows of a room of 64 boxes (780 occluder triangles: pairs walk the hierarchy),
+    /// with its own occluders and with the same room as foreign (`--occluders`)
+    /// occluders, full rows and top-k rows: bitwise the same whether a pair's rays go
+    /// as packets or one at a time.
+    #[test]
+    fn packets_change_no_value() {
+        use crate::geometry::subdivide::{default_max_edge, subdivide};
+        use crate::scene::builtin;
+        let scene = builtin("room", Some(64.0)).unwrap();
+        let patches = Arc::new(subdivide(&scene, default_max_edge(&scene, 1500)));
+        for foreign in [false, true] {
+            let occ = if foreign {
+                Occluders::new_foreign(scene.triangles().collect())
+            } else {
+                Occluders::new(scene.triangles().collect())
+            };
+            let occ = Arc::new(occ);
+            for cfg in [
+                FormFactorConfig::accurate(),
+                FormFactorConfig::fast().with_top_k(Some(32)),
+            ] {
+                let packets = RowEngine::new(patches.clone(), occ.clone(), cfg.clone());
+                assert!(!packets.pair_lists, "the room must walk the hierarchy");
+                let single = RowEngine::new(patches.clone(), occ.clone(), cfg).one_ray_at_a_time();
+                let (mut s1, mut s2) = (Scratch::new(), Scratch::new());
+                for i in (0..packets.n() as u32).step_by(11) {
+                    assert_eq!(
+                        packets.compute_row(i, &mut s1),
+                        single.compute_row(i, &mut s2),
+                        "row {i}, foreign {foreign}"
+                    );
+                }
+                let (c1, c2) = (s1.counters(), s2.counters());
+                assert_eq!(c1.rays_cast, c2.rays_cast);
+                assert!(c1.rays_cast > 10_000, "{c1:?}");
+            }
         }
     }
 

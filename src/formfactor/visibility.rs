@@ -45,6 +45,9 @@ pub(crate) struct Blockers<'a> {
     pub candidates: Option<&'a [u32]>,
     /// The candidate that blocked the pair's last blocked ray (tested first).
     pub last: std::cell::Cell<usize>,
+    /// Rays that walk the hierarchy go as packets ([`Occluders::occluded_packet`]);
+    /// `false` casts them one at a time (the same answers; for tests).
+    pub packets: bool,
 }
 
 impl Blockers<'_> {
@@ -80,12 +83,12 @@ impl Blockers<'_> {
         faces: (u32, u32),
         planes: Option<[(DVec3, f64); 2]>,
     ) -> u32 {
-        match self.candidates {
-            Some(_) => segs.iter().enumerate().fold(0, |m, (k, &(x, y))| {
-                m | (self.occluded(x, y, faces, planes) as u32) << k
-            }),
-            None => self.occluders.occluded_packet(segs, faces, planes),
+        if self.candidates.is_none() && self.packets {
+            return self.occluders.occluded_packet(segs, faces, planes);
         }
+        segs.iter().enumerate().fold(0, |m, (k, &(x, y))| {
+            m | (self.occluded(x, y, faces, planes) as u32) << k
+        })
     }
 }
 
