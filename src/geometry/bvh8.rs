@@ -14,9 +14,11 @@
 //!   ray meets all eight children in six fused multiply-adds and four min/max of one
 //!   AVX register each;
 //! - the triangles are stored in the tree's primitive order, four to a [`Block`], as
-//!   lanes of planes (the triangle's plane and its three edge planes). A leaf (at most
-//!   three triangles in obvhs' trees, consecutive in that order, and the leaves of one
-//!   node next to each other) is a range of lanes, in one block or two. A
+//!   lanes of planes (the triangle's plane and its three edge planes). A leaf is a
+//!   range of lanes, in up to three blocks: one of obvhs' leaves (at most three
+//!   triangles, consecutive in that order), or a whole node of obvhs' tree whose
+//!   children are all leaves with at most [`WIDE`] triangles together (the leaves of
+//!   one node are next to each other), which spares every path one node level. A
 //!   conservative f32 test ([`Block::classify`]) sorts the lanes into triangles the
 //!   segment misses for sure, crosses for sure, and may meet; the exact f64 test of the
 //!   caller decides only the last kind. So answers are those of the exact test alone:
@@ -64,8 +66,8 @@ const TRUST: f64 = 1e-7;
 /// every traversal.
 const CLIP: f64 = 1.0;
 
-/// Child reference: a leaf when this bit is set; then bits 2–30 hold its first
-/// triangle and bits 0–1 its triangle count minus one.
+/// Child reference: a leaf when this bit is set; then bits 3–30 hold its first
+/// triangle and bits 0–2 its triangle count minus one.
 const LEAF_BIT: u32 = 1 << 31;
 /// Child reference of an empty slot; face of an unused lane.
 const NONE: u32 = u32::MAX;
@@ -73,7 +75,7 @@ const NONE: u32 = u32::MAX;
 /// The (first triangle, count) of a leaf reference.
 #[inline(always)]
 fn leaf_range(r: u32) -> (usize, usize) {
-    (((r & !LEAF_BIT) >> 2) as usize, (r & 3) as usize + 1)
+    (((r & !LEAF_BIT) >> 3) as usize, (r & 7) as usize + 1)
 }
 
 /// Triangles [`Bvh8::any_hit`] puts off before it runs their exact tests; entries
@@ -506,18 +508,48 @@ fn lane_rows(t: &Tri) -> [f32; 16] {
     }
 }
 
+/// Node `i` of `cw` as one leaf, (first triangle, count), when all its children are
+/// leaves that hold at most [`WIDE`] triangles together, in a row.
+fn wide_leaf(cw: &CwBvh, i: usize) -> Option<(u32, u32)> {
+    let src = &cw.nodes[i];
+    let mut ranges = Vec::new();
+    for s in 0..8 {
+        if src.is_child_empty(s) {
+            continue;
+        }
+        if !src.is_leaf(s) {
+            return None;
+        }
+        ranges.push(src.child_primitives(s));
+    }
+    ranges.sort();
+    let start = ranges.first()?.0;
+    let mut end = start;
+    for (a, n) in ranges {
+        if a != end {
+            return None;
+        }
+        end += n;
+    }
+    (end - start <= WIDE).then_some((start, end - start))
+}
+
+/// Most triangles of a leaf made of a whole node ([`wide_leaf`]). Measured (bench/PERF.md
+/// §10): single rays through 94.5k triangles ~25 % faster, 9.5k and packets unchanged.
+const WIDE: u32 = 8;
+
 impl Bvh8 {
     /// Lays out `cw` (built over `tris`, which must be in `cw`'s primitive order, so
     /// that a leaf's triangles are `tris[start..start + count]`). `None` for an empty
     /// tree.
     ///
     /// # Panics
-    /// With 2²⁹ triangles or more (a leaf reference holds its first triangle in 29
-    /// bits); such a mesh would need some 60 GB for its f64 triangles alone.
+    /// With 2²⁸ triangles or more (a leaf reference holds its first triangle in 28
+    /// bits); such a mesh would need some 50 GB for its f64 triangles alone.
     pub fn from_cwbvh(cw: &CwBvh, tris: &[Tri]) -> Option<Self> {
         assert!(
-            tris.len() < 1 << 29,
-            "{} occluder triangles: at most 2^29 are supported",
+            tris.len() < 1 << 28,
+            "{} occluder triangles: fewer than 2^28 are supported",
             tris.len()
         );
         if cw.nodes.is_empty() || tris.is_empty() {
@@ -573,16 +605,19 @@ impl Bvh8 {
             if src.is_child_empty(s) {
                 continue;
             }
-            let (reference, (clo, chi)) = if src.is_leaf(s) {
-                let (start, count) = src.child_primitives(s);
-                debug_assert!((1..=4).contains(&count));
+            let wide = (!src.is_leaf(s))
+                .then(|| wide_leaf(cw, src.child_node_index(s) as usize))
+                .flatten();
+            let (reference, (clo, chi)) = if src.is_leaf(s) || wide.is_some() {
+                let (start, count) = wide.unwrap_or_else(|| src.child_primitives(s));
+                debug_assert!((1..=8).contains(&count));
                 let (mut blo, mut bhi) = (DVec3::INFINITY, DVec3::NEG_INFINITY);
                 for t in &tris[start as usize..(start + count) as usize] {
                     blo = blo.min(t.min);
                     bhi = bhi.max(t.max);
                 }
                 let pad = DVec3::splat(BOX_PAD);
-                (LEAF_BIT | start << 2 | (count - 1), (blo - pad, bhi + pad))
+                (LEAF_BIT | start << 3 | (count - 1), (blo - pad, bhi + pad))
             } else {
                 let index = self.nodes.len() as u32;
                 let (bounds, h) = self.lay_out(cw, src.child_node_index(s) as usize, tris);
@@ -674,9 +709,13 @@ impl Bvh8 {
         let mut n_later = 0;
         let found = self.walk(
             |start, count| {
-                // The leaf's lanes, in one block or across two.
+                // The leaf's lanes, in up to three blocks.
                 let (first, lanes) = (start / 4, ((1u32 << count) - 1) << (start % 4));
-                for (k, mask) in [(first, lanes & 0xf), (first + 1, lanes >> 4)] {
+                for (k, mask) in [
+                    (first, lanes & 0xf),
+                    (first + 1, (lanes >> 4) & 0xf),
+                    (first + 2, lanes >> 8),
+                ] {
                     if mask == 0 {
                         continue;
                     }
