@@ -604,6 +604,14 @@ impl Occluders {
         (p - self.center) * self.inv_scale
     }
 
+    /// The segment `from` → `to` (world units) in the normalized frame, as its start
+    /// and its end minus its start.
+    #[inline]
+    fn norm_segment(&self, from: DVec3, to: DVec3) -> (DVec3, DVec3) {
+        let f = self.to_norm(from);
+        (f, self.to_norm(to) - f)
+    }
+
     /// True when a triangle of a face other than `ignore.0` and `ignore.1` cuts the
     /// segment from `from` to `to`, ignoring hits within [`RAY_EPSILON`] × diagonal of
     /// either end.
@@ -628,8 +636,7 @@ impl Occluders {
         let Some(bvh) = &self.bvh else { return false };
         let ignore = self.ignored_faces(ignore);
         let planes = self.normalized_planes(planes);
-        let f = self.to_norm(from);
-        let d = self.to_norm(to) - f;
+        let (f, d) = self.norm_segment(from, to);
         let Some(ray) = SegmentRay::new(f, d) else {
             return false;
         };
@@ -684,8 +691,7 @@ impl Occluders {
         let planes = self.normalized_planes(planes);
         let mut ends = [(DVec3::ZERO, DVec3::ZERO); PACKET];
         for (l, &(from, to)) in segs.iter().enumerate() {
-            let f = self.to_norm(from);
-            ends[l] = (f, self.to_norm(to) - f);
+            ends[l] = self.norm_segment(from, to);
         }
         let packet = SegmentPacket::new(&ends[..segs.len()]);
         // As in `occluded_between_planes`: each lane's exact set-up waits for its
@@ -718,8 +724,8 @@ impl Occluders {
     /// The segment `from` → `to` (world units) as a ray in the normalized frame, hits
     /// counted between [`RAY_EPSILON`] of either end; `None` when it is too short.
     fn segment(&self, from: DVec3, to: DVec3) -> Option<Segment> {
-        let f = self.to_norm(from);
-        Segment::new(f, self.to_norm(to) - f)
+        let (f, d) = self.norm_segment(from, to);
+        Segment::new(f, d)
     }
 
     /// Calls `visit` with the index of every triangle whose hierarchy leaf box
@@ -1388,8 +1394,7 @@ mod tests {
             occ.validate();
             let bvh = occ.bvh.as_ref().unwrap();
             for (from, to) in test_segments(&tris, seed + 10, scale, 6000) {
-                let f = occ.to_norm(from);
-                let d = occ.to_norm(to) - f;
+                let (f, d) = occ.norm_segment(from, to);
                 let Some(ray) = SegmentRay::new(f, d) else {
                     continue;
                 };
@@ -1542,8 +1547,8 @@ mod tests {
                     let outside = segs
                         .iter()
                         .filter(|&&(x, y)| {
-                            let f = occ.to_norm(x);
-                            SegmentRay::new(f, occ.to_norm(y) - f).is_none()
+                            let (f, d) = occ.norm_segment(x, y);
+                            SegmentRay::new(f, d).is_none()
                         })
                         .count();
                     empty += (outside > 0 && outside < segs.len()) as usize;
