@@ -11,8 +11,9 @@
 //!   the `contour` kernel casts them; ffstream as packets of [`PACKET`]
 //!   ([`Occluders::occluded_packet`]), one ray at a time through the hierarchy, and
 //!   through the pair's candidate list (`collect_between`, as for scenes of few
-//!   occluders); Embree one ray at a time (`rtcOccluded1`) and as packets of 16
-//!   (`rtcOccluded16`).
+//!   occluders, timed with the rays) one ray at a time and as packets
+//!   ([`Occluders::occluded_packet_by`]); Embree one ray at a time (`rtcOccluded1`)
+//!   and as packets of 16 (`rtcOccluded16`).
 //!
 //! ffstream's rays run on one thread through the public API (world coordinates in,
 //! normalization inside); the same segments, normalized as the `Occluders` do it, go to
@@ -181,7 +182,10 @@ fn main() {
                     })
                     .count()
             });
-            let (best_pairs, blocked_pairs) = time_it(&|| {
+            // Through the pair's candidate list (`collect_between`, timed with the
+            // rays), one ray at a time or as packets; pairs whose query gives up walk
+            // the hierarchy the same way.
+            let by_list = |packets: bool| {
                 let mut ids = Vec::new();
                 let mut blocked = 0;
                 for (p, &(i, j, ni, nj)) in pairs.iter().enumerate() {
@@ -191,7 +195,19 @@ fn main() {
                         &mut ids,
                     );
                     let mut first = 0;
-                    for (a, b) in &pair_segs[p * PAIR_RAYS..(p + 1) * PAIR_RAYS] {
+                    let segs = &pair_segs[p * PAIR_RAYS..(p + 1) * PAIR_RAYS];
+                    if packets {
+                        for packet in segs.chunks(PACKET) {
+                            let hits = if listed {
+                                occ.occluded_packet_by(packet, &ids, None, &mut first)
+                            } else {
+                                occ.occluded_packet(packet, faces, None)
+                            };
+                            blocked += hits.count_ones() as usize;
+                        }
+                        continue;
+                    }
+                    for (a, b) in segs {
                         let hit = if listed {
                             occ.occluded_by(*a, *b, &ids, None, &mut first)
                         } else {
@@ -201,14 +217,18 @@ fn main() {
                     }
                 }
                 blocked
-            });
+            };
+            let (best_pairs, blocked_pairs) = time_it(&|| by_list(false));
+            let (best_list_packets, blocked_list_packets) = time_it(&|| by_list(true));
             let rate_bvh = n_pair_rays as f64 / best_bvh;
             let rate_pairs = n_pair_rays as f64 / best_pairs;
+            let rate_list_packets = n_pair_rays as f64 / best_list_packets;
             println!(
-                "room:{b} | pairs of {PAIR_RAYS} | ffstream per ray through the Bvh: occluded {blocked_bvh} rays_per_s {rate_bvh:.4e} | per pair (candidate list): occluded {blocked_pairs} rays_per_s {rate_pairs:.4e}"
+                "room:{b} | pairs of {PAIR_RAYS} | ffstream per ray through the Bvh: occluded {blocked_bvh} rays_per_s {rate_bvh:.4e} | per pair (candidate list): occluded {blocked_pairs} rays_per_s {rate_pairs:.4e} | candidate list, packets: occluded {blocked_list_packets} rays_per_s {rate_list_packets:.4e}"
             );
             ours.push(("one ray at a time", rate_bvh));
             ours.push(("candidate list", rate_pairs));
+            ours.push(("candidate list, packets", rate_list_packets));
         }
         report_embree(embree, &tris, &pair_segs, b, "pairs", &[1, 16], &ours);
     }

@@ -992,7 +992,8 @@ mod tests {
         }
     }
 
-    /// Rows of a room of 64 boxes (780 occluder triangles: pairs walk the hierarchy),
+    /// Rows of a room of 64 boxes (780 occluder triangles: pairs walk the hierarchy)
+    /// and of the 16-box room (188 triangles: pairs test their candidate lists), each
     /// with its own occluders and with the same room as foreign (`--occluders`)
     /// occluders, full rows and top-k rows: bitwise the same whether a pair's rays go
     /// as packets or one at a time.
@@ -1000,33 +1001,36 @@ mod tests {
     fn packets_change_no_value() {
         use crate::geometry::subdivide::{default_max_edge, subdivide};
         use crate::scene::builtin;
-        let scene = builtin("room", Some(64.0)).unwrap();
-        let patches = Arc::new(subdivide(&scene, default_max_edge(&scene, 1500)));
-        for foreign in [false, true] {
-            let occ = if foreign {
-                Occluders::new_foreign(scene.triangles().collect())
-            } else {
-                Occluders::new(scene.triangles().collect())
-            };
-            let occ = Arc::new(occ);
-            for cfg in [
-                FormFactorConfig::accurate(),
-                FormFactorConfig::fast().with_top_k(Some(32)),
-            ] {
-                let packets = RowEngine::new(patches.clone(), occ.clone(), cfg.clone());
-                assert!(!packets.pair_lists, "the room must walk the hierarchy");
-                let single = RowEngine::new(patches.clone(), occ.clone(), cfg).one_ray_at_a_time();
-                let (mut s1, mut s2) = (Scratch::new(), Scratch::new());
-                for i in (0..packets.n() as u32).step_by(11) {
-                    assert_eq!(
-                        packets.compute_row(i, &mut s1),
-                        single.compute_row(i, &mut s2),
-                        "row {i}, foreign {foreign}"
-                    );
+        for (boxes, lists) in [(64.0, false), (16.0, true)] {
+            let scene = builtin("room", Some(boxes)).unwrap();
+            let patches = Arc::new(subdivide(&scene, default_max_edge(&scene, 1500)));
+            for foreign in [false, true] {
+                let occ = if foreign {
+                    Occluders::new_foreign(scene.triangles().collect())
+                } else {
+                    Occluders::new(scene.triangles().collect())
+                };
+                let occ = Arc::new(occ);
+                for cfg in [
+                    FormFactorConfig::accurate(),
+                    FormFactorConfig::fast().with_top_k(Some(32)),
+                ] {
+                    let packets = RowEngine::new(patches.clone(), occ.clone(), cfg.clone());
+                    assert_eq!(packets.pair_lists, lists, "{boxes} boxes");
+                    let single =
+                        RowEngine::new(patches.clone(), occ.clone(), cfg).one_ray_at_a_time();
+                    let (mut s1, mut s2) = (Scratch::new(), Scratch::new());
+                    for i in (0..packets.n() as u32).step_by(11) {
+                        assert_eq!(
+                            packets.compute_row(i, &mut s1),
+                            single.compute_row(i, &mut s2),
+                            "row {i}, {boxes} boxes, foreign {foreign}"
+                        );
+                    }
+                    let (c1, c2) = (s1.counters(), s2.counters());
+                    assert_eq!(c1.rays_cast, c2.rays_cast);
+                    assert!(c1.rays_cast > 10_000, "{c1:?}");
                 }
-                let (c1, c2) = (s1.counters(), s2.counters());
-                assert_eq!(c1.rays_cast, c2.rays_cast);
-                assert!(c1.rays_cast > 10_000, "{c1:?}");
             }
         }
     }

@@ -45,8 +45,10 @@ pub(crate) struct Blockers<'a> {
     pub candidates: Option<&'a [u32]>,
     /// The candidate that blocked the pair's last blocked ray (tested first).
     pub last: std::cell::Cell<usize>,
-    /// Rays that walk the hierarchy go as packets ([`Occluders::occluded_packet`]);
-    /// `false` casts them one at a time (the same answers; for tests).
+    /// A pair's rays go as packets, through the hierarchy
+    /// ([`Occluders::occluded_packet`]) or against the candidate list
+    /// ([`Occluders::occluded_packet_by`]); `false` casts them one at a time (the same
+    /// answers; for tests).
     pub packets: bool,
 }
 
@@ -75,7 +77,8 @@ impl Blockers<'_> {
     }
 
     /// [`Blockers::occluded`] for up to [`PACKET`] segments: bit k set when `segs[k]`
-    /// is blocked. Without a candidate list the segments walk the hierarchy together
+    /// is blocked. The segments go together, against the candidate list
+    /// ([`Occluders::occluded_packet_by`]) or through the hierarchy
     /// ([`Occluders::occluded_packet`]); the answers are those of one at a time.
     fn occluded_each(
         &self,
@@ -83,8 +86,18 @@ impl Blockers<'_> {
         faces: (u32, u32),
         planes: Option<[(DVec3, f64); 2]>,
     ) -> u32 {
-        if self.candidates.is_none() && self.packets {
-            return self.occluders.occluded_packet(segs, faces, planes);
+        if self.packets {
+            return match self.candidates {
+                Some(ids) => {
+                    let mut first = self.last.get();
+                    let blocked = self
+                        .occluders
+                        .occluded_packet_by(segs, ids, planes, &mut first);
+                    self.last.set(first);
+                    blocked
+                }
+                None => self.occluders.occluded_packet(segs, faces, planes),
+            };
         }
         segs.iter().enumerate().fold(0, |m, (k, &(x, y))| {
             m | (self.occluded(x, y, faces, planes) as u32) << k

@@ -685,9 +685,45 @@ impl Occluders {
         ignore: (u32, u32),
         planes: Option<[(DVec3, f64); 2]>,
     ) -> u32 {
+        let ignore = self.ignored_faces(ignore);
+        self.with_packet(segs, planes, |bvh, pk, trust_sure, exact| {
+            bvh.any_hit_packet(pk, ignore, trust_sure, exact)
+        })
+    }
+
+    /// [`Occluders::occluded_by`] for up to [`PACKET`] segments at once, against the
+    /// same candidate list `ids`: bit l of the answer is set when segment l is blocked,
+    /// with the same answer as alone. Each candidate's f32 filter runs for all the
+    /// segments together; the exact test only for what it cannot decide.
+    ///
+    /// # Panics
+    /// With more than [`PACKET`] segments.
+    pub fn occluded_packet_by(
+        &self,
+        segs: &[(DVec3, DVec3)],
+        ids: &[u32],
+        planes: Option<[(DVec3, f64); 2]>,
+        first: &mut usize,
+    ) -> u32 {
+        self.with_packet(segs, planes, |bvh, pk, trust_sure, exact| {
+            bvh.any_hit_list(pk, ids, trust_sure, first, exact)
+        })
+    }
+
+    /// The set-up both packet queries share: `segs` (world units) as a packet in the
+    /// normalized frame, handed to `walk` with whether sure crossings block (native
+    /// occluders) and the exact test of (lane, triangle).
+    ///
+    /// # Panics
+    /// With more than [`PACKET`] segments.
+    fn with_packet(
+        &self,
+        segs: &[(DVec3, DVec3)],
+        planes: Option<[(DVec3, f64); 2]>,
+        walk: impl FnOnce(&Bvh8, &SegmentPacket, bool, &mut dyn FnMut(usize, usize) -> bool) -> u32,
+    ) -> u32 {
         assert!(segs.len() <= PACKET, "{} segments in a packet", segs.len());
         let Some(bvh) = &self.bvh else { return 0 };
-        let ignore = self.ignored_faces(ignore);
         let planes = self.normalized_planes(planes);
         let mut ends = [(DVec3::ZERO, DVec3::ZERO); PACKET];
         for (l, &(from, to)) in segs.iter().enumerate() {
@@ -697,7 +733,7 @@ impl Occluders {
         // As in `occluded_between_planes`: each lane's exact set-up waits for its
         // first undecided triangle.
         let mut setups: [Option<Option<Segment>>; PACKET] = Default::default();
-        bvh.any_hit_packet(&packet, ignore, planes.is_none(), |lane, id| {
+        walk(bvh, &packet, planes.is_none(), &mut |lane, id| {
             self.exact_blocks(&mut setups[lane], ends[lane], id, &planes)
         })
     }
@@ -1486,10 +1522,12 @@ mod tests {
     /// packets of 1–16 of the test segments (every kind, mixed directions, some lying
     /// wholly outside the occluders' box: empty lanes) and
     /// packets of rays between two random triangles, as a pair casts them; native and
-    /// foreign, the pair's faces ignored.
+    /// foreign, the pair's faces ignored. The same packets against a random candidate
+    /// list answer as each segment does against that list alone.
     #[test]
     fn packets_answer_like_single_segments() {
         let (mut blocked, mut free, mut mixed, mut empty) = (0, 0, 0, 0);
+        let (mut list_blocked, mut list_mixed) = (0, 0);
         for (seed, scale) in [(8u64, 1.0), (9, 1e3)] {
             let tris = clutter(seed, scale);
             let mut rng = crate::formfactor::sampling::SplitMix64::new(seed);
@@ -1538,6 +1576,25 @@ mod tests {
                         got, alone,
                         "packet {segs:?}, faces {faces:?}, foreign {foreign}"
                     );
+                    // The same segments against a candidate list (a random quarter of
+                    // the triangles, internal ids), the last blocker anywhere in it or
+                    // past its end.
+                    let ids: Vec<u32> = (0..occ.len() as u32)
+                        .filter(|_| rng.below(4) == 0)
+                        .collect();
+                    let mut first = rng.below(ids.len() as u32 + 2) as usize;
+                    let got = occ.occluded_packet_by(segs, &ids, planes, &mut first);
+                    let mut first = 0;
+                    let alone_list = segs.iter().enumerate().fold(0u32, |m, (l, &(x, y))| {
+                        m | (occ.occluded_by(x, y, &ids, planes, &mut first) as u32) << l
+                    });
+                    assert_eq!(
+                        got, alone_list,
+                        "packet {segs:?} against {ids:?}, foreign {foreign}"
+                    );
+                    list_blocked += alone_list.count_ones();
+                    list_mixed +=
+                        (alone_list != 0 && alone_list.count_ones() < segs.len() as u32) as usize;
                     let n = segs.len() as u32;
                     blocked += alone.count_ones();
                     free += n - alone.count_ones();
@@ -1559,6 +1616,10 @@ mod tests {
             blocked > 5000 && free > 10000 && mixed > 500 && empty > 200,
             "{blocked} blocked, {free} free, {mixed} packets partly blocked, \
              {empty} with empty lanes"
+        );
+        assert!(
+            list_blocked > 2000 && list_mixed > 300,
+            "candidate lists: {list_blocked} blocked, {list_mixed} packets partly blocked"
         );
     }
 

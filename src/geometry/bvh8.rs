@@ -35,7 +35,9 @@
 //! against all of them. A ray leaves the walk once a blocker is certain (at once for a
 //! sure crossing, or when its put-off exact tests are run). Its answer is the one it
 //! gets alone, since either walk visits every leaf the segment passes through
-//! and answers are decided by the same filter and exact test.
+//! and answers are decided by the same filter and exact test. A packet can also be
+//! tested against a pair's candidate list instead of the hierarchy
+//! ([`Bvh8::any_hit_list`]): the same filter, triangle by triangle.
 //!
 //! Everything is in the normalized frame of the occluders (coordinates within ±0.5).
 
@@ -459,6 +461,70 @@ impl Block {
     }
 }
 
+/// The put-off exact tests of a packet walk: (triangle, lanes that may meet it).
+struct Pending {
+    later: [(u32, u32); DEFERRED],
+    len: usize,
+}
+
+impl Pending {
+    fn new() -> Self {
+        Pending {
+            later: [(0, 0); DEFERRED],
+            len: 0,
+        }
+    }
+
+    /// Filters triangle `id` of `blocks` for the segments of `pk` in `lanes` (all
+    /// open): the lanes it certainly blocks (when `trust_sure`) leave `open` and are
+    /// returned; those it may block are put off, their exact tests run when the list
+    /// is full or at [`Pending::settle`].
+    #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
+    fn filter(
+        &mut self,
+        blocks: &[Block],
+        id: usize,
+        pk: &SegmentPacket,
+        lanes: u32,
+        trust_sure: bool,
+        open: &mut u32,
+        exact: &mut impl FnMut(usize, usize) -> bool,
+    ) -> u32 {
+        let (sure, maybe) = blocks[id / 4].classify_packet(id % 4, pk);
+        let (mut sure, mut maybe) = (sure & lanes, maybe & lanes);
+        if !trust_sure {
+            maybe |= sure;
+            sure = 0;
+        }
+        *open &= !sure;
+        if maybe != 0 {
+            if self.len == DEFERRED {
+                self.settle(open, exact);
+            }
+            self.later[self.len] = (id as u32, maybe);
+            self.len += 1;
+        }
+        sure
+    }
+
+    /// Runs the put-off exact tests for the lanes still `open`; a lane leaves `open`
+    /// at its first hit.
+    fn settle(&mut self, open: &mut u32, exact: &mut impl FnMut(usize, usize) -> bool) {
+        for &(id, lanes) in &self.later[..self.len] {
+            let mut m = lanes & *open;
+            while m != 0 {
+                let lane = m.trailing_zeros() as usize;
+                m &= m - 1;
+                if exact(lane, id as usize) {
+                    *open &= !(1 << lane);
+                }
+            }
+        }
+        self.len = 0;
+    }
+}
+
 /// The child references still to visit in a walk ([`Bvh8::walk`]); sized by the
 /// tree's depth.
 struct Stack<'a> {
@@ -802,20 +868,7 @@ impl Bvh8 {
         let counts = |face: u32| face != ignore.0 && face != ignore.1;
         // Lanes not blocked yet.
         let mut open = pk.lanes;
-        let mut later = [(0u32, 0u32); DEFERRED];
-        let mut n_later = 0;
-        let mut settle = |later: &[(u32, u32)], open: &mut u32| {
-            for &(id, lanes) in later {
-                let mut m = lanes & *open;
-                while m != 0 {
-                    let lane = m.trailing_zeros() as usize;
-                    m &= m - 1;
-                    if exact(lane, id as usize) {
-                        *open &= !(1 << lane);
-                    }
-                }
-            }
-        };
+        let mut pending = Pending::new();
         // Entries: (child reference, lanes that reached it).
         let mut inline = [(0u32, 0u32); INLINE_STACK];
         let mut heap = Vec::new();
@@ -837,24 +890,17 @@ impl Bvh8 {
             if r & LEAF_BIT != 0 {
                 let (start, count) = leaf_range(r);
                 for id in start..start + count {
-                    let block = &self.blocks[id / 4];
-                    if !counts(block.face[id % 4]) {
-                        continue;
-                    }
-                    let (sure, maybe) = block.classify_packet(id % 4, pk);
-                    let (mut sure, mut maybe) = (sure & lanes & open, maybe & lanes & open);
-                    if !trust_sure {
-                        maybe |= sure;
-                        sure = 0;
-                    }
-                    open &= !sure;
-                    if maybe != 0 {
-                        if n_later == DEFERRED {
-                            settle(&later, &mut open);
-                            n_later = 0;
-                        }
-                        later[n_later] = (id as u32, maybe);
-                        n_later += 1;
+                    if counts(self.blocks[id / 4].face[id % 4]) {
+                        let lanes = lanes & open;
+                        pending.filter(
+                            &self.blocks,
+                            id,
+                            pk,
+                            lanes,
+                            trust_sure,
+                            &mut open,
+                            &mut exact,
+                        );
                     }
                 }
             } else {
@@ -871,7 +917,50 @@ impl Bvh8 {
                 }
             }
         }
-        settle(&later[..n_later], &mut open);
+        pending.settle(&mut open, &mut exact);
+        pk.lanes & !open
+    }
+
+    /// [`Bvh8::any_hit_packet`] against the triangles `ids` only (a pair's candidate
+    /// list: every one of them counts), without the hierarchy: the lanes blocked by one
+    /// of them, each with the answer it gets alone. Candidate `*first` is tested first
+    /// (the pair's last blocker: its rays are coherent, so it likely blocks these too)
+    /// and `*first` becomes the last candidate found to block for sure; the answer does
+    /// not depend on it. Each candidate's filter runs for all open lanes at once;
+    /// undecided (lane, triangle) pairs are put off, as in the hierarchy walks.
+    pub fn any_hit_list(
+        &self,
+        pk: &SegmentPacket,
+        ids: &[u32],
+        trust_sure: bool,
+        first: &mut usize,
+        mut exact: impl FnMut(usize, usize) -> bool,
+    ) -> u32 {
+        let mut open = pk.lanes;
+        let mut pending = Pending::new();
+        let start = (*first < ids.len()).then_some(*first);
+        let order = start
+            .into_iter()
+            .chain((0..ids.len()).filter(|&k| Some(k) != start));
+        for k in order {
+            if open == 0 {
+                break;
+            }
+            let id = ids[k] as usize;
+            if pending.filter(
+                &self.blocks,
+                id,
+                pk,
+                open,
+                trust_sure,
+                &mut open,
+                &mut exact,
+            ) != 0
+            {
+                *first = k;
+            }
+        }
+        pending.settle(&mut open, &mut exact);
         pk.lanes & !open
     }
 
