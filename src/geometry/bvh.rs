@@ -1623,6 +1623,43 @@ mod tests {
         );
     }
 
+    /// More undecided (lane, triangle) pairs than the put-off list holds: with foreign
+    /// occluders every crossing waits for its exact test, and here ray 0's only blocker
+    /// (face 0, first in the list) is put off before twenty triangles that only ray 1
+    /// crosses. Both rays must come out blocked, as each does alone: the test fails
+    /// if a full list is emptied without running its tests.
+    #[test]
+    fn list_packets_settle_a_full_queue() {
+        let square = |x: f64, z: f64| {
+            [
+                dvec3(x - 1.0, -1.0, z),
+                dvec3(x + 1.0, -1.0, z),
+                dvec3(x, 1.0, z),
+            ]
+        };
+        let mut tris = vec![(0u32, square(0.0, 0.0))];
+        for k in 1..=20 {
+            tris.push((k, square(10.0, -0.9 + 0.08 * k as f64)));
+        }
+        let occ = Occluders::new_foreign(tris);
+        let mut ids: Vec<u32> = (0..occ.len() as u32).collect();
+        ids.sort_by_key(|&id| occ.tris[id as usize].face);
+        let up = DVec3::Z;
+        let planes = Some([(up, -1.0), (up, 1.0)]);
+        let segs = [
+            (dvec3(0.0, 0.0, -1.0), dvec3(0.0, 0.0, 1.0)),
+            (dvec3(10.0, 0.0, -1.0), dvec3(10.0, 0.0, 1.0)),
+        ];
+        for (l, &(x, y)) in segs.iter().enumerate() {
+            assert!(occ.occluded_by(x, y, &ids, planes, &mut 0), "ray {l} alone");
+        }
+        let mut first = 0;
+        assert_eq!(
+            occ.occluded_packet_by(&segs, &ids, planes, &mut first),
+            0b11
+        );
+    }
+
     /// A uniform random point of triangle `t`.
     fn point_in(t: &[DVec3; 3], rng: &mut crate::formfactor::sampling::SplitMix64) -> DVec3 {
         let (u, v) = (rng.next_f64(), rng.next_f64());
