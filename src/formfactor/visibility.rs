@@ -57,6 +57,15 @@ impl Blockers<'_> {
         self.occluders.is_foreign()
     }
 
+    /// Runs a candidate-list query with the pair's last blocker as its hint, and keeps
+    /// the blocker it found for the next query.
+    fn with_last<T>(&self, query: impl FnOnce(&mut usize) -> T) -> T {
+        let mut first = self.last.get();
+        let answer = query(&mut first);
+        self.last.set(first);
+        answer
+    }
+
     /// Is the segment x → y blocked (not by the faces of the two patches)?
     fn occluded(
         &self,
@@ -67,10 +76,7 @@ impl Blockers<'_> {
     ) -> bool {
         match self.candidates {
             Some(ids) => {
-                let mut first = self.last.get();
-                let blocked = self.occluders.occluded_by(x, y, ids, planes, &mut first);
-                self.last.set(first);
-                blocked
+                self.with_last(|first| self.occluders.occluded_by(x, y, ids, planes, first))
             }
             None => self.occluders.occluded_between_planes(x, y, faces, planes),
         }
@@ -88,14 +94,8 @@ impl Blockers<'_> {
     ) -> u32 {
         if self.packets {
             return match self.candidates {
-                Some(ids) => {
-                    let mut first = self.last.get();
-                    let blocked = self
-                        .occluders
-                        .occluded_packet_by(segs, ids, planes, &mut first);
-                    self.last.set(first);
-                    blocked
-                }
+                Some(ids) => self
+                    .with_last(|first| self.occluders.occluded_packet_by(segs, ids, planes, first)),
                 None => self.occluders.occluded_packet(segs, faces, planes),
             };
         }

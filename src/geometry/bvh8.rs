@@ -81,7 +81,7 @@ fn leaf_range(r: u32) -> (usize, usize) {
 }
 
 /// Triangles [`Bvh8::any_hit`] puts off before it runs their exact tests; entries
-/// (triangle, lanes) for [`Bvh8::any_hit_packet`].
+/// (triangle, lanes) for the packet walks ([`Pending`]).
 const DEFERRED: usize = 16;
 
 /// Stack entries kept on the machine stack; deeper trees allocate one per walk.
@@ -475,10 +475,10 @@ impl Pending {
         }
     }
 
-    /// Filters triangle `id` of `blocks` for the segments of `pk` in `lanes` (all
-    /// open): the lanes it certainly blocks (when `trust_sure`) leave `open` and are
-    /// returned; those it may block are put off, their exact tests run when the list
-    /// is full or at [`Pending::settle`].
+    /// Filters triangle `id` of `blocks` for the segments of `pk` in `lanes` that are
+    /// still `open`: the lanes it certainly blocks (when `trust_sure`) leave `open` and
+    /// are returned; those it may block are put off, their exact tests run when the
+    /// list is full or at [`Pending::settle`].
     #[inline(always)]
     #[allow(clippy::too_many_arguments)]
     fn filter(
@@ -492,6 +492,7 @@ impl Pending {
         exact: &mut impl FnMut(usize, usize) -> bool,
     ) -> u32 {
         let (sure, maybe) = blocks[id / 4].classify_packet(id % 4, pk);
+        let lanes = lanes & *open;
         let (mut sure, mut maybe) = (sure & lanes, maybe & lanes);
         if !trust_sure {
             maybe |= sure;
@@ -891,7 +892,6 @@ impl Bvh8 {
                 let (start, count) = leaf_range(r);
                 for id in start..start + count {
                     if counts(self.blocks[id / 4].face[id % 4]) {
-                        let lanes = lanes & open;
                         pending.filter(
                             &self.blocks,
                             id,
@@ -951,7 +951,7 @@ impl Bvh8 {
                 &self.blocks,
                 id,
                 pk,
-                open,
+                pk.lanes,
                 trust_sure,
                 &mut open,
                 &mut exact,
