@@ -21,8 +21,9 @@
 //! when it exists. Each rate is the best of `--reps` timings.
 //!
 //! Run: `bench/embree/build.sh && cargo bench --no-default-features --bench perf_rays
-//! [-- BOXES...] [--rays N] [--reps R] [--only incoherent|pairs|packets]`. Prints one
-//! line per scene, workload and tracer, and the ratios.
+//! [-- BOXES...] [--rays N] [--reps R] [--only incoherent|pairs|packets]
+//! [--keep-rays]`. Prints one line per scene, workload and tracer, and the ratios;
+//! `--keep-rays` keeps the ray files written for Embree and prints their paths.
 
 use std::io::Write;
 use std::process::Command;
@@ -43,6 +44,7 @@ fn main() {
     let mut rays = 1_000_000usize;
     let mut reps = 3usize;
     let mut only: Option<String> = None;
+    let mut keep_rays = false;
     let mut it = std::env::args().skip(1);
     while let Some(a) = it.next() {
         match a.as_str() {
@@ -50,6 +52,7 @@ fn main() {
             "--rays" => rays = it.next().and_then(|v| v.parse().ok()).unwrap_or(rays),
             "--reps" => reps = it.next().and_then(|v| v.parse().ok()).unwrap_or(reps),
             "--only" => only = it.next(),
+            "--keep-rays" => keep_rays = true,
             _ => {
                 if let Ok(b) = a.parse() {
                     boxes.push(b)
@@ -60,7 +63,10 @@ fn main() {
     if boxes.is_empty() {
         boxes = vec![900, 9000];
     }
-    let embree = std::path::Path::new("target/embree-shadow");
+    let embree = &Embree {
+        exe: std::path::Path::new("target/embree-shadow"),
+        keep_rays,
+    };
     for b in boxes {
         let scene = ffstream::scene::open_scene(&format!("builtin:room:{b}")).expect("scene");
         let tris: Vec<(u32, [DVec3; 3])> = scene.triangles().collect();
@@ -237,10 +243,18 @@ fn main() {
 /// Rays per pair in the pair workload (the `accurate` preset's 16).
 const PAIR_RAYS: usize = 16;
 
+/// The Embree yardstick (bench/embree/shadow.c) and whether the ray files written for
+/// it are kept (`--keep-rays`: their paths are printed, e.g. to run the yardstick under
+/// valgrind on the same rays).
+struct Embree<'a> {
+    exe: &'a std::path::Path,
+    keep_rays: bool,
+}
+
 /// Run the Embree yardstick on `segs` (if built) and print its rate and the ratio of
 /// each of our rates `ours` (label, rays/s) to it.
 fn report_embree(
-    embree: &std::path::Path,
+    embree: &Embree<'_>,
     tris: &[(u32, [DVec3; 3])],
     segs: &[(DVec3, DVec3)],
     b: usize,
@@ -248,7 +262,7 @@ fn report_embree(
     embree_packets: &[usize],
     ours: &[(&str, f64)],
 ) {
-    if !embree.exists() {
+    if !embree.exe.exists() {
         println!("  (target/embree-shadow missing: run bench/embree/build.sh)");
         return;
     }
@@ -296,7 +310,7 @@ fn report_embree(
         .and_then(|mut f| f.write_all(&buf))
         .expect("ray file");
     for &packet in embree_packets {
-        let out = Command::new(embree)
+        let out = Command::new(embree.exe)
             .arg(&path)
             .arg("3")
             .arg(packet.to_string())
@@ -319,5 +333,9 @@ fn report_embree(
             ratios.join(", ")
         );
     }
-    let _ = std::fs::remove_file(&path);
+    if embree.keep_rays {
+        println!("room:{b} | {what} | ray file kept: {}", path.display());
+    } else {
+        let _ = std::fs::remove_file(&path);
+    }
 }

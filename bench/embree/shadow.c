@@ -8,14 +8,31 @@
  *   u64 nray, then nray * 8 f32 (origin xyz, direction xyz (unit), tnear, tfar).
  * Usage: embree-shadow RAYFILE [REPEATS [PACKET]].
  * Output: one line "embree rays N occluded K seconds S rays_per_s R" (with
- * "packets of PACKET" after "embree" in packet mode).
+ * "packets of PACKET" after "embree" in packet mode). On stderr: the bytes Embree
+ * holds after building the scene (its buffers and BVH, from the device's memory
+ * monitor).
+ * EMBREE_BUILD_QUALITY=low|medium|high (default high) sets the build quality
+ * (high: spatial splits), to see whether the tree's quality decides the rate.
  * Build: bench/embree/build.sh (needs Debian libembree-dev). Bench only, never a
  * product dependency. */
 #include <embree3/rtcore.h>
+#include <stdbool.h>
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
+#include <string.h>
+#include <sys/types.h>
 #include <time.h>
+
+/* Bytes Embree has allocated (its memory monitor callback keeps the count). */
+static long long embree_bytes = 0;
+
+static bool count_bytes(void *user, ssize_t bytes, bool post) {
+  (void)user;
+  (void)post;
+  embree_bytes += bytes;
+  return true;
+}
 
 static double now(void) {
   struct timespec t;
@@ -97,8 +114,19 @@ int main(int argc, char **argv) {
   fclose(f);
 
   RTCDevice dev = rtcNewDevice("threads=1");
+  rtcSetDeviceMemoryMonitorFunction(dev, count_bytes, NULL);
   RTCScene scene = rtcNewScene(dev);
-  rtcSetSceneBuildQuality(scene, RTC_BUILD_QUALITY_HIGH);
+  enum RTCBuildQuality quality = RTC_BUILD_QUALITY_HIGH;
+  const char *q_env = getenv("EMBREE_BUILD_QUALITY");
+  if (q_env && strcmp(q_env, "low") == 0) {
+    quality = RTC_BUILD_QUALITY_LOW;
+  } else if (q_env && strcmp(q_env, "medium") == 0) {
+    quality = RTC_BUILD_QUALITY_MEDIUM;
+  } else if (q_env && strcmp(q_env, "high") != 0) {
+    fprintf(stderr, "EMBREE_BUILD_QUALITY=%s: low, medium or high\n", q_env);
+    return 2;
+  }
+  rtcSetSceneBuildQuality(scene, quality);
   RTCGeometry g = rtcNewGeometry(dev, RTC_GEOMETRY_TYPE_TRIANGLE);
   float *vb = rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
                                       3 * sizeof(float), nt * 3);
@@ -110,6 +138,7 @@ int main(int argc, char **argv) {
   rtcAttachGeometry(scene, g);
   rtcReleaseGeometry(g);
   rtcCommitScene(scene);
+  fprintf(stderr, "embree memory after commit: %lld bytes\n", embree_bytes);
 
   struct RTCIntersectContext ctx;
   uint64_t occluded = 0;
