@@ -15,6 +15,10 @@
 //!   ([`Occluders::occluded_packet_by`]); Embree one ray at a time (`rtcOccluded1`)
 //!   and as packets of 16 (`rtcOccluded16`).
 //!
+//! Each scene's line `tree:` gives the shape of ffstream's hierarchy
+//! ([`ffstream::geometry::bvh::TreeStats`]): compare Embree's with
+//! `EMBREE_VERBOSE=1 target/embree-shadow RAYFILE 1 1` on a file kept by `--keep-rays`.
+//!
 //! ffstream's rays run on one thread through the public API (world coordinates in,
 //! normalization inside); the same segments, normalized as the `Occluders` do it, go to
 //! `target/embree-shadow` (bench/embree/shadow.c, one thread), which is run from here
@@ -73,6 +77,12 @@ fn main() {
         let t0 = Instant::now();
         let occ = Occluders::new(tris.clone());
         let build = t0.elapsed().as_secs_f64();
+        if let Some(st) = occ.stats() {
+            println!(
+                "room:{b} tree: depth {} nodes {} leaves {} node SAH {:.3} block SAH {:.3}",
+                st.depth, st.nodes, st.leaves, st.node_sah, st.block_sah
+            );
+        }
         let mut rng = SplitMix64::new(7);
         let segs: Vec<(DVec3, DVec3)> = (0..rays)
             .map(|_| {

@@ -13,6 +13,9 @@
  * monitor).
  * EMBREE_BUILD_QUALITY=low|medium|high (default high) sets the build quality
  * (high: spatial splits), to see whether the tree's quality decides the rate.
+ * EMBREE_VERBOSE=1 makes the device verbose (its config "verbose=2"): Embree then
+ * prints its BVH's statistics on stdout after the build (depth, nodes, leaves, SAH
+ * cost), to compare with ours (bench/PERF.md section 12).
  * Build: bench/embree/build.sh (needs Debian libembree-dev). Bench only, never a
  * product dependency. */
 #include <embree3/rtcore.h>
@@ -113,7 +116,9 @@ int main(int argc, char **argv) {
   if (fread(rv, sizeof(float), nr * 8, f) != nr * 8) return 1;
   fclose(f);
 
-  RTCDevice dev = rtcNewDevice("threads=1");
+  const char *verbose = getenv("EMBREE_VERBOSE");
+  bool loud = verbose && strcmp(verbose, "1") == 0;
+  RTCDevice dev = rtcNewDevice(loud ? "threads=1,verbose=2" : "threads=1");
   rtcSetDeviceMemoryMonitorFunction(dev, count_bytes, NULL);
   RTCScene scene = rtcNewScene(dev);
   enum RTCBuildQuality quality = RTC_BUILD_QUALITY_HIGH;

@@ -27,6 +27,7 @@ use std::time::Duration;
 use glam::DVec3;
 use obvhs::{cwbvh::builder::build_cwbvh_from_tris, triangle::Triangle, BvhBuildParams};
 
+pub use super::bvh8::TreeStats;
 use super::bvh8::{Bvh8, SegmentPacket, SegmentRay};
 
 /// Most segments [`Occluders::occluded_packet`] takes at once.
@@ -601,6 +602,11 @@ impl Occluders {
         self.tris.is_empty()
     }
 
+    /// The shape of the hierarchy (`None` without triangles), for benchmarks.
+    pub fn stats(&self) -> Option<TreeStats> {
+        self.bvh.as_ref().map(Bvh8::stats)
+    }
+
     /// Diagonal of the triangles' bounding box (world units), the length that ray
     /// offsets and tolerances are relative to.
     pub fn diagonal(&self) -> f64 {
@@ -1128,6 +1134,16 @@ mod tests {
         )]);
         one.validate();
         assert_eq!(one.len(), 1);
+        // One leaf filling the root's box: one node and one block, each met by every
+        // line through the root.
+        let stats = TreeStats {
+            nodes: 1,
+            leaves: 1,
+            depth: 1,
+            node_sah: 1.0,
+            block_sah: 1.0,
+        };
+        assert_eq!(one.stats(), Some(stats));
         assert!(one.occluded(dvec3(0.2, 0.2, 0.0), dvec3(0.2, 0.2, 2.0), (9, 9)));
         let flat = Occluders::new(vec![(
             0,
@@ -1138,6 +1154,7 @@ mod tests {
             ],
         )]);
         assert!(flat.is_empty());
+        assert_eq!(flat.stats(), None);
         assert!(!flat.occluded(dvec3(0.5, -1.0, 0.0), dvec3(0.5, 1.0, 0.0), (9, 9)));
         assert!(Occluders::new(Vec::new()).is_empty());
     }
@@ -1489,6 +1506,11 @@ mod tests {
                 } else {
                     Occluders::new(tris.clone())
                 };
+                // Leaves hold at most eight triangles; below the root, nodes add area.
+                let st = occ.stats().expect("triangles");
+                assert!(st.depth >= 2 && st.nodes >= 2, "{st:?}");
+                assert!(st.leaves >= occ.len().div_ceil(8), "{st:?}");
+                assert!(st.node_sah > 1.0 && st.block_sah > 0.0, "{st:?}");
                 for (k, (from, to)) in test_segments(&tris, seed + 20, scale, 5000)
                     .into_iter()
                     .enumerate()

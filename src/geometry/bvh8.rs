@@ -541,6 +541,25 @@ impl Stack<'_> {
     }
 }
 
+/// The shape of a hierarchy, for benchmarks (bench/perf_rays.rs prints it; compare
+/// Embree's own statistics, bench/embree/shadow.c with EMBREE_VERBOSE=1). The two
+/// costs are the surface area heuristic's sums over the tree, with each box's area
+/// relative to the root's: the nodes a random line through the root's box is expected
+/// to test, and the four-triangle blocks it is expected to filter.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct TreeStats {
+    /// Nodes (eight-wide).
+    pub nodes: usize,
+    /// Leaves.
+    pub leaves: usize,
+    /// Levels of nodes on the longest path from the root.
+    pub depth: usize,
+    /// Σ over the nodes of area(node) / area(root): the root counts 1.
+    pub node_sah: f64,
+    /// Σ over the leaves of area(leaf) / area(root) × blocks the leaf spans.
+    pub block_sah: f64,
+}
+
 /// The hierarchy: nodes, leaves and the root reference.
 #[derive(Clone, Debug)]
 pub struct Bvh8 {
@@ -990,6 +1009,45 @@ impl Bvh8 {
                 }
             },
         )
+    }
+
+    /// The shape of the hierarchy ([`TreeStats`]).
+    pub fn stats(&self) -> TreeStats {
+        let area = |(lo, hi): (DVec3, DVec3)| {
+            let d = (hi - lo).max(DVec3::ZERO);
+            2.0 * (d.x * d.y + d.y * d.z + d.z * d.x)
+        };
+        let root = &self.nodes[self.root as usize];
+        let bounds = (0..8)
+            .filter(|&s| root.child[s] != NONE)
+            .map(|s| root.child_box(s))
+            .fold(
+                (DVec3::INFINITY, DVec3::NEG_INFINITY),
+                |(lo, hi), (l, h)| (lo.min(l), hi.max(h)),
+            );
+        let whole = area(bounds);
+        let mut st = TreeStats {
+            node_sah: 1.0,
+            ..TreeStats::default()
+        };
+        let mut todo = vec![(self.root, 1)];
+        while let Some((r, level)) = todo.pop() {
+            st.nodes += 1;
+            st.depth = st.depth.max(level);
+            let node = &self.nodes[r as usize];
+            for s in (0..8).filter(|&s| node.child[s] != NONE) {
+                let (c, share) = (node.child[s], area(node.child_box(s)) / whole);
+                if c & LEAF_BIT != 0 {
+                    let (start, count) = leaf_range(c);
+                    st.leaves += 1;
+                    st.block_sah += share * (start % 4 + count).div_ceil(4) as f64;
+                } else {
+                    st.node_sah += share;
+                    todo.push((c, level + 1));
+                }
+            }
+        }
+        st
     }
 
     /// Checks the layout (for tests): every triangle of `tris` sits in exactly one leaf
