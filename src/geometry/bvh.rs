@@ -53,9 +53,10 @@ pub const MAX_REJECTED_CANDIDATES: usize = 32;
 /// triangles) with four times that preset's reinsertion passes (Meister and Bittner,
 /// "Parallel reinsertion for bounding volume hierarchy optimization", 2018). Measured
 /// (bench/PERF.md §12), 94.5k triangles: the SAH cost of the nodes falls from 10.3
-/// (`slow_build`, used before) to 7.1, Embree's being 7.4; nodes visited per ray 9.2
-/// → 7.9; single rays 8 % (94.5k) to 14 % (9.5k) faster. The price is build time:
-/// 0.15 → 0.55 s at 94.5k triangles, 2.2 → 12 s at 945k, once per process.
+/// (`slow_build`, used before) to 7.1, Embree's being 7.4 ([`Occluders::stats`]);
+/// nodes tested per incoherent ray 9.2 → 7.7; single rays 17 % faster at 9.5k and at
+/// 94.5k triangles, packets 7 % (9.5k) to 23 % (94.5k). The price is build time: 0.15 → 0.55 s
+/// at 94.5k triangles, 2.2 → 12 s at 945k, once per process.
 const BUILD_PARAMS: BvhBuildParams = BvhBuildParams {
     reinsertion_batch_ratio: 4.0,
     ..BvhBuildParams::very_slow_build()
