@@ -175,8 +175,8 @@ pub fn verify(path: &Path, against: Option<&Path>, out: &mut dyn Write) -> Resul
             .unwrap_or_default();
         writeln!(
             out,
-            "reciprocity: max |A_i F_ij - A_j F_ji| / max(A_i F_ij, A_j F_ji) = {:.3e}{worst}, mean {:.3e}, over {} stored pairs ({} passes)",
-            rc.max_rel_error, rc.mean_rel_error, rc.pairs, rc.passes
+            "reciprocity: max |A_i F_ij - A_j F_ji| / max(A_i F_ij, A_j F_ji) = {:.3e}{worst}, mean {:.3e}, weighted (sum of differences / sum of maxima) {:.3e}, over {} stored pairs ({} passes)",
+            rc.max_rel_error, rc.mean_rel_error, rc.weighted_rel_error, rc.pairs, rc.passes
         )
         .map_err(&e)?;
     }

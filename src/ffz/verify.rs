@@ -45,14 +45,20 @@ pub struct BadChunk {
     pub what: String,
 }
 
-/// Reciprocity over stored pairs: max over i < j of
+/// Reciprocity over stored pairs: max and mean over i < j of
 /// |A_i F_ij − A_j F_ji| / max(A_i F_ij, A_j F_ji), for pairs where both entries are
 /// stored (always in a dense file; both kept by top-k in a sparse one) and not both 0.
+///
+/// Each pair counts alike in the max and the mean, so a pair exchanging almost nothing,
+/// whose few rays saw each other from one side only, reaches 1 there. The weighted
+/// error has no such floor problem: Σ |A_i F_ij − A_j F_ji| / Σ max(A_i F_ij, A_j F_ji)
+/// over the same pairs, the share of the exchanged flux that is not reciprocal.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Reciprocity {
     pub pairs: u64,
     pub max_rel_error: f64,
     pub mean_rel_error: f64,
+    pub weighted_rel_error: f64,
     /// (i, j) of the worst pair.
     pub worst: Option<(u32, u32)>,
     /// Passes over the file it took.
@@ -314,7 +320,7 @@ impl FfzReader {
         let areas: Vec<f64> = self.meta().patches.patches.iter().map(|p| p.area).collect();
         let blocks = blocks(n, self.layout(), block_bytes);
         let mut rec = Reciprocity::default();
-        let mut sum_rel = 0.0;
+        let (mut sum_rel, mut sum_diff, mut sum_max) = (0.0, 0.0, 0.0);
         let mut held: Option<Block> = None;
         for t in 0..=blocks.len() {
             let next = blocks.get(t).copied();
@@ -339,6 +345,8 @@ impl FfzReader {
                         let rel = (a - b).abs() / m;
                         rec.pairs += 1;
                         sum_rel += rel;
+                        sum_diff += (a - b).abs();
+                        sum_max += m;
                         if rel > rec.max_rel_error || rec.worst.is_none() {
                             rec.max_rel_error = rel;
                             rec.worst = Some((i, j));
@@ -355,6 +363,7 @@ impl FfzReader {
         }
         if rec.pairs > 0 {
             rec.mean_rel_error = sum_rel / rec.pairs as f64;
+            rec.weighted_rel_error = sum_diff / sum_max;
         }
         rec
     }

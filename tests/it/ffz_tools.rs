@@ -5,18 +5,21 @@ use crate::ffz_common::*;
 use ffstream::ffz::{compare, tools, FfzReader, Layout, VerifyOptions};
 use ffstream::rows::{Row, RowValues};
 
+/// S_ij of [`reciprocal_rows`]: symmetric, 0 on the diagonal.
+fn exchange(i: u32, j: u32) -> f64 {
+    let (a, b) = (i.min(j) as f64, i.max(j) as f64);
+    if i == j {
+        0.0
+    } else {
+        1e-3 * (1.0 + ((a * 7.0 + b * 3.0) % 11.0))
+    }
+}
+
 /// A dense matrix that is exactly reciprocal (A_i F_ij = A_j F_ji = S_ij, S symmetric)
 /// except pair (2, 5), where F_25 is raised by 30 %: the reciprocity error is then
 /// |1.3 S − S| / (1.3 S) = 0.3 / 1.3 for that pair and 0 (up to f32 rounding) elsewhere.
 fn reciprocal_rows(n: u32, areas: &[f64]) -> Vec<Row> {
-    let s = |i: u32, j: u32| -> f64 {
-        let (a, b) = (i.min(j) as f64, i.max(j) as f64);
-        if i == j {
-            0.0
-        } else {
-            1e-3 * (1.0 + ((a * 7.0 + b * 3.0) % 11.0))
-        }
-    };
+    let s = exchange;
     (0..n)
         .map(|i| {
             let v = (0..n)
@@ -61,6 +64,17 @@ fn reciprocity_and_row_sums_have_the_known_values() {
             rc.max_rel_error
         );
         assert_eq!(rc.worst, Some((2, 5)));
+        // Weighted: 0.3 S_25 over Σ_{i<j} S_ij with S_25 counted as 1.3 S_25.
+        let total: f64 = (0..n)
+            .flat_map(|i| (i + 1..n).map(move |j| exchange(i, j)))
+            .sum();
+        let s25 = exchange(2, 5);
+        let weighted = 0.3 * s25 / (total + 0.3 * s25);
+        assert!(
+            (rc.weighted_rel_error - weighted).abs() < 1e-6,
+            "{} vs {weighted}",
+            rc.weighted_rel_error
+        );
         if block_bytes < 1 << 20 {
             assert_eq!(rc.passes, 15);
         }
@@ -106,6 +120,12 @@ fn sparse_reciprocity_uses_only_pairs_stored_both_ways() {
         (rc.max_rel_error - 0.2).abs() < 1e-7,
         "{}",
         rc.max_rel_error
+    );
+    // Weighted: (0.1 + 0) / (0.5 + 2).
+    assert!(
+        (rc.weighted_rel_error - 0.04).abs() < 1e-7,
+        "{}",
+        rc.weighted_rel_error
     );
     assert_eq!(rc.worst, Some((0, 1)));
 }
