@@ -3,53 +3,20 @@
 //! against the tables, and small matrix helpers.
 
 use std::f64::consts::PI;
-use std::sync::Arc;
 
-use ffstream::formfactor::{FormFactorConfig, RowEngine, Scratch};
-use ffstream::geometry::bvh::Occluders;
-use ffstream::patch::{Patch, PatchSet};
+use ffstream::formfactor::{RowEngine, Scratch};
 use glam::{DQuat, DVec3};
 
-/// Patches plus the occluder triangles of their faces.
-#[derive(Clone, Debug, Default)]
-pub struct Geo {
-    pub patches: PatchSet,
-    pub tris: Vec<(u32, [DVec3; 3])>,
-    faces: u32,
-}
+/// Patches plus the occluder triangles of their faces: the builder of the form-factor
+/// tests, with what the stress tests add to it.
+pub use crate::formfactor::scenes::Built as Geo;
 
 impl Geo {
     /// The parallelogram origin + [0,1]·u + [0,1]·v (front normal u × v), one scene face
     /// in a new group, cut into mu × mv quads.
     pub fn para(&mut self, origin: DVec3, u: DVec3, v: DVec3, mu: usize, mv: usize) -> &mut Self {
-        let face = self.faces;
-        self.faces += 1;
-        let group = self.patches.groups.len() as u32;
-        self.patches.groups.push(format!("g{group}"));
-        let n = u.cross(v).normalize();
-        let at =
-            |a: usize, b: usize| origin + u * (a as f64 / mu as f64) + v * (b as f64 / mv as f64);
-        for b in 0..mv {
-            for a in 0..mu {
-                let c = [at(a, b), at(a + 1, b), at(a + 1, b + 1), at(a, b + 1)];
-                let area = 0.5
-                    * ((c[1] - c[0]).cross(c[2] - c[0]).length()
-                        + (c[2] - c[0]).cross(c[3] - c[0]).length());
-                self.patches.patches.push(Patch {
-                    corners: c,
-                    n_corners: 4,
-                    normal: n,
-                    area,
-                    group,
-                    face,
-                    rho: [0.5; 3],
-                    emission: [0.0; 3],
-                });
-            }
-        }
-        self.tris.push((face, [origin, origin + u, origin + u + v]));
-        self.tris.push((face, [origin, origin + u + v, origin + v]));
-        self
+        let name = format!("g{}", self.patches.groups.len());
+        self.cells(&name, origin, u, v, (mu, mv), false)
     }
 
     /// Closed box [0,a]×[0,b]×[0,c] with inward faces, each cut m × m.
@@ -82,18 +49,6 @@ impl Geo {
             }
         }
         g
-    }
-
-    pub fn engine(&self, cfg: FormFactorConfig) -> RowEngine {
-        RowEngine::new(
-            Arc::new(self.patches.clone()),
-            Arc::new(Occluders::new(self.tris.clone())),
-            cfg,
-        )
-    }
-
-    pub fn n(&self) -> usize {
-        self.patches.len()
     }
 
     pub fn area(&self, i: usize) -> f64 {

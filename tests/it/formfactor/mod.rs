@@ -3,7 +3,7 @@
 //! threads, occlusion, and the error of the `point` and `mc` baselines.
 
 pub mod analytic;
-mod scenes;
+pub mod scenes;
 
 use std::sync::Arc;
 

@@ -30,15 +30,28 @@ impl Built {
         m: usize,
         split: bool,
     ) -> &mut Self {
+        self.cells(name, origin, u, v, (m, m), split)
+    }
+
+    /// [`Built::face`] subdivided mu × mv (mu along u).
+    pub fn cells(
+        &mut self,
+        name: &str,
+        origin: DVec3,
+        u: DVec3,
+        v: DVec3,
+        (mu, mv): (usize, usize),
+        split: bool,
+    ) -> &mut Self {
         let face = self.faces;
         self.faces += 1;
         let group = self.patches.groups.len() as u32;
         self.patches.groups.push(name.to_string());
         let n = u.cross(v).normalize();
         let at =
-            |a: usize, b: usize| origin + u * (a as f64 / m as f64) + v * (b as f64 / m as f64);
-        for b in 0..m {
-            for a in 0..m {
+            |a: usize, b: usize| origin + u * (a as f64 / mu as f64) + v * (b as f64 / mv as f64);
+        for b in 0..mv {
+            for a in 0..mu {
                 let c = [at(a, b), at(a + 1, b), at(a + 1, b + 1), at(a, b + 1)];
                 if split {
                     let (t1, t2) = if (a + b) % 2 == 0 {
