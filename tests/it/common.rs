@@ -1,8 +1,10 @@
 //! Helpers shared by the integration tests: run the `ffstream` binary, with or without
 //! mpirun, in a temporary directory.
 
+use std::io::Read;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::{Child, Command, ExitStatus, Output, Stdio};
+use std::time::{Duration, Instant};
 
 /// The binary under test (built by cargo for the integration tests).
 pub fn exe() -> PathBuf {
@@ -56,4 +58,146 @@ pub fn mpi_available() -> bool {
 
 pub fn path_str(p: &Path) -> &str {
     p.to_str().expect("temporary paths are UTF-8")
+}
+
+/// `pid` and all its descendants (Open MPI may put ranks in process groups of their own,
+/// so a group kill does not reach them).
+pub fn process_tree(pid: u32) -> Vec<u32> {
+    let mut all = vec![pid];
+    let mut k = 0;
+    while k < all.len() {
+        let out = Command::new("pgrep")
+            .args(["-P", &all[k].to_string()])
+            .output();
+        if let Ok(o) = out {
+            all.extend(
+                String::from_utf8_lossy(&o.stdout)
+                    .split_whitespace()
+                    .filter_map(|t| t.parse::<u32>().ok()),
+            );
+        }
+        k += 1;
+    }
+    all
+}
+
+/// SIGKILL mpirun and every rank, then wait (up to 30 s) until all are gone: only then
+/// may a resume open the file.
+pub fn kill_tree_and_wait(pid: u32) {
+    let pids = process_tree(pid);
+    let args: Vec<String> = std::iter::once("-KILL".to_string())
+        .chain(pids.iter().map(u32::to_string))
+        .collect();
+    let _ = Command::new("kill").args(&args).status();
+    let t0 = Instant::now();
+    let alive = |p: &u32| {
+        std::fs::read_to_string(format!("/proc/{p}/stat")).is_ok_and(|st| {
+            st.rsplit(") ")
+                .next()
+                .is_some_and(|rest| !rest.starts_with('Z'))
+        })
+    };
+    while pids.iter().any(alive) {
+        assert!(
+            t0.elapsed() < Duration::from_secs(30),
+            "processes {pids:?} still alive 30 s after SIGKILL"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
+/// Longest an mpirun job of these tests may take before it counts as hung (the longest
+/// takes a few seconds).
+pub const MPIRUN_LIMIT: Duration = Duration::from_secs(300);
+
+/// Waits for an mpirun job for at most [`MPIRUN_LIMIT`]. Open MPI 4.1's mpirun was seen
+/// here to hang for good after every rank of an aborted job had exited (the ranks left
+/// as zombies, mpirun blocked on a futex); without a limit that hangs the whole test run
+/// until CI's own limit. Past it, the job's processes are killed and the test fails,
+/// naming the hang.
+pub trait Within {
+    /// `Command::output` under the limit (stdin closed).
+    fn output_within(&mut self, what: &str) -> Output;
+}
+
+impl Within for Command {
+    fn output_within(&mut self, what: &str) -> Output {
+        let mut child = self
+            .stdin(Stdio::null())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap_or_else(|e| panic!("{what}: cannot start mpirun: {e}"));
+        let out = drain(child.stdout.take());
+        let err = drain(child.stderr.take());
+        let status = wait_within(&mut child, what);
+        Output {
+            status,
+            stdout: out.join().unwrap_or_default(),
+            stderr: err.join().unwrap_or_default(),
+        }
+    }
+}
+
+/// Reads `pipe` to its end on a thread of its own (so that neither pipe of a child can
+/// fill up and block it while the other is read).
+fn drain(pipe: Option<impl Read + Send + 'static>) -> std::thread::JoinHandle<Vec<u8>> {
+    std::thread::spawn(move || {
+        let mut buf = Vec::new();
+        if let Some(mut r) = pipe {
+            let _ = r.read_to_end(&mut buf);
+        }
+        buf
+    })
+}
+
+/// Waits for the spawned mpirun `child` for at most [`MPIRUN_LIMIT`] (see [`Within`]).
+pub fn wait_within(child: &mut Child, what: &str) -> ExitStatus {
+    wait_at_most(child, what, MPIRUN_LIMIT)
+}
+
+/// Waits for `child` for at most `limit`; past it, kills it and its descendants and
+/// panics.
+fn wait_at_most(child: &mut Child, what: &str, limit: Duration) -> ExitStatus {
+    let t0 = Instant::now();
+    loop {
+        if let Some(status) = child.try_wait().expect("wait for mpirun") {
+            return status;
+        }
+        if t0.elapsed() > limit {
+            let pids = process_tree(child.id());
+            kill_tree_and_wait(child.id());
+            let _ = child.wait();
+            panic!(
+                "{what}: still running after {limit:?}; killed it and its processes \
+                 {pids:?} (an mpirun hang, see common::Within)"
+            );
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
+#[test]
+fn a_hung_job_is_killed_and_named() {
+    // A shell that starts a child and waits: both must be gone after the limit.
+    let mut child = Command::new("sh")
+        .args(["-c", "sleep 30 & wait"])
+        .spawn()
+        .expect("sh");
+    let pid = child.id();
+    let hung = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+        wait_at_most(&mut child, "sleeper", Duration::from_millis(200))
+    }));
+    let message = hung.expect_err("the wait must give up");
+    let message = message
+        .downcast_ref::<String>()
+        .expect("a formatted panic message");
+    assert!(
+        message.starts_with("sleeper: still running after"),
+        "{message}"
+    );
+    assert!(
+        std::fs::metadata(format!("/proc/{pid}")).is_err(),
+        "the hung process is reaped"
+    );
 }

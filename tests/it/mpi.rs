@@ -11,7 +11,7 @@ use std::time::{Duration, Instant};
 
 use ffstream::ffz::FfzReader;
 
-use crate::common::{mpi_available, mpirun, ok, path_str};
+use crate::common::{kill_tree_and_wait, mpi_available, mpirun, ok, path_str, Within};
 use crate::service::assert_same_rows;
 
 const CUBE: &[&str] = &[
@@ -83,7 +83,7 @@ fn mpi_compute_scene(
     args.extend_from_slice(scene);
     args.extend_from_slice(&["-o", path_str(out)]);
     args.extend_from_slice(extra);
-    mpirun(ranks, &args).output().expect("cannot start mpirun")
+    mpirun(ranks, &args).output_within(&format!("mpirun -n {ranks}"))
 }
 
 #[test]
@@ -150,8 +150,7 @@ fn worker_failure_is_named_file_stays_readable_and_resume_completes_it() {
     args.extend_from_slice(&["-o", path_str(&f), "--chunk-kib", "4"]);
     let out = mpirun(3, &args)
         .env("FFSTREAM_FAIL_ROW", "50")
-        .output()
-        .unwrap();
+        .output_within("a failing worker");
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success(), "the job must fail");
     assert!(
@@ -177,8 +176,7 @@ fn a_rank_with_a_different_scene_is_named_before_computing() {
     args.extend_from_slice(&["-o", path_str(&f)]);
     let out = mpirun(3, &args)
         .env("FFSTREAM_TEST_SCENE_RANK", "2:builtin:plates")
-        .output()
-        .unwrap();
+        .output_within("a rank with another scene");
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success());
     assert!(
@@ -187,60 +185,13 @@ fn a_rank_with_a_different_scene_is_named_before_computing() {
     );
     let out = mpirun(3, &args)
         .env("FFSTREAM_TEST_SCENE_RANK", "1:/nonexistent/scene.obj")
-        .output()
-        .unwrap();
+        .output_within("a rank without its scene");
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success());
     assert!(
         stderr.contains("rank 1") && stderr.contains("nonexistent"),
         "{stderr}"
     );
-}
-
-/// `pid` and all its descendants (Open MPI may put ranks in process groups of their own,
-/// so a group kill does not reach them).
-fn process_tree(pid: u32) -> Vec<u32> {
-    let mut all = vec![pid];
-    let mut k = 0;
-    while k < all.len() {
-        let out = std::process::Command::new("pgrep")
-            .args(["-P", &all[k].to_string()])
-            .output();
-        if let Ok(o) = out {
-            all.extend(
-                String::from_utf8_lossy(&o.stdout)
-                    .split_whitespace()
-                    .filter_map(|t| t.parse::<u32>().ok()),
-            );
-        }
-        k += 1;
-    }
-    all
-}
-
-/// SIGKILL mpirun and every rank, then wait (up to 30 s) until all are gone: only then
-/// may a resume open the file.
-fn kill_tree_and_wait(pid: u32) {
-    let pids = process_tree(pid);
-    let args: Vec<String> = std::iter::once("-KILL".to_string())
-        .chain(pids.iter().map(u32::to_string))
-        .collect();
-    let _ = std::process::Command::new("kill").args(&args).status();
-    let t0 = Instant::now();
-    let alive = |p: &u32| {
-        std::fs::read_to_string(format!("/proc/{p}/stat")).is_ok_and(|st| {
-            st.rsplit(") ")
-                .next()
-                .is_some_and(|rest| !rest.starts_with('Z'))
-        })
-    };
-    while pids.iter().any(alive) {
-        assert!(
-            t0.elapsed() < Duration::from_secs(30),
-            "processes {pids:?} still alive 30 s after SIGKILL"
-        );
-        std::thread::sleep(Duration::from_millis(20));
-    }
 }
 
 #[test]
@@ -290,7 +241,7 @@ fn killed_mpi_run_resumes_to_the_same_rows() {
     let r = FfzReader::open(&part).expect("a killed run's file opens (by scan)");
     drop(r);
     args.push("--resume");
-    let out = mpirun(2, &args).output().unwrap();
+    let out = mpirun(2, &args).output_within("resume under mpirun -n 2");
     assert_ok(&out, "resume under mpirun -n 2");
     assert_same_rows(&full, &part);
 }

@@ -12,7 +12,7 @@ use std::path::Path;
 use std::process::{Command, Output};
 use std::time::{Duration, Instant};
 
-use crate::common::{ffstream, mpi_available, mpirun, ok, path_str};
+use crate::common::{ffstream, mpi_available, mpirun, ok, path_str, wait_within, Within};
 use crate::stress_cli::assert_one_error;
 
 const SCENE: &[&str] = &[
@@ -165,14 +165,14 @@ fn kill_and_resume(victim_rank: usize, seed: u64, full: &Path, dir: &Path) -> (f
         std::thread::sleep(Duration::from_millis(2));
     }
     sigkill(victim);
-    let status = child.wait().unwrap();
+    let status = wait_within(&mut child, "a job with a killed rank");
     assert!(
         !status.success(),
         "rank {victim_rank} seed {seed}: the job finished before the kill (fraction {fraction:.2})"
     );
     // Resume under MPI with a different rank count, then compare.
     let args = compute_args(&part, &["--resume"]);
-    let out = mpirun(2, &args).output().unwrap();
+    let out = mpirun(2, &args).output_within("resume under mpirun -n 2");
     assert!(out.status.success(), "resume: {}", output_text(&out));
     let (computed, present) = resumed_counts(&String::from_utf8_lossy(&out.stderr));
     assert_same(&part, full, &format!("kill rank {victim_rank} seed {seed}"));
@@ -218,7 +218,7 @@ fn with_file_limit(limit: u64, cmd: &Command) -> Output {
             None => c.env_remove(k),
         };
     }
-    c.output().unwrap()
+    c.output_within("a run with a file size limit")
 }
 
 #[test]
@@ -306,9 +306,8 @@ fn full_disk_gives_one_clear_error_and_resume_completes_the_file() {
         "one error line naming the file: {text}"
     );
     println!("disk full under mpirun -n 3: {}", errors[0]);
-    let out = mpirun(3, &compute_args(&part, &["--resume"]))
-        .output()
-        .unwrap();
+    let out =
+        mpirun(3, &compute_args(&part, &["--resume"])).output_within("resume after a full disk");
     assert!(out.status.success(), "{}", output_text(&out));
     assert_same(&part, &full, "disk full, mpi");
 }
