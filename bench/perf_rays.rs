@@ -79,8 +79,8 @@ fn main() {
         let build = t0.elapsed().as_secs_f64();
         if let Some(st) = occ.stats() {
             println!(
-                "room:{b} tree: depth {} nodes {} leaves {} node SAH {:.3} block SAH {:.3}",
-                st.depth, st.nodes, st.leaves, st.node_sah, st.block_sah
+                "room:{b} tree: depth {} nodes {} leaves {} blocks {} node SAH {:.3} block SAH {:.3}",
+                st.depth, st.nodes, st.leaves, st.blocks, st.node_sah, st.block_sah
             );
         }
         let mut rng = SplitMix64::new(7);

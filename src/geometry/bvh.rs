@@ -1141,6 +1141,7 @@ mod tests {
             nodes: 1,
             leaves: 1,
             depth: 1,
+            blocks: 1,
             node_sah: 1.0,
             block_sah: 1.0,
         };

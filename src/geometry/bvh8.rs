@@ -15,10 +15,13 @@
 //!   AVX register each;
 //! - the triangles are stored in the tree's primitive order, four to a [`Block`], as
 //!   lanes of planes (the triangle's plane and its three edge planes). A leaf is a
-//!   range of lanes, in up to three blocks: one of obvhs' leaves (at most three
-//!   triangles, consecutive in that order), or a whole node of obvhs' tree whose
-//!   children are all leaves with at most [`WIDE`] triangles together (the leaves of
-//!   one node are next to each other), which spares every path one node level. A
+//!   range of lanes: one of obvhs' leaves (at most three triangles, consecutive in
+//!   that order), or a whole node of obvhs' tree whose children are all leaves with at
+//!   most [`WIDE`] triangles together (the leaves of one node are next to each other),
+//!   which spares every path one node level. Unused lanes pad the blocks so that a
+//!   leaf of up to four triangles lies in one block and a larger one in two (on the
+//!   94.5k-triangle room 8 % more lanes, block SAH 4.14 → 3.70, single rays 10 %
+//!   faster; bench/PERF.md §12); queries name triangles by their index all the same. A
 //!   conservative f32 test ([`Block::classify`]) sorts the lanes into triangles the
 //!   segment misses for sure, crosses for sure, and may meet; the exact f64 test of the
 //!   caller decides only the last kind. So answers are those of the exact test alone:
@@ -554,6 +557,8 @@ pub struct TreeStats {
     pub leaves: usize,
     /// Levels of nodes on the longest path from the root.
     pub depth: usize,
+    /// Blocks of four triangle lanes (272 bytes each), padding lanes included.
+    pub blocks: usize,
     /// Σ over the nodes of area(node) / area(root): the root counts 1.
     pub node_sah: f64,
     /// Σ over the leaves of area(leaf) / area(root) × blocks the leaf spans.
@@ -565,6 +570,10 @@ pub struct TreeStats {
 pub struct Bvh8 {
     nodes: Vec<Node>,
     blocks: Vec<Block>,
+    /// Per lane position: its triangle (index into the `tris` given to
+    /// [`Bvh8::from_cwbvh`]), [`NONE`] for padding; and the position of each triangle.
+    tri_at: Vec<u32>,
+    pos_of: Vec<u32>,
     root: u32,
     /// Most stack entries a walk needs (7 per level below the root, plus one).
     stack_len: usize,
@@ -660,7 +669,25 @@ impl Bvh8 {
         if cw.nodes.is_empty() || tris.is_empty() {
             return None;
         }
-        let blocks = tris
+        let mut b = Bvh8 {
+            nodes: Vec::with_capacity(cw.nodes.len()),
+            blocks: Vec::new(),
+            tri_at: Vec::with_capacity(tris.len() + tris.len() / 4),
+            pos_of: Vec::new(),
+            root: 0,
+            stack_len: 1,
+        };
+        let (_, depth) = b.lay_out(cw, 0, tris);
+        b.stack_len = 7 * depth + 2;
+        b.tri_at.resize(b.tri_at.len().next_multiple_of(4), NONE);
+        b.pos_of = vec![NONE; tris.len()];
+        for (pos, &id) in b.tri_at.iter().enumerate() {
+            if id != NONE {
+                b.pos_of[id as usize] = pos as u32;
+            }
+        }
+        b.blocks = b
+            .tri_at
             .chunks(4)
             .map(|four| {
                 let mut block = Block {
@@ -668,7 +695,10 @@ impl Bvh8 {
                     face: [NONE; 4],
                 };
                 block.p[3] = [1.0; 4];
-                for (lane, t) in four.iter().enumerate() {
+                for (lane, &id) in four.iter().enumerate() {
+                    let Some(t) = tris.get(id as usize) else {
+                        continue;
+                    };
                     for (row, x) in lane_rows(t).into_iter().enumerate() {
                         block.p[row][lane] = x;
                     }
@@ -677,15 +707,21 @@ impl Bvh8 {
                 block
             })
             .collect();
-        let mut b = Bvh8 {
-            nodes: Vec::with_capacity(cw.nodes.len()),
-            blocks,
-            root: 0,
-            stack_len: 1,
-        };
-        let (_, depth) = b.lay_out(cw, 0, tris);
-        b.stack_len = 7 * depth + 2;
         Some(b)
+    }
+
+    /// Gives the leaf of triangles `tris[start..start + count]` its lane positions, after
+    /// padding that keeps it within one block (up to four triangles) or two: returns
+    /// the first.
+    fn place_leaf(&mut self, start: u32, count: u32) -> u32 {
+        let off = self.tri_at.len() % 4;
+        if off + count as usize > count.div_ceil(4) as usize * 4 {
+            self.tri_at
+                .resize(self.tri_at.len().next_multiple_of(4), NONE);
+        }
+        let first = self.tri_at.len() as u32;
+        self.tri_at.extend(start..start + count);
+        first
     }
 
     /// Lays out node `i` of `cw` and everything below it; returns its bounds (the
@@ -722,7 +758,8 @@ impl Bvh8 {
                     bhi = bhi.max(t.max);
                 }
                 let pad = DVec3::splat(BOX_PAD);
-                (LEAF_BIT | start << 3 | (count - 1), (blo - pad, bhi + pad))
+                let first = self.place_leaf(start, count);
+                (LEAF_BIT | first << 3 | (count - 1), (blo - pad, bhi + pad))
             } else {
                 let index = self.nodes.len() as u32;
                 let (bounds, h) = self.lay_out(cw, src.child_node_index(s) as usize, tris);
@@ -848,7 +885,10 @@ impl Bvh8 {
                             continue;
                         }
                         if n_later == DEFERRED {
-                            if later.iter().any(|&id| exact(id as usize)) {
+                            if later
+                                .iter()
+                                .any(|&p| exact(self.tri_at[p as usize] as usize))
+                            {
                                 return true;
                             }
                             n_later = 0;
@@ -866,7 +906,10 @@ impl Bvh8 {
                 }
             },
         );
-        found || later[..n_later].iter().any(|&id| exact(id as usize))
+        found
+            || later[..n_later]
+                .iter()
+                .any(|&p| exact(self.tri_at[p as usize] as usize))
     }
 
     /// [`Bvh8::any_hit`] for the segments of a packet: the lanes blocked by a triangle
@@ -886,6 +929,7 @@ impl Bvh8 {
         mut exact: impl FnMut(usize, usize) -> bool,
     ) -> u32 {
         let counts = |face: u32| face != ignore.0 && face != ignore.1;
+        let mut exact = |lane, pos: usize| exact(lane, self.tri_at[pos] as usize);
         // Lanes not blocked yet.
         let mut open = pk.lanes;
         let mut pending = Pending::new();
@@ -955,6 +999,7 @@ impl Bvh8 {
         first: &mut usize,
         mut exact: impl FnMut(usize, usize) -> bool,
     ) -> u32 {
+        let mut exact = |lane, pos: usize| exact(lane, self.tri_at[pos] as usize);
         let mut open = pk.lanes;
         let mut pending = Pending::new();
         let start = (*first < ids.len()).then_some(*first);
@@ -965,10 +1010,9 @@ impl Bvh8 {
             if open == 0 {
                 break;
             }
-            let id = ids[k] as usize;
             if pending.filter(
                 &self.blocks,
-                id,
+                self.pos_of[ids[k] as usize] as usize,
                 pk,
                 pk.lanes,
                 trust_sure,
@@ -996,7 +1040,7 @@ impl Bvh8 {
         let lo8 = lo.to_array().map(|x| f32x8::splat(round_down(x)));
         let hi8 = hi.to_array().map(|x| f32x8::splat(round_up(x)));
         self.walk(
-            |start, count| (start..start + count).any(&mut visit),
+            |start, count| (start..start + count).any(|pos| visit(self.tri_at[pos] as usize)),
             |node, stack| {
                 let mut m = node.overlap(&lo8, &hi8);
                 while m != 0 {
@@ -1027,6 +1071,7 @@ impl Bvh8 {
             );
         let whole = area(bounds);
         let mut st = TreeStats {
+            blocks: self.blocks.len(),
             node_sah: 1.0,
             ..TreeStats::default()
         };
@@ -1051,8 +1096,8 @@ impl Bvh8 {
     }
 
     /// Checks the layout (for tests): every triangle of `tris` sits in exactly one leaf
-    /// lane, inside the boxes of its leaf and of every node above it; the stack bound
-    /// holds.
+    /// lane, inside the boxes of its leaf and of every node above it; a leaf spans no
+    /// more blocks than its size needs; padding lanes are missed; the stack bound holds.
     pub fn validate(&self, tris: &[Tri]) {
         let mut seen = vec![false; tris.len()];
         let mut levels = 0;
@@ -1061,7 +1106,14 @@ impl Bvh8 {
             levels = levels.max(level);
             if r & LEAF_BIT != 0 {
                 let (start, count) = leaf_range(r);
-                for id in start..start + count {
+                assert_eq!(
+                    (start % 4 + count).div_ceil(4),
+                    count.div_ceil(4),
+                    "leaf at lane {start} spans a block more than it needs"
+                );
+                for pos in start..start + count {
+                    let id = self.tri_at[pos] as usize;
+                    assert_eq!(self.pos_of[id] as usize, pos);
                     assert!(!seen[id], "triangle {id} in two leaves");
                     seen[id] = true;
                     for p in tris[id].v {
@@ -1070,8 +1122,8 @@ impl Bvh8 {
                             "triangle {id} outside its box"
                         );
                     }
-                    let block = &self.blocks[id / 4];
-                    assert_eq!(block.face[id % 4], tris[id].face);
+                    let block = &self.blocks[pos / 4];
+                    assert_eq!(block.face[pos % 4], tris[id].face);
                 }
                 continue;
             }
@@ -1089,10 +1141,10 @@ impl Bvh8 {
             }
         }
         assert!(seen.iter().all(|&s| s), "triangle missing from the leaves");
-        let lanes = self.blocks.len() * 4;
-        for id in tris.len()..lanes {
+        assert_eq!(self.blocks.len() * 4, self.tri_at.len());
+        for (pos, _) in self.tri_at.iter().enumerate().filter(|(_, &id)| id == NONE) {
             assert_eq!(
-                self.blocks[id / 4].p[3][id % 4],
+                self.blocks[pos / 4].p[3][pos % 4],
                 1.0,
                 "unused lane not missed"
             );
@@ -1110,8 +1162,9 @@ impl Bvh8 {
         let ray = &RayLanes::new(ray);
         (0..n)
             .map(|id| {
-                let (sure, maybe) = self.blocks[id / 4].classify(ray);
-                (sure >> (id % 4) & 1 == 1, maybe >> (id % 4) & 1 == 1)
+                let pos = self.pos_of[id] as usize;
+                let (sure, maybe) = self.blocks[pos / 4].classify(ray);
+                (sure >> (pos % 4) & 1 == 1, maybe >> (pos % 4) & 1 == 1)
             })
             .collect()
     }
