@@ -71,13 +71,13 @@ const TRUST: f64 = 1e-7;
 /// every traversal.
 const CLIP: f64 = 1.0;
 
-/// Child reference: a leaf when this bit is set; then bits 3–30 hold its first
-/// triangle and bits 0–2 its triangle count minus one.
+/// Child reference: a leaf when this bit is set; then bits 3–30 hold its first lane
+/// position (see [`Bvh8::from_cwbvh`]) and bits 0–2 its triangle count minus one.
 const LEAF_BIT: u32 = 1 << 31;
 /// Child reference of an empty slot; face of an unused lane.
 const NONE: u32 = u32::MAX;
 
-/// The (first triangle, count) of a leaf reference.
+/// The (first lane position, count) of a leaf reference.
 #[inline(always)]
 fn leaf_range(r: u32) -> (usize, usize) {
     (((r & !LEAF_BIT) >> 3) as usize, (r & 7) as usize + 1)
@@ -658,8 +658,9 @@ impl Bvh8 {
     /// tree.
     ///
     /// # Panics
-    /// With 2²⁸ triangles or more (a leaf reference holds its first triangle in 28
-    /// bits); such a mesh would need some 50 GB for its f64 triangles alone.
+    /// With 2²⁸ lane positions or more, padding included (a leaf reference holds its
+    /// first position in 28 bits); such a mesh would need some 25 GB or more for its
+    /// f64 triangles alone.
     pub fn from_cwbvh(cw: &CwBvh, tris: &[Tri]) -> Option<Self> {
         assert!(
             tris.len() < 1 << 28,
@@ -680,6 +681,12 @@ impl Bvh8 {
         let (_, depth) = b.lay_out(cw, 0, tris);
         b.stack_len = 7 * depth + 2;
         b.tri_at.resize(b.tri_at.len().next_multiple_of(4), NONE);
+        assert!(
+            b.tri_at.len() < 1 << 28,
+            "{} occluder triangles take {} lane positions: fewer than 2^28 are supported",
+            tris.len(),
+            b.tri_at.len()
+        );
         b.pos_of = vec![NONE; tris.len()];
         for (pos, &id) in b.tri_at.iter().enumerate() {
             if id != NONE {
@@ -797,7 +804,7 @@ impl Bvh8 {
         }
     }
 
-    /// Depth-first walk from the root: `leaf(first triangle, count)` for every leaf
+    /// Depth-first walk from the root: `leaf(first lane position, count)` for every leaf
     /// popped (true: stop, and the walk returns true), `node` for every node popped,
     /// which pushes the children to visit (the last pushed is popped first).
     #[inline(always)]
@@ -854,7 +861,7 @@ impl Bvh8 {
         let mut n_later = 0;
         let found = self.walk(
             |start, count| {
-                // The leaf's lanes, in up to three blocks.
+                // The leaf's lanes, in one block or two (`place_leaf`).
                 let (first, lanes) = (start / 4, ((1u32 << count) - 1) << (start % 4));
                 for (k, mask) in [
                     (first, lanes & 0xf),

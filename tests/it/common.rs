@@ -122,20 +122,25 @@ pub trait Within {
 
 impl Within for Command {
     fn output_within(&mut self, what: &str) -> Output {
-        let mut child = self
+        let child = self
             .stdin(Stdio::null())
             .stdout(Stdio::piped())
             .stderr(Stdio::piped())
             .spawn()
-            .unwrap_or_else(|e| panic!("{what}: cannot start mpirun: {e}"));
-        let out = drain(child.stdout.take());
-        let err = drain(child.stderr.take());
-        let status = wait_within(&mut child, what);
-        Output {
-            status,
-            stdout: out.join().unwrap_or_default(),
-            stderr: err.join().unwrap_or_default(),
-        }
+            .unwrap_or_else(|e| panic!("{what}: cannot start: {e}"));
+        output_of_within(child, what)
+    }
+}
+
+/// `Child::wait_with_output` for a spawned mpirun job, under [`MPIRUN_LIMIT`].
+pub fn output_of_within(mut child: Child, what: &str) -> Output {
+    let out = drain(child.stdout.take());
+    let err = drain(child.stderr.take());
+    let status = wait_within(&mut child, what);
+    Output {
+        status,
+        stdout: out.join().unwrap_or_default(),
+        stderr: err.join().unwrap_or_default(),
     }
 }
 

@@ -12,7 +12,9 @@ use std::path::Path;
 use std::process::{Command, Output};
 use std::time::{Duration, Instant};
 
-use crate::common::{ffstream, mpi_available, mpirun, ok, path_str, wait_within, Within};
+use crate::common::{
+    ffstream, mpi_available, mpirun, ok, output_of_within, path_str, wait_within, Within,
+};
 use crate::stress_cli::assert_one_error;
 
 const SCENE: &[&str] = &[
@@ -291,7 +293,7 @@ fn full_disk_gives_one_clear_error_and_resume_completes_the_file() {
         .status()
         .unwrap();
     assert!(set.success());
-    let out = child.wait_with_output().unwrap();
+    let out = output_of_within(child, "a job whose rank 0 meets a full disk");
     assert!(!out.status.success());
     let text = output_text(&out);
     assert!(!text.contains("panicked at"), "{text}");
