@@ -343,6 +343,11 @@ pub fn execute(input: &SceneInput, output: PathBuf, o: &ComputeOptions) -> anyho
     Ok(Outcome::Master(report))
 }
 
+/// How long a failed rank waits for rank 0 to abort the job (it takes milliseconds:
+/// rank 0 finishes the file first) before leaving on its own.
+#[cfg(feature = "mpi")]
+const AWAIT_ABORT: std::time::Duration = std::time::Duration::from_secs(120);
+
 #[cfg(feature = "mpi")]
 fn execute_mpi(input: &SceneInput, output: PathBuf, o: &ComputeOptions) -> anyhow::Result<Outcome> {
     use ffstream::service::mpi::{agree_on_job, run, run_gather, MpiContext};
@@ -379,15 +384,14 @@ fn execute_mpi(input: &SceneInput, output: PathBuf, o: &ComputeOptions) -> anyho
             ctx.abort(1)
         }
         Err(e) => {
-            // Rank 0 names the failure and aborts the job; wait for it in MPI_Finalize.
+            // Rank 0 names the failure and aborts the job: wait for that.
             match e {
                 ServiceError::Setup { .. } | ServiceError::WorkerFailed { .. } => {
                     eprintln!("ffstream: {e}")
                 }
                 _ => eprintln!("ffstream: rank {rank}: {e}"),
             }
-            drop(ctx);
-            std::process::exit(1)
+            ctx.await_abort(AWAIT_ABORT)
         }
     }
 }
