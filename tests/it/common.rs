@@ -132,28 +132,50 @@ impl Within for Command {
     }
 }
 
-/// `Child::wait_with_output` for a spawned mpirun job, under [`MPIRUN_LIMIT`].
-pub fn output_of_within(mut child: Child, what: &str) -> Output {
+/// `Child::wait_with_output` for a spawned mpirun job, under [`MPIRUN_LIMIT`]. Once
+/// the job has ended its pipes must close within [`PIPE_LIMIT`]; a process that
+/// outlived mpirun and still holds one fails the test, named, instead of hanging it.
+pub fn output_of_within(child: Child, what: &str) -> Output {
+    output_at_most(child, what, MPIRUN_LIMIT, PIPE_LIMIT)
+}
+
+/// [`output_of_within`] with its two limits given.
+fn output_at_most(mut child: Child, what: &str, limit: Duration, pipe_limit: Duration) -> Output {
     let out = drain(child.stdout.take());
     let err = drain(child.stderr.take());
-    let status = wait_within(&mut child, what);
+    let status = wait_at_most(&mut child, what, limit);
+    let t0 = Instant::now();
+    let rest = |pipe: &crossbeam::channel::Receiver<Vec<u8>>, name: &str| {
+        pipe.recv_timeout(pipe_limit.saturating_sub(t0.elapsed()))
+            .unwrap_or_else(|_| {
+                panic!(
+                    "{what}: ended ({status}) but its {name} stayed open for \
+                     {pipe_limit:?}: a process outlived it"
+                )
+            })
+    };
     Output {
         status,
-        stdout: out.join().unwrap_or_default(),
-        stderr: err.join().unwrap_or_default(),
+        stdout: rest(&out, "stdout"),
+        stderr: rest(&err, "stderr"),
     }
 }
 
+/// How long the pipes of an ended mpirun job may stay open (see [`output_of_within`]).
+const PIPE_LIMIT: Duration = Duration::from_secs(60);
+
 /// Reads `pipe` to its end on a thread of its own (so that neither pipe of a child can
-/// fill up and block it while the other is read).
-fn drain(pipe: Option<impl Read + Send + 'static>) -> std::thread::JoinHandle<Vec<u8>> {
+/// fill up and block it while the other is read); the bytes arrive on the channel.
+fn drain(pipe: Option<impl Read + Send + 'static>) -> crossbeam::channel::Receiver<Vec<u8>> {
+    let (tx, rx) = crossbeam::channel::bounded(1);
     std::thread::spawn(move || {
         let mut buf = Vec::new();
         if let Some(mut r) = pipe {
             let _ = r.read_to_end(&mut buf);
         }
-        buf
-    })
+        let _ = tx.send(buf);
+    });
+    rx
 }
 
 /// Waits for the spawned mpirun `child` for at most [`MPIRUN_LIMIT`] (see [`Within`]).
@@ -204,5 +226,39 @@ fn a_hung_job_is_killed_and_named() {
     assert!(
         std::fs::metadata(format!("/proc/{pid}")).is_err(),
         "the hung process is reaped"
+    );
+}
+
+#[test]
+fn a_process_outliving_its_job_is_named() {
+    // The shell ends at once; the sleep it leaves holds both pipes for two seconds.
+    let child = Command::new("sh")
+        .args(["-c", "sleep 2 & exit 0"])
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("sh");
+    let t0 = Instant::now();
+    let held = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+        output_at_most(
+            child,
+            "orphan",
+            Duration::from_secs(10),
+            Duration::from_millis(200),
+        )
+    }));
+    let message = held.expect_err("the pipes' wait must give up");
+    let message = message
+        .downcast_ref::<String>()
+        .expect("a formatted panic message");
+    assert!(
+        message.contains("orphan") && message.contains("outlived"),
+        "{message}"
+    );
+    assert!(
+        t0.elapsed() < Duration::from_secs(2),
+        "gave up late: {:?}",
+        t0.elapsed()
     );
 }

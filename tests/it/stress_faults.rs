@@ -13,7 +13,8 @@ use std::process::{Command, Output};
 use std::time::{Duration, Instant};
 
 use crate::common::{
-    ffstream, mpi_available, mpirun, ok, output_of_within, path_str, wait_within, Within,
+    ffstream, kill_tree_and_wait, mpi_available, mpirun, ok, output_of_within, path_str,
+    wait_within, Within,
 };
 use crate::stress_cli::assert_one_error;
 
@@ -69,7 +70,8 @@ fn mix(seed: u64) -> u64 {
     z ^ (z >> 31)
 }
 
-/// The ranks mpirun started: (pid, rank), once all `ranks` are up.
+/// The ranks mpirun started: (pid, rank), once all `ranks` are up. Gives up after 30 s,
+/// killing the job first (a panic alone would leave it running past the test).
 fn rank_pids(mpirun_pid: u32, ranks: usize) -> Vec<(u32, usize)> {
     let t0 = Instant::now();
     loop {
@@ -94,10 +96,12 @@ fn rank_pids(mpirun_pid: u32, ranks: usize) -> Vec<(u32, usize)> {
         if found.len() == ranks {
             return found;
         }
-        assert!(
-            t0.elapsed() < Duration::from_secs(30),
-            "ranks not found: {found:?}"
-        );
+        if t0.elapsed() > Duration::from_secs(30) {
+            kill_tree_and_wait(mpirun_pid);
+            panic!(
+                "{ranks} ranks not found under mpirun {mpirun_pid} in 30 s: {found:?}; job killed"
+            );
+        }
         std::thread::sleep(Duration::from_millis(10));
     }
 }
