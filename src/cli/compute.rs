@@ -122,14 +122,28 @@ pub fn load_scene(spec: &str) -> anyhow::Result<Scene> {
     Ok(scene::open_scene(spec)?)
 }
 
-/// Everything built from the scene: patches and the engine. `announce` prints what was
-/// chosen (rank 0 / embedded only).
+/// What a process does in a run, which decides what [`build_job`] builds and prints.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Role {
+    /// Computes rows and writes the file: an embedded run, or rank 0 of `--gather`.
+    Alone,
+    /// Rank 0 of a streaming MPI run: writes the file and computes nothing, so it
+    /// builds no occluder hierarchy and no row engine (only what the file header
+    /// needs, e.g. the number of occluder triangles).
+    Master,
+    /// An MPI worker: computes rows and prints nothing of the set-up.
+    Worker,
+}
+
+/// Everything built from the scene: patches and, unless `role` is the I/O master, the
+/// engine. The master and a process running alone print what was chosen.
 pub fn build_job(
     input: &SceneInput,
     output: PathBuf,
     o: &ComputeOptions,
-    announce: bool,
+    role: Role,
 ) -> anyhow::Result<ComputeJob> {
+    let announce = role != Role::Worker;
     let setup_start = std::time::Instant::now();
     let scene = tracing::info_span!("load_scene").in_scope(|| load_scene(&input.scene))?;
     if announce {
@@ -191,23 +205,35 @@ pub fn build_job(
         Some(0) => bail!("--top-k must be at least 1"),
         k => k,
     };
-    let occluders = Arc::new(tracing::info_span!("build_bvh").in_scope(
-        || -> anyhow::Result<Occluders> {
-            Ok(match &o.occluders {
-                Some(path) => Occluders::new_foreign(scene::load_obj(path)?.triangles().collect()),
-                None => Occluders::new(scene.triangles().collect()),
-            })
-        },
-    )?);
-    let engine = tracing::info_span!("prepare_engine")
-        .in_scope(|| RowEngine::new(Arc::clone(&patches), occluders, cfg.clone()));
-    if announce {
-        // Every MPI rank does this set-up itself; this is its cost (README: why ranks
-        // load the scene rather than receive it).
-        eprintln!(
-            "ffstream: set-up (load, subdivide, Bvh, engine) took {:.3} s",
-            setup_start.elapsed().as_secs_f64()
-        );
+    let occluder_triangles = match &o.occluders {
+        Some(path) => scene::load_obj(path)?.triangles().collect(),
+        None => scene.triangles().collect(),
+    };
+    let (engine, description) = if role == Role::Master {
+        let kept = Occluders::count_kept(occluder_triangles);
+        (None, RowEngine::description(&cfg, kept))
+    } else {
+        let occluders = Arc::new(tracing::info_span!("build_bvh").in_scope(|| {
+            match &o.occluders {
+                Some(_) => Occluders::new_foreign(occluder_triangles),
+                None => Occluders::new(occluder_triangles),
+            }
+        }));
+        let engine = tracing::info_span!("prepare_engine")
+            .in_scope(|| RowEngine::new(Arc::clone(&patches), occluders, cfg.clone()));
+        let description = engine.describe();
+        (Some(Arc::new(engine)), description)
+    };
+    let took = setup_start.elapsed().as_secs_f64();
+    match role {
+        // Every process that computes does this set-up itself; this is its cost
+        // (README: why ranks load the scene rather than receive it).
+        Role::Alone => eprintln!("ffstream: set-up (load, subdivide, Bvh, engine) took {took:.3} s"),
+        Role::Master => eprintln!(
+            "ffstream: set-up of rank 0 (load, subdivide) took {took:.3} s; it builds no \
+             Bvh or engine, every worker builds its own"
+        ),
+        Role::Worker => {}
     }
     let layout = match cfg.top_k {
         Some(k) => Layout::TopK { k },
@@ -236,7 +262,7 @@ pub fn build_job(
         method: cfg.method.to_string(),
         params: format!(
             "{} max_edge={max_edge} scene={}{}{}",
-            engine.describe(),
+            description,
             input.scene,
             // Half rows give (slightly) different numbers from full rows, so a resume
             // must use the same mode: the header says which one.
@@ -263,7 +289,7 @@ pub fn build_job(
         output,
         meta,
         patches,
-        engine: Arc::new(engine),
+        engine,
         resume: o.resume,
         overwrite: o.force,
         schedule: o.schedule.parse::<Schedule>().map_err(anyhow::Error::msg)?,
@@ -334,7 +360,7 @@ pub fn execute(input: &SceneInput, output: PathBuf, o: &ComputeOptions) -> anyho
     if ffstream::service::mpi::launched_by_mpi() {
         return execute_mpi(input, output, o);
     }
-    let job = build_job(input, output, o, true)?;
+    let job = build_job(input, output, o, Role::Alone)?;
     let report = if o.gather {
         ffstream::service::gather::run_gather_embedded(&job)?
     } else {
@@ -354,14 +380,19 @@ fn execute_mpi(input: &SceneInput, output: PathBuf, o: &ComputeOptions) -> anyho
     let ctx = MpiContext::init()?;
     if ctx.size() == 1 {
         // `mpirun -n 1`: nobody to compute for a pure master; run embedded.
-        let job = build_job(input, output, o, true)?;
+        let job = build_job(input, output, o, Role::Alone)?;
         drop(ctx);
         let report = ffstream::service::embedded::run_embedded(&job)?;
         return Ok(Outcome::Master(report));
     }
     let rank = ctx.rank();
     let input = scene_for_rank(input, rank);
-    let built = build_job(&input, output, o, rank == 0).map_err(|e| format!("{e:#}"));
+    let role = match (rank, o.gather) {
+        (0, true) => Role::Alone, // the paper's baseline: rank 0 computes its share
+        (0, false) => Role::Master,
+        _ => Role::Worker,
+    };
+    let built = build_job(&input, output, o, role).map_err(|e| format!("{e:#}"));
     let result = agree_on_job(&ctx, built).and_then(|job| {
         if o.gather {
             run_gather(&ctx, &job)

@@ -362,11 +362,13 @@ impl RowEngine {
 
     /// The parameters that determine the numbers, for the file header.
     pub fn describe(&self) -> String {
-        format!(
-            "{} occluder_triangles={}",
-            self.cfg.describe(),
-            self.occluders.len()
-        )
+        Self::description(&self.cfg, self.occluders.len())
+    }
+
+    /// What [`RowEngine::describe`] says of an engine with `cfg` and that many occluder
+    /// triangles, without building it.
+    pub fn description(cfg: &FormFactorConfig, occluder_triangles: usize) -> String {
+        format!("{} occluder_triangles={occluder_triangles}", cfg.describe())
     }
 
     /// Row i: dense, or the k largest entries when `top_k` is set. Values are

@@ -522,39 +522,9 @@ impl Occluders {
     /// Builds the hierarchy over `(scene face, triangle)` pairs. Degenerate (zero
     /// area) or non-finite triangles are dropped: they cannot block anything.
     pub fn new(tris: Vec<(u32, [DVec3; 3])>) -> Self {
-        let finite: Vec<(u32, [DVec3; 3])> = tris
-            .into_iter()
-            .filter(|(_, t)| t.iter().all(|p| p.is_finite()))
-            .collect();
-        let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
-        for (_, t) in &finite {
-            for p in t {
-                lo = lo.min(*p);
-                hi = hi.max(*p);
-            }
-        }
-        let diag = (hi - lo).length();
-        if finite.is_empty() || !diag.is_finite() || diag <= 0.0 {
+        let Some((norm, center, diag)) = Self::normalized(tris) else {
             return Occluders::empty();
-        }
-        let center = 0.5 * (lo + hi);
-        let inv_scale = 1.0 / diag;
-        let norm: Vec<OccluderTriangle> = finite
-            .iter()
-            .filter_map(|(f, t)| {
-                OccluderTriangle::new(
-                    *f,
-                    [
-                        (t[0] - center) * inv_scale,
-                        (t[1] - center) * inv_scale,
-                        (t[2] - center) * inv_scale,
-                    ],
-                )
-            })
-            .collect();
-        if norm.is_empty() {
-            return Occluders::empty();
-        }
+        };
         let f32_tris: Vec<Triangle> = norm
             .iter()
             .map(|t| {
@@ -577,9 +547,51 @@ impl Occluders {
             tris: ordered,
             center,
             scale: diag,
-            inv_scale,
+            inv_scale: 1.0 / diag,
             foreign: false,
         }
+    }
+
+    /// The triangles [`Occluders::new`] keeps, in its normalized frame, with that
+    /// frame's centre and scale (None when none is kept).
+    fn normalized(tris: Vec<(u32, [DVec3; 3])>) -> Option<(Vec<OccluderTriangle>, DVec3, f64)> {
+        let finite: Vec<(u32, [DVec3; 3])> = tris
+            .into_iter()
+            .filter(|(_, t)| t.iter().all(|p| p.is_finite()))
+            .collect();
+        let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
+        for (_, t) in &finite {
+            for p in t {
+                lo = lo.min(*p);
+                hi = hi.max(*p);
+            }
+        }
+        let diag = (hi - lo).length();
+        if finite.is_empty() || !diag.is_finite() || diag <= 0.0 {
+            return None;
+        }
+        let center = 0.5 * (lo + hi);
+        let inv_scale = 1.0 / diag;
+        let norm: Vec<OccluderTriangle> = finite
+            .iter()
+            .filter_map(|(f, t)| {
+                OccluderTriangle::new(
+                    *f,
+                    [
+                        (t[0] - center) * inv_scale,
+                        (t[1] - center) * inv_scale,
+                        (t[2] - center) * inv_scale,
+                    ],
+                )
+            })
+            .collect();
+        (!norm.is_empty()).then_some((norm, center, diag))
+    }
+
+    /// How many of `tris` [`Occluders::new`] would keep, without building anything
+    /// (what a rank that casts no rays needs to describe the job).
+    pub fn count_kept(tris: Vec<(u32, [DVec3; 3])>) -> usize {
+        Self::normalized(tris).map_or(0, |(kept, _, _)| kept.len())
     }
 
     /// No occluders at all: nothing is ever occluded.

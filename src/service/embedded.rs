@@ -108,7 +108,7 @@ pub fn run_embedded(job: &ComputeJob) -> Result<ComputeReport, ServiceError> {
     let (assign_tx, assign_rx) = bounded(1);
     let cfg = WorkerConfig::for_job(job, 0, &plan.todo);
     let static_rows = (plan.schedule == Schedule::Folded).then(|| folded_share(&plan.todo, 1, 0));
-    let engine = job.engine.clone();
+    let engine = job.engine().clone();
     let pool = std::thread::Builder::new()
         .name("worker-driver".into())
         .spawn(move || {

@@ -23,7 +23,7 @@ pub fn compute_rows_f64(job: &ComputeJob, rows: &[u32], mut sink: impl FnMut(u32
     std::thread::scope(|s| {
         for _ in 0..threads {
             let (tx, jobs_rx) = (tx.clone(), jobs_rx.clone());
-            let engine = &job.engine;
+            let engine = job.engine();
             s.spawn(move || {
                 let mut scratch = Scratch::default();
                 for i in jobs_rx {

@@ -37,7 +37,9 @@ pub struct ComputeJob {
     pub output: PathBuf,
     pub meta: FileMeta,
     pub patches: Arc<PatchSet>,
-    pub engine: Arc<RowEngine>,
+    /// The row engine; None on the rank 0 of a streaming MPI run, which computes
+    /// nothing and so builds neither the occluder hierarchy nor the per-patch data.
+    pub engine: Option<Arc<RowEngine>>,
     pub resume: bool,
     /// Replace an existing output file. Without it (and without `resume`) an existing
     /// file is an error, so a rerun cannot destroy a long computation by accident.
@@ -54,6 +56,18 @@ pub struct ComputeJob {
     pub flush_seconds: f64,
     /// Show a progress bar / periodic progress lines.
     pub progress: bool,
+}
+
+impl ComputeJob {
+    /// The row engine of a process that computes rows.
+    ///
+    /// # Panics
+    /// On a job built without one (an I/O master's): a caller bug.
+    pub fn engine(&self) -> &Arc<RowEngine> {
+        self.engine
+            .as_ref()
+            .expect("this job was built for the I/O master, which computes no rows")
+    }
 }
 
 /// What one worker (embedded pool or MPI rank) did.

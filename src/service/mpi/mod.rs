@@ -238,7 +238,7 @@ pub fn run(ctx: &MpiContext, job: &ComputeJob) -> Result<Option<ComputeReport>, 
             .then(|| folded_share(&todo, workers, (ctx.rank() - 1) as usize));
         let cfg = WorkerConfig::for_job(job, ctx.rank(), &todo);
         let mut link = MpiWorkerLink { world };
-        run_worker(&job.engine, &cfg, &mut link, static_rows)?;
+        run_worker(job.engine(), &cfg, &mut link, static_rows)?;
         Ok(None)
     }
 }
