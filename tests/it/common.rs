@@ -60,35 +60,70 @@ pub fn path_str(p: &Path) -> &str {
     p.to_str().expect("temporary paths are UTF-8")
 }
 
+/// "rows: X computed, Y skipped (not needed), Z already present" → (X, Z).
+pub fn resumed_counts(stderr: &str) -> (u64, u64) {
+    let line = stderr
+        .lines()
+        .find(|l| l.starts_with("rows: "))
+        .unwrap_or_else(|| panic!("no rows line: {stderr}"));
+    let num = |after: &str| -> u64 {
+        let w: Vec<&str> = line.split_whitespace().collect();
+        let k = w.iter().position(|x| *x == after).unwrap();
+        w[k - 1].trim_end_matches(',').parse().unwrap()
+    };
+    (num("computed,"), num("already"))
+}
+
+/// The processes whose parent is `pid`, read from `/proc/*/stat` (a minimal Debian has
+/// no procps, so no `pgrep`).
+pub fn children(pid: u32) -> Vec<u32> {
+    let Ok(dir) = std::fs::read_dir("/proc") else {
+        return Vec::new();
+    };
+    dir.filter_map(|e| e.ok()?.file_name().to_str()?.parse::<u32>().ok())
+        .filter(|&p| {
+            // "PID (COMM) STATE PPID ...": COMM may hold spaces and parentheses, so the
+            // fields are counted from the last ") ".
+            std::fs::read_to_string(format!("/proc/{p}/stat")).is_ok_and(|st| {
+                st.rsplit_once(") ")
+                    .and_then(|(_, rest)| rest.split_whitespace().nth(1))
+                    .and_then(|ppid| ppid.parse::<u32>().ok())
+                    == Some(pid)
+            })
+        })
+        .collect()
+}
+
 /// `pid` and all its descendants (Open MPI may put ranks in process groups of their own,
 /// so a group kill does not reach them).
 pub fn process_tree(pid: u32) -> Vec<u32> {
     let mut all = vec![pid];
     let mut k = 0;
     while k < all.len() {
-        let out = Command::new("pgrep")
-            .args(["-P", &all[k].to_string()])
-            .output();
-        if let Ok(o) = out {
-            all.extend(
-                String::from_utf8_lossy(&o.stdout)
-                    .split_whitespace()
-                    .filter_map(|t| t.parse::<u32>().ok()),
-            );
-        }
+        let below = children(all[k]);
+        all.extend(below);
         k += 1;
     }
     all
+}
+
+/// SIGKILL to `pid` (no `kill` command needed: it is procps' on Debian). A process that
+/// is already gone is not an error.
+pub fn sigkill(pid: u32) {
+    let pid = libc::pid_t::try_from(pid).expect("a pid fits pid_t");
+    // SAFETY: kill(2) takes plain integers and touches no memory of ours.
+    unsafe {
+        libc::kill(pid, libc::SIGKILL);
+    }
 }
 
 /// SIGKILL mpirun and every rank, then wait (up to 30 s) until all are gone: only then
 /// may a resume open the file.
 pub fn kill_tree_and_wait(pid: u32) {
     let pids = process_tree(pid);
-    let args: Vec<String> = std::iter::once("-KILL".to_string())
-        .chain(pids.iter().map(u32::to_string))
-        .collect();
-    let _ = Command::new("kill").args(&args).status();
+    for &p in &pids {
+        sigkill(p);
+    }
     let t0 = Instant::now();
     let alive = |p: &u32| {
         std::fs::read_to_string(format!("/proc/{p}/stat")).is_ok_and(|st| {
@@ -104,6 +139,41 @@ pub fn kill_tree_and_wait(pid: u32) {
         );
         std::thread::sleep(Duration::from_millis(20));
     }
+}
+
+/// True when a test may use `tool`; `found` says whether it is there. A missing tool
+/// fails the test with a message that names it (`make test` installs every tool the
+/// tests call), unless the variable `skip` is set, which turns the test into a no-op
+/// that says so.
+pub fn need_tool(tool: &str, found: bool, skip: &str) -> bool {
+    if found {
+        return true;
+    }
+    if std::env::var_os(skip).is_some() {
+        eprintln!("skipped: {tool} is missing and {skip} is set");
+        return false;
+    }
+    panic!("this test needs {tool}, which is missing: run `make test` (it installs it), or set {skip}=1 to skip the tests that need it");
+}
+
+/// True when `cmd --version` runs.
+pub fn runs(cmd: &str) -> bool {
+    Command::new(cmd)
+        .arg("--version")
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .status()
+        .is_ok()
+}
+
+/// [`need_tool`] for MPI: mpirun on PATH and a binary built with the `mpi` feature
+/// (`FFSTREAM_SKIP_MPI`).
+pub fn need_mpi() -> bool {
+    need_tool(
+        "mpirun (Open MPI) and a binary built with the mpi feature",
+        mpi_available(),
+        "FFSTREAM_SKIP_MPI",
+    )
 }
 
 /// Longest an mpirun job of these tests may take before it counts as hung (the longest

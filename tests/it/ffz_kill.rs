@@ -147,9 +147,12 @@ fn kill_mid_stream_then_resume() {
 /// the write fails with EFBIG instead of killing the process).
 #[test]
 fn full_disk_error_names_the_path_and_keeps_chunks() {
-    let have = |p: &str| Command::new(p).arg("--version").output().is_ok();
-    if !have("prlimit") || !have("bash") {
-        println!("skipped: prlimit or bash not available");
+    use crate::common::{need_tool, runs};
+    if !need_tool(
+        "prlimit (util-linux) and bash",
+        runs("prlimit") && runs("bash"),
+        "FFSTREAM_SKIP_PRLIMIT",
+    ) {
         return;
     }
     let dir = tempfile::tempdir().unwrap();

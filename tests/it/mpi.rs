@@ -11,7 +11,7 @@ use std::time::{Duration, Instant};
 
 use ffstream::ffz::FfzReader;
 
-use crate::common::{kill_tree_and_wait, mpi_available, mpirun, ok, path_str, Within};
+use crate::common::{kill_tree_and_wait, mpirun, need_mpi, ok, path_str, resumed_counts, Within};
 use crate::service::assert_same_rows;
 
 const CUBE: &[&str] = &[
@@ -22,17 +22,6 @@ const CUBE: &[&str] = &[
     "--threads",
     "1",
 ];
-
-fn need_mpi() -> bool {
-    if mpi_available() {
-        return true;
-    }
-    if std::env::var_os("FFSTREAM_SKIP_MPI").is_some() {
-        eprintln!("skipped: FFSTREAM_SKIP_MPI is set and mpirun or the mpi feature is missing");
-        return false;
-    }
-    panic!("mpirun not found or ffstream built without the mpi feature (run `make test`, or set FFSTREAM_SKIP_MPI=1)");
-}
 
 fn mpi_compute(ranks: usize, out: &Path, extra: &[&str]) -> std::process::Output {
     mpi_compute_scene(ranks, CUBE, out, extra)
@@ -236,12 +225,24 @@ fn killed_mpi_run_resumes_to_the_same_rows() {
     }
     // SIGKILL the whole job (a SIGKILLed mpirun alone can leave ranks running: the
     // file's writer lock would then, rightly, refuse the resume).
+    let finished_first = child.try_wait().expect("poll mpirun").is_some();
     kill_tree_and_wait(child.id());
     let _ = child.wait();
     let r = FfzReader::open(&part).expect("a killed run's file opens (by scan)");
+    let missing = r.presence().missing().len();
     drop(r);
+    // The kill must have landed mid-run, or the resume below would test nothing.
+    assert!(
+        !finished_first && missing > 0,
+        "the job was not interrupted (ended before the kill: {finished_first}, {missing} rows missing)"
+    );
     args.push("--resume");
     let out = mpirun(2, &args).output_within("resume under mpirun -n 2");
     assert_ok(&out, "resume under mpirun -n 2");
+    let (computed, present) = resumed_counts(&String::from_utf8_lossy(&out.stderr));
+    assert!(
+        computed as usize == missing && present > 0,
+        "resume computed {computed} rows and kept {present}; {missing} were missing"
+    );
     assert_same_rows(&full, &part);
 }

@@ -343,13 +343,17 @@ fn killed_run_resumes_to_the_same_rows_with(symmetric: &str) {
     let presence = r.presence();
     let missing = presence.missing().len();
     drop(r);
-    if status.success() {
-        eprintln!("note: the run finished before the kill; resume is then a no-op");
-    } else {
-        assert!(missing > 0, "a killed run should have missing rows");
-    }
+    // The kill must have landed mid-run, or the resume below would test nothing.
+    assert!(
+        !status.success() && missing > 0,
+        "the run was not interrupted ({status}, {missing} rows missing): it needs more work"
+    );
     let stderr = compute(&scene, &part, &[&extra[..], &["--resume"]].concat());
-    eprintln!("{stderr}");
+    let (computed, present) = crate::common::resumed_counts(&stderr);
+    assert!(
+        computed as usize == missing && present > 0,
+        "resume computed {computed} rows and kept {present}; {missing} were missing\n{stderr}"
+    );
     assert_same_rows(&full, &part);
     assert!(!ffstream::service::symmetric::spill_path(&part).exists());
 }

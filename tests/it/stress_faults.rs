@@ -4,7 +4,7 @@
 //! rows equal an uninterrupted run's (`ffstream verify A --against B`, exit 0). Killing
 //! mpirun itself and a worker failing on one row are in `mpi.rs` / `service.rs`.
 //!
-//! Ranks are found as mpirun's children (`pgrep -P`, Open MPI's local launch), each
+//! Ranks are found as mpirun's children (read from /proc, Open MPI's local launch), each
 //! rank read from its OMPI_COMM_WORLD_RANK in /proc/PID/environ: no product code needed.
 //! 3 seeds per victim by default, 10 with FFSTREAM_STRESS_LONG=1.
 
@@ -13,8 +13,8 @@ use std::process::{Command, Output};
 use std::time::{Duration, Instant};
 
 use crate::common::{
-    ffstream, kill_tree_and_wait, mpi_available, mpirun, ok, output_of_within, path_str,
-    wait_within, Within,
+    children, ffstream, kill_tree_and_wait, mpirun, need_mpi, need_tool, ok, output_of_within,
+    path_str, resumed_counts, runs, sigkill, wait_within, Within,
 };
 use crate::stress_cli::assert_one_error;
 
@@ -49,19 +49,6 @@ fn seeds() -> u64 {
     }
 }
 
-fn need_mpi() -> bool {
-    if mpi_available() {
-        return true;
-    }
-    if std::env::var_os("FFSTREAM_SKIP_MPI").is_some() {
-        eprintln!("skipped: FFSTREAM_SKIP_MPI is set and mpirun or the mpi feature is missing");
-        return false;
-    }
-    panic!(
-        "mpirun not found or ffstream built without the mpi feature (or set FFSTREAM_SKIP_MPI=1)"
-    );
-}
-
 /// Deterministic pseudo-random numbers from a seed (splitmix64).
 fn mix(seed: u64) -> u64 {
     let mut z = seed.wrapping_add(0x9E37_79B9_7F4A_7C15);
@@ -75,12 +62,8 @@ fn mix(seed: u64) -> u64 {
 fn rank_pids(mpirun_pid: u32, ranks: usize) -> Vec<(u32, usize)> {
     let t0 = Instant::now();
     loop {
-        let out = Command::new("pgrep")
-            .args(["-P", &mpirun_pid.to_string()])
-            .output()
-            .expect("pgrep");
         let mut found = Vec::new();
-        for pid in String::from_utf8_lossy(&out.stdout).split_whitespace() {
+        for pid in children(mpirun_pid) {
             let Ok(env) = std::fs::read(format!("/proc/{pid}/environ")) else {
                 continue;
             };
@@ -89,7 +72,7 @@ fn rank_pids(mpirun_pid: u32, ranks: usize) -> Vec<(u32, usize)> {
                 .filter_map(|kv| std::str::from_utf8(kv).ok())
                 .find_map(|kv| kv.strip_prefix("OMPI_COMM_WORLD_RANK="))
                 .and_then(|r| r.parse().ok());
-            if let (Some(rank), Ok(pid)) = (rank, pid.parse()) {
+            if let Some(rank) = rank {
                 found.push((pid, rank));
             }
         }
@@ -106,12 +89,6 @@ fn rank_pids(mpirun_pid: u32, ranks: usize) -> Vec<(u32, usize)> {
     }
 }
 
-fn sigkill(pid: u32) {
-    let _ = Command::new("kill")
-        .args(["-KILL", &pid.to_string()])
-        .status();
-}
-
 /// `verify A --against B` exits 0: every row present and bitwise identical.
 fn assert_same(a: &Path, b: &Path, what: &str) {
     let v = ffstream(&["verify", path_str(a), "--against", path_str(b)]);
@@ -124,19 +101,6 @@ fn assert_same(a: &Path, b: &Path, what: &str) {
     );
 }
 
-/// "rows: X computed, Y skipped (not needed), Z already present" → (X, Z).
-fn resumed_counts(stderr: &str) -> (u64, u64) {
-    let line = stderr
-        .lines()
-        .find(|l| l.starts_with("rows: "))
-        .unwrap_or_else(|| panic!("no rows line: {stderr}"));
-    let num = |after: &str| -> u64 {
-        let w: Vec<&str> = line.split_whitespace().collect();
-        let k = w.iter().position(|x| *x == after).unwrap();
-        w[k - 1].trim_end_matches(',').parse().unwrap()
-    };
-    (num("computed,"), num("already"))
-}
 
 fn output_text(o: &Output) -> String {
     format!(
@@ -229,9 +193,8 @@ fn with_file_limit(limit: u64, cmd: &Command) -> Output {
 
 #[test]
 fn full_disk_gives_one_clear_error_and_resume_completes_the_file() {
-    let have = |p: &str| Command::new(p).arg("--version").output().is_ok();
-    if !have("prlimit") {
-        panic!("prlimit (util-linux) is needed");
+    if !need_tool("prlimit (util-linux)", runs("prlimit"), "FFSTREAM_SKIP_PRLIMIT") {
+        return;
     }
     let dir = tempfile::tempdir().unwrap();
     let full = dir.path().join("full.ffz");
