@@ -37,11 +37,11 @@ endif
 .PHONY: demo demo-mpi test deps sys-deps py-deps build bench bench-quick fuzz clean
 
 demo: deps build
-	./target/release/ffstream run builtin:cornell -o out/cornell
+	./target/release/ffstream run builtin:cornell --out-dir out/cornell
 	@echo "==> picture: out/cornell/image.png (radiosity table: out/cornell/radiosity.csv)"
 
 demo-mpi: deps build
-	mpirun -n 3 --oversubscribe ./target/release/ffstream run builtin:cornell -o out/cornell-mpi
+	mpirun -n 3 --oversubscribe ./target/release/ffstream run builtin:cornell --out-dir out/cornell-mpi
 
 # The Python reader is also checked against `ffstream export` of a real computed file
 # (the Cornell box at 300 patches), through FFZ_FILE/FFZ_MTX/FFZ_CSV.
@@ -53,7 +53,7 @@ test: deps
 	$(PYTHON) bench/run.py --quick
 	@tmp=$$(mktemp -d) && \
 	./target/debug/ffstream compute builtin:cornell --patches 300 --quiet -o $$tmp/c.ffz && \
-	./target/debug/ffstream export $$tmp/c.ffz --matrix $$tmp/c.mtx --patches $$tmp/c.csv && \
+	./target/debug/ffstream export $$tmp/c.ffz --matrix $$tmp/c.mtx --patches-csv $$tmp/c.csv && \
 	FFZ_FILE=$$tmp/c.ffz FFZ_MTX=$$tmp/c.mtx FFZ_CSV=$$tmp/c.csv $(PYTHON) -m pytest -q -p no:cacheprovider formats; \
 	status=$$?; rm -rf $$tmp; exit $$status
 

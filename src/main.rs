@@ -14,19 +14,14 @@ fn main() -> ExitCode {
     match cli::dispatch(args) {
         Ok(code) => code,
         Err(e) => {
-            // One line: the cause chain joined, outermost first.
-            // Causes whose text the outer message already quotes (errors that both
-            // print and chain their source) are left out, so nothing is said twice.
-            let mut line = String::new();
-            for c in e.chain() {
-                let text = c.to_string();
-                if !line.contains(&text) {
-                    if !line.is_empty() {
-                        line += ": ";
-                    }
-                    line += &text;
-                }
-            }
+            // One line: the cause chain joined, outermost first. Every error type of
+            // the library either quotes its cause in its message or returns it as its
+            // source, never both, so nothing is said twice.
+            let line = e
+                .chain()
+                .map(ToString::to_string)
+                .collect::<Vec<_>>()
+                .join(": ");
             eprintln!("ffstream: error: {line}");
             ExitCode::from(1)
         }

@@ -15,8 +15,9 @@ use ffstream::geometry::subdivide::{default_max_edge, patch_count, subdivide};
 use ffstream::scene::{self, Scene};
 #[cfg(feature = "mpi")]
 use ffstream::service::ServiceError;
-use ffstream::service::{ComputeJob, ComputeReport, RowSelection, Schedule};
+use ffstream::service::{ComputeJob, ComputeReport};
 
+use super::choices::{MethodArg, PresetArg, RowsArg, ScheduleArg, SymmetricArg};
 use super::SceneInput;
 
 /// Most patches a job may have: 2^26 (row ids are u32; the patch table alone is then
@@ -37,15 +38,12 @@ pub struct ComputeArgs {
 /// Settings of the form-factor computation and of the service (shared with `run`).
 #[derive(Args, Debug, Clone)]
 pub struct ComputeOptions {
-    /// Settings preset: fast, accurate (default) or reference. Options given explicitly
-    /// override the preset's values.
-    #[arg(long, default_value = "accurate", value_name = "PRESET")]
-    pub preset: String,
-    /// Form-factor method: point (centroid kernel, 1 ray: the paper's baseline), mc
-    /// (stratified area-to-area Monte Carlo), contour (exact unoccluded double contour
-    /// integral times a ray-estimated visibility).
-    #[arg(long, value_name = "METHOD")]
-    pub method: Option<String>,
+    /// Settings preset. Options given explicitly override the preset's values.
+    #[arg(long, value_enum, default_value_t = PresetArg::Accurate, value_name = "PRESET")]
+    pub preset: PresetArg,
+    /// Form-factor method (default: the preset's, contour).
+    #[arg(long, value_enum, value_name = "METHOD")]
+    pub method: Option<MethodArg>,
     /// Visibility samples per pair (mc: point pairs; contour: rays per pair that may be
     /// occluded, fewer only when --first-batch is below it and the first rays agree).
     #[arg(long, value_name = "S")]
@@ -60,19 +58,18 @@ pub struct ComputeOptions {
     /// Compute threads per process (embedded) or per worker rank (MPI). Default: all cores.
     #[arg(long, value_name = "T")]
     pub threads: Option<usize>,
-    /// Work distribution: dynamic (workers ask for batches) or folded (the paper's static
-    /// assignment).
-    #[arg(long, default_value = "dynamic", value_name = "SCHEDULE")]
-    pub schedule: String,
+    /// Work distribution over the workers.
+    #[arg(long, value_enum, default_value_t = ScheduleArg::Dynamic, value_name = "SCHEDULE")]
+    pub schedule: ScheduleArg,
     /// Seed of the visibility sampling (rows depend on it and on (i, j) only, never on
     /// threads or ranks).
     #[arg(long, default_value_t = 0, value_name = "N")]
     pub seed: u64,
-    /// Which rows: all, or needed (skip rows of patches that neither reflect nor emit:
-    /// a gathering solve never reads them; the file marks them skipped). Default: all
-    /// for `compute`, needed for `run`.
-    #[arg(long, value_name = "ROWS")]
-    pub rows: Option<String>,
+    /// Which rows to compute (a gathering solve never reads the rows of patches that
+    /// neither reflect nor emit; the file marks them skipped). Default: all for
+    /// `compute`, needed for `run`.
+    #[arg(long, value_enum, value_name = "ROWS")]
+    pub rows: Option<RowsArg>,
     /// Complete a partial file (after a crash or kill): compute only the missing rows.
     #[arg(long)]
     pub resume: bool,
@@ -88,8 +85,8 @@ pub struct ComputeOptions {
     /// bound already skips most of the work, and the spill would hold half of all
     /// entries), for --gather, and for the point and mc baselines (they clamp each
     /// direction to 1, so a mirrored value is not the other direction; `on` refuses them).
-    #[arg(long, default_value = "auto", value_name = "auto|on|off")]
-    pub symmetric: String,
+    #[arg(long, value_enum, default_value_t = SymmetricArg::Auto, value_name = "MODE")]
+    pub symmetric: SymmetricArg,
     /// The paper's design, as a baseline: every rank computes, rank 0 gathers the dense
     /// f64 matrix in memory and writes it at the end.
     #[arg(long)]
@@ -107,8 +104,8 @@ pub struct ComputeOptions {
     /// Do not fsync the file at the end (faster; a power loss may lose the index).
     #[arg(long)]
     pub no_fsync: bool,
-    /// No progress display.
-    #[arg(short, long)]
+    /// No progress display: the global -q/--quiet, set by `dispatch`.
+    #[arg(skip)]
     pub quiet: bool,
     /// Visibility against this mesh (OBJ, same geometry, usually coarser) instead of the
     /// scene's own faces. Self-occlusion is then told apart by the patches' planes.
@@ -184,9 +181,9 @@ pub fn build_job(
     if patches.is_empty() {
         bail!("{}: the scene has no patches", input.scene);
     }
-    let mut cfg = FormFactorConfig::preset(&o.preset).map_err(anyhow::Error::msg)?;
-    if let Some(m) = &o.method {
-        cfg.method = m.parse::<Method>().map_err(anyhow::Error::msg)?;
+    let mut cfg = FormFactorConfig::preset(o.preset.into());
+    if let Some(m) = o.method {
+        cfg.method = m.into();
     }
     if let Some(s) = o.samples {
         if s == 0 {
@@ -244,18 +241,17 @@ pub fn build_job(
     // `point` and `mc` baselines clamp each direction to 1 on their own, and a mirrored
     // clamped value can exceed 1 (row sums of 4.5 seen on the Cornell box with mc).
     let halves_ok = cfg.method == Method::Contour;
-    let symmetric = match (o.symmetric.as_str(), o.gather) {
-        ("on", true) => bail!(
+    let symmetric = match (o.symmetric, o.gather) {
+        (SymmetricArg::On, true) => bail!(
             "--gather is the paper's full-row baseline: it cannot be combined with --symmetric on"
         ),
-        ("on", false) if !halves_ok => bail!(
+        (SymmetricArg::On, false) if !halves_ok => bail!(
             "--symmetric on needs --method contour: the {} kernel clamps each direction to 1, so its mirror is not its other direction",
             cfg.method
         ),
-        ("on", false) => true,
-        ("off", _) | ("auto", true) => false,
-        ("auto", false) => cfg.top_k.is_none() && halves_ok,
-        (other, _) => bail!("unknown --symmetric '{other}' (expected auto, on or off)"),
+        (SymmetricArg::On, false) => true,
+        (SymmetricArg::Off, _) | (SymmetricArg::Auto, true) => false,
+        (SymmetricArg::Auto, false) => cfg.top_k.is_none() && halves_ok,
     };
     let meta = FileMeta {
         layout,
@@ -292,14 +288,9 @@ pub fn build_job(
         engine,
         resume: o.resume,
         overwrite: o.force,
-        schedule: o.schedule.parse::<Schedule>().map_err(anyhow::Error::msg)?,
+        schedule: o.schedule.into(),
         symmetric,
-        rows: o
-            .rows
-            .as_deref()
-            .unwrap_or("all")
-            .parse::<RowSelection>()
-            .map_err(anyhow::Error::msg)?,
+        rows: o.rows.unwrap_or(RowsArg::All).into(),
         threads,
         writer: WriterOptions {
             zstd_level: o.zstd_level,

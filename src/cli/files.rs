@@ -29,8 +29,9 @@ pub struct ExportArgs {
     #[arg(long, value_name = "F.mtx")]
     pub matrix: Option<PathBuf>,
     /// Write the patch table as CSV (patch,group,area,cx,cy,cz,nx,ny,nz,rho_*,e_*).
-    #[arg(long, value_name = "patches.csv")]
-    pub patches: Option<PathBuf>,
+    /// (`--patches` is the old spelling, kept for one release.)
+    #[arg(long, alias = "patches", value_name = "patches.csv")]
+    pub patches_csv: Option<PathBuf>,
 }
 
 pub fn info(a: InfoArgs) -> anyhow::Result<ExitCode> {
@@ -50,9 +51,9 @@ pub fn verify(a: VerifyArgs) -> anyhow::Result<ExitCode> {
 }
 
 pub fn export(a: ExportArgs) -> anyhow::Result<ExitCode> {
-    if a.matrix.is_none() && a.patches.is_none() {
-        anyhow::bail!("nothing to export: give --matrix F.mtx and/or --patches patches.csv");
+    if a.matrix.is_none() && a.patches_csv.is_none() {
+        anyhow::bail!("nothing to export: give --matrix F.mtx and/or --patches-csv patches.csv");
     }
-    ffstream::ffz::tools::export(&a.file, a.matrix.as_deref(), a.patches.as_deref())?;
+    ffstream::ffz::tools::export(&a.file, a.matrix.as_deref(), a.patches_csv.as_deref())?;
     Ok(ExitCode::SUCCESS)
 }

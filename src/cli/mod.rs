@@ -1,6 +1,7 @@
 //! Command-line layer: clap structures holding raw values, turned into validated
 //! library settings by each subcommand's module. The library never sees clap.
 
+mod choices;
 mod compute;
 mod files;
 mod render;
@@ -29,6 +30,10 @@ pub struct Cli {
     /// More log output (-v: info, -vv: debug). RUST_LOG overrides.
     #[arg(short, long, action = clap::ArgAction::Count, global = true)]
     pub verbose: u8,
+    /// No progress display (the rows, rows/s and ETA lines of compute and run); results,
+    /// warnings and errors are still printed.
+    #[arg(short, long, global = true)]
+    pub quiet: bool,
     #[command(subcommand)]
     pub command: Command,
 }
@@ -56,7 +61,10 @@ pub enum Command {
 /// How the scene is given and cut into patches (shared by compute and run).
 #[derive(Args, Debug, Clone)]
 pub struct SceneInput {
-    /// OBJ file (with its MTL), or builtin:NAME[:PARAM] for a built-in scene.
+    /// OBJ file (with its MTL), or builtin:NAME[:PARAM] for a built-in scene (NAME one
+    /// of cornell, cube, plates, perpendicular, obstructed, room; see `ffstream scene
+    /// --help`).
+    #[arg(value_parser = scene_spec)]
     pub scene: String,
     /// Longest patch edge, in scene units. Default: chosen so the scene gets about
     /// --patches patches (the value chosen is printed).
@@ -65,6 +73,26 @@ pub struct SceneInput {
     /// Target patch count used to choose --max-edge when it is not given.
     #[arg(long, value_name = "N", default_value_t = 2000)]
     pub patches: usize,
+}
+
+/// Checks a `builtin:NAME[:PARAM]` scene at parse time (a usage error naming the
+/// possible scenes); a file path is checked when it is opened.
+fn scene_spec(spec: &str) -> Result<String, String> {
+    if let Some(body) = spec.strip_prefix("builtin:") {
+        let (name, param) = body.split_once(':').map_or((body, None), |(n, p)| (n, Some(p)));
+        let names = ffstream::scene::builtin_names();
+        if !names.contains(&name) {
+            return Err(format!(
+                "unknown built-in scene `{name}` [possible values: {}]",
+                names.join(", ")
+            ));
+        }
+        if let Some(p) = param {
+            p.parse::<f64>()
+                .map_err(|_| format!("the parameter `{p}` of builtin:{name} is not a number"))?;
+        }
+    }
+    Ok(spec.to_string())
 }
 
 pub fn init_tracing(verbose: u8) {
@@ -85,13 +113,19 @@ pub fn init_tracing(verbose: u8) {
 pub fn dispatch(cli: Cli) -> anyhow::Result<ExitCode> {
     match cli.command {
         Command::Scene(a) => scene::run(a),
-        Command::Compute(a) => compute::run(a),
+        Command::Compute(mut a) => {
+            a.opts.quiet = cli.quiet;
+            compute::run(a)
+        }
         Command::Info(a) => files::info(a),
         Command::Verify(a) => files::verify(a),
         Command::Export(a) => files::export(a),
         Command::Solve(a) => solve::run(a),
         Command::Render(a) => render::run(a),
-        Command::Run(a) => run::run(a),
+        Command::Run(mut a) => {
+            a.compute.quiet = cli.quiet;
+            run::run(a)
+        }
     }
 }
 

@@ -29,8 +29,8 @@ pub struct ViewOptions {
     /// Camera as ex,ey,ez,tx,ty,tz,ux,uy,uz,fov (eye, target, up, vertical field of view
     /// in degrees). Default: the published Cornell box camera for the Cornell box,
     /// otherwise a view that frames the whole scene.
-    #[arg(long, value_name = "CAMERA", allow_hyphen_values = true)]
-    pub camera: Option<String>,
+    #[arg(long, value_name = "CAMERA", allow_hyphen_values = true, value_parser = parse_camera)]
+    pub camera: Option<Camera>,
     /// Per-patch colours instead of radiosity interpolated across patches (Gouraud).
     #[arg(long)]
     pub flat: bool,
@@ -50,6 +50,11 @@ pub struct ViewOptions {
     /// Samples per pixel for anti-aliasing (a perfect square: 1, 4, 9, 16).
     #[arg(long, default_value_t = 9, value_name = "N")]
     pub spp: u32,
+}
+
+/// `--camera`, checked when the command line is read (a usage error).
+fn parse_camera(s: &str) -> Result<Camera, String> {
+    s.parse::<Camera>().map_err(|e| e.to_string())
 }
 
 /// The group names of the Cornell box (built-in and the published file).
@@ -84,8 +89,8 @@ pub fn render_to(
     v: &ViewOptions,
     wireframe: bool,
 ) -> anyhow::Result<()> {
-    let camera = match &v.camera {
-        Some(s) => s.parse::<Camera>()?,
+    let camera = match v.camera {
+        Some(c) => c,
         None => {
             let mut c = default_camera(patches);
             if v.width != v.height

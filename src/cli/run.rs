@@ -6,6 +6,7 @@ use std::process::ExitCode;
 
 use clap::Args;
 
+use super::choices::{RowsArg, SolverArg};
 use super::compute::{execute, ComputeOptions, Outcome};
 use super::render::{render_to, ViewOptions};
 use super::solve::{solve_file, SolveOptions};
@@ -16,14 +17,15 @@ pub struct RunArgs {
     #[command(flatten)]
     pub input: SceneInput,
     /// Output directory (default: out/SCENE_NAME). It receives form_factors.ffz,
-    /// radiosity.csv, lit.ply, image.png and wireframe.png.
-    #[arg(short, long, value_name = "DIR")]
-    pub output: Option<PathBuf>,
+    /// radiosity.csv, lit.ply, image.png and wireframe.png. (`-o`/`--output` are the
+    /// old spellings, kept for one release: elsewhere -o names a file.)
+    #[arg(long, short_alias = 'o', alias = "output", value_name = "DIR")]
+    pub out_dir: Option<PathBuf>,
     #[command(flatten)]
     pub compute: ComputeOptions,
-    /// Solver: gauss-seidel, jacobi or shooting (see `ffstream solve --help`).
-    #[arg(long, default_value = "gauss-seidel", value_name = "SOLVER")]
-    pub solver: String,
+    /// Solver (see `ffstream solve --help`).
+    #[arg(long, value_enum, default_value_t = SolverArg::GaussSeidel, value_name = "SOLVER")]
+    pub solver: SolverArg,
     #[command(flatten)]
     pub solve: SolveOptions,
     #[command(flatten)]
@@ -32,7 +34,7 @@ pub struct RunArgs {
 
 pub fn run(mut a: RunArgs) -> anyhow::Result<ExitCode> {
     let dir = a
-        .output
+        .out_dir
         .clone()
         .unwrap_or_else(|| super::default_run_dir(&a.input.scene));
     std::fs::create_dir_all(&dir)
@@ -41,7 +43,7 @@ pub fn run(mut a: RunArgs) -> anyhow::Result<ExitCode> {
     // `run` owns its directory: a rerun recomputes unless --resume is given.
     a.compute.force |= !a.compute.resume;
     // A gathering solve never reads rows of patches that neither reflect nor emit.
-    a.compute.rows.get_or_insert_with(|| "needed".to_string());
+    a.compute.rows.get_or_insert(RowsArg::Needed);
     let report = match execute(&a.input, ffz.clone(), &a.compute)? {
         Outcome::Master(r) => r,
         Outcome::Worker => return Ok(ExitCode::SUCCESS),
@@ -52,7 +54,7 @@ pub fn run(mut a: RunArgs) -> anyhow::Result<ExitCode> {
         a.solve.ply = Some(dir.join("lit.ply"));
     }
     let csv = dir.join("radiosity.csv");
-    let (solution, patches) = solve_file(&ffz, &csv, &a.solver, &a.solve)?;
+    let (solution, patches) = solve_file(&ffz, &csv, a.solver.into(), &a.solve)?;
     let radiosity = solution.radiosity_f32(0);
     let image = dir.join("image.png");
     render_to(&patches, &radiosity, &image, &a.view, a.view.wireframe)?;

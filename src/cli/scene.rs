@@ -7,7 +7,8 @@ use clap::Args;
 
 #[derive(Args, Debug)]
 pub struct SceneArgs {
-    /// Scene name: cornell, cube, plates, perpendicular, obstructed, room.
+    /// Scene name.
+    #[arg(value_parser = clap::builder::PossibleValuesParser::new(ffstream::scene::builtin_names()))]
     pub name: String,
     /// Output OBJ file (the MTL is written beside it).
     #[arg(short, long, value_name = "FILE.obj")]

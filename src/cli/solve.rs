@@ -11,6 +11,8 @@ use ffstream::patch::PatchSet;
 use ffstream::scene::Scene;
 use ffstream::solve::{self, Solution, SolveConfig, SolveMethod};
 
+use super::choices::SolverArg;
+
 #[derive(Args, Debug, Clone)]
 pub struct SolveArgs {
     /// The .ffz file.
@@ -19,10 +21,15 @@ pub struct SolveArgs {
     /// several emission cases: one file per case, named NAME_case{k}.csv.
     #[arg(short, long, value_name = "radiosity.csv")]
     pub output: PathBuf,
-    /// Solver: gauss-seidel (default: full sweeps in file order), jacobi (full sweeps,
-    /// rows in file order), shooting (progressive refinement, random row access).
-    #[arg(long, default_value = "gauss-seidel", value_name = "SOLVER")]
-    pub method: String,
+    /// Solver. (`--method` is the old spelling, kept for one release.)
+    #[arg(
+        long,
+        alias = "method",
+        value_enum,
+        default_value_t = SolverArg::GaussSeidel,
+        value_name = "SOLVER"
+    )]
+    pub solver: SolverArg,
     #[command(flatten)]
     pub opts: SolveOptions,
 }
@@ -102,7 +109,7 @@ fn materials_from_scene(
 pub fn solve_file(
     file: &Path,
     output: &Path,
-    method: &str,
+    method: SolveMethod,
     o: &SolveOptions,
 ) -> anyhow::Result<(Solution, PatchSet)> {
     let reader = FfzReader::open(file)?;
@@ -134,7 +141,7 @@ pub fn solve_file(
         );
     }
     let cfg = SolveConfig {
-        method: method.parse::<SolveMethod>()?,
+        method,
         tolerance: o.tolerance,
         max_iterations: o.max_iterations,
         renormalize_top_k: !o.no_renormalize,
@@ -167,6 +174,6 @@ pub fn solve_file(
 }
 
 pub fn run(a: SolveArgs) -> anyhow::Result<ExitCode> {
-    solve_file(&a.file, &a.output, &a.method, &a.opts)?;
+    solve_file(&a.file, &a.output, a.solver.into(), &a.opts)?;
     Ok(ExitCode::SUCCESS)
 }

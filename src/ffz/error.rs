@@ -11,13 +11,12 @@ use std::path::PathBuf;
 #[derive(Debug, thiserror::Error)]
 pub enum FfzError {
     /// An operating-system error (open, read, write, fsync, disk full, ...).
-    #[error("{path}: {op}: {source}")]
+    #[error("{path}: {op}: {cause}")]
     Io {
         path: PathBuf,
         /// What was being done ("write chunk", "fsync", ...).
         op: String,
-        #[source]
-        source: std::io::Error,
+                cause: std::io::Error,
     },
     /// The file does not start with the `.ffz` magic (spec §3).
     #[error("{path}: not an .ffz file (magic at byte 0 is {found:02x?})")]
@@ -76,7 +75,7 @@ pub enum FfzError {
     RowOutOfRange { path: PathBuf, row: u64, n: u32 },
     /// zstd failed to compress (out of memory, bad level).
     #[error("zstd compression failed: {0}")]
-    Compress(#[source] std::io::Error),
+    Compress(std::io::Error),
     /// The writer saw an I/O error earlier and refuses to append after a torn record.
     #[error("{path}: writer stopped after an earlier error; the file is recoverable by `resume`")]
     Poisoned { path: PathBuf },
@@ -86,12 +85,12 @@ impl FfzError {
     pub(crate) fn io(
         path: &std::path::Path,
         op: impl Into<String>,
-        source: std::io::Error,
+        cause: std::io::Error,
     ) -> Self {
         FfzError::Io {
             path: path.to_path_buf(),
             op: op.into(),
-            source,
+            cause,
         }
     }
 }

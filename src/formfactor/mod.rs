@@ -30,7 +30,6 @@ pub mod topk;
 pub mod visibility;
 
 use std::fmt;
-use std::str::FromStr;
 
 pub use engine::{Counters, RowEngine, Scratch};
 
@@ -38,10 +37,6 @@ pub use engine::{Counters, RowEngine, Scratch};
 /// not fail).
 #[derive(Debug, thiserror::Error, PartialEq)]
 pub enum FormFactorError {
-    #[error("unknown form-factor method `{0}` (expected point, mc or contour)")]
-    UnknownMethod(String),
-    #[error("unknown form-factor preset `{0}` (expected fast, accurate or reference)")]
-    UnknownPreset(String),
     #[error("invalid form-factor configuration: {0}")]
     InvalidConfig(String),
 }
@@ -76,15 +71,25 @@ impl fmt::Display for Method {
     }
 }
 
-impl FromStr for Method {
-    type Err = FormFactorError;
+/// Named settings of the form-factor computation (`--preset`): how many visibility
+/// rays and how tight a quadrature (see [`FormFactorConfig::fast`], `accurate`,
+/// `reference`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum Preset {
+    Fast,
+    #[default]
+    Accurate,
+    Reference,
+}
 
-    fn from_str(s: &str) -> Result<Self, Self::Err> {
-        match s.trim().to_ascii_lowercase().as_str() {
-            "point" => Ok(Method::Point),
-            "mc" => Ok(Method::Mc),
-            "contour" => Ok(Method::Contour),
-            _ => Err(FormFactorError::UnknownMethod(s.to_string())),
+impl Preset {
+    pub const ALL: [Preset; 3] = [Preset::Fast, Preset::Accurate, Preset::Reference];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Preset::Fast => "fast",
+            Preset::Accurate => "accurate",
+            Preset::Reference => "reference",
         }
     }
 }
@@ -190,26 +195,18 @@ impl FormFactorConfig {
         }
     }
 
-    /// Every preset, with its name (tests run all of them).
-    pub fn presets() -> [(&'static str, FormFactorConfig); 3] {
-        [
-            ("fast", Self::fast()),
-            ("accurate", Self::accurate()),
-            ("reference", Self::reference()),
-        ]
+    /// The settings of `preset`.
+    pub fn preset(preset: Preset) -> Self {
+        match preset {
+            Preset::Fast => Self::fast(),
+            Preset::Accurate => Self::accurate(),
+            Preset::Reference => Self::reference(),
+        }
     }
 
-    /// A preset by name.
-    ///
-    /// # Errors
-    /// [`FormFactorError::UnknownPreset`] for a name other than fast/accurate/reference.
-    pub fn preset(name: &str) -> Result<Self, FormFactorError> {
-        match name.trim().to_ascii_lowercase().as_str() {
-            "fast" => Ok(Self::fast()),
-            "accurate" => Ok(Self::accurate()),
-            "reference" => Ok(Self::reference()),
-            _ => Err(FormFactorError::UnknownPreset(name.to_string())),
-        }
+    /// Every preset, with its name (tests run all of them).
+    pub fn presets() -> [(&'static str, FormFactorConfig); 3] {
+        Preset::ALL.map(|p| (p.name(), Self::preset(p)))
     }
 
     pub fn with_method(mut self, method: Method) -> Self {
@@ -302,24 +299,11 @@ mod tests {
     use super::*;
 
     #[test]
-    fn method_round_trips() {
-        for m in Method::ALL {
-            assert_eq!(m.to_string().parse::<Method>(), Ok(m));
-        }
-        assert_eq!("Contour".parse::<Method>(), Ok(Method::Contour));
-        assert!(matches!(
-            "ray".parse::<Method>(),
-            Err(FormFactorError::UnknownMethod(_))
-        ));
-    }
-
-    #[test]
     fn presets_validate() {
-        for (name, cfg) in FormFactorConfig::presets() {
+        for (_, cfg) in FormFactorConfig::presets() {
             cfg.validate().unwrap();
-            assert_eq!(FormFactorConfig::preset(name), Ok(cfg));
         }
-        assert!(FormFactorConfig::preset("slow").is_err());
+        assert_eq!(FormFactorConfig::preset(Preset::default()), FormFactorConfig::default());
         assert!(FormFactorConfig::default()
             .with_samples(0)
             .validate()

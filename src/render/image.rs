@@ -70,9 +70,9 @@ impl Image {
     /// [`RenderError::PngEncode`] (with an empty path) if the encoder fails.
     pub fn to_png_bytes(&self) -> Result<Vec<u8>, RenderError> {
         self.validate()?;
-        let encode_err = |source| RenderError::PngEncode {
+        let encode_err = |cause| RenderError::PngEncode {
             path: Default::default(),
-            source,
+            cause,
         };
         let mut bytes = Vec::new();
         let mut enc = png::Encoder::new(&mut bytes, self.width, self.height);
@@ -93,15 +93,15 @@ impl Image {
     /// [`RenderError::Io`], naming `path`.
     pub fn write_png(&self, path: &Path) -> Result<(), RenderError> {
         let bytes = self.to_png_bytes().map_err(|e| match e {
-            RenderError::PngEncode { source, .. } => RenderError::PngEncode {
+            RenderError::PngEncode { cause, .. } => RenderError::PngEncode {
                 path: path.to_path_buf(),
-                source,
+                cause,
             },
             other => other,
         })?;
-        std::fs::write(path, bytes).map_err(|source| RenderError::Io {
+        std::fs::write(path, bytes).map_err(|cause| RenderError::Io {
             path: path.to_path_buf(),
-            source,
+            cause,
         })
     }
 
@@ -111,13 +111,13 @@ impl Image {
     /// [`RenderError::Io`] when the file cannot be opened, [`RenderError::PngDecode`]
     /// for a malformed PNG, [`RenderError::UnsupportedPng`] for an animated one.
     pub fn read_png(path: &Path) -> Result<Self, RenderError> {
-        let file = File::open(path).map_err(|source| RenderError::Io {
+        let file = File::open(path).map_err(|cause| RenderError::Io {
             path: path.to_path_buf(),
-            source,
+            cause,
         })?;
-        let decode_err = |source| RenderError::PngDecode {
+        let decode_err = |cause| RenderError::PngDecode {
             path: path.to_path_buf(),
-            source,
+            cause,
         };
         let mut decoder = png::Decoder::new(BufReader::new(file));
         decoder.set_transformations(png::Transformations::normalize_to_color8());

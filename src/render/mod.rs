@@ -64,22 +64,22 @@ pub enum RenderError {
     #[error("invalid image: {0}")]
     InvalidImage(String),
     /// Reading or writing an image file failed.
-    #[error("{}: {source}", .path.display())]
+    #[error("{}: {cause}", .path.display())]
     Io {
         path: PathBuf,
-        source: std::io::Error,
+        cause: std::io::Error,
     },
     /// The PNG encoder rejected the image.
-    #[error("{}: PNG encoding failed: {source}", .path.display())]
+    #[error("{}: PNG encoding failed: {cause}", .path.display())]
     PngEncode {
         path: PathBuf,
-        source: png::EncodingError,
+        cause: png::EncodingError,
     },
     /// The PNG decoder rejected the file.
-    #[error("{}: PNG decoding failed: {source}", .path.display())]
+    #[error("{}: PNG decoding failed: {cause}", .path.display())]
     PngDecode {
         path: PathBuf,
-        source: png::DecodingError,
+        cause: png::DecodingError,
     },
     /// A PNG this reader does not convert to 8-bit RGB.
     #[error("{}: unsupported PNG: {reason}", .path.display())]

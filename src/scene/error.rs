@@ -7,11 +7,10 @@ use std::path::{Path, PathBuf};
 #[derive(Debug, thiserror::Error)]
 pub enum SceneError {
     /// The OBJ or MTL file could not be read.
-    #[error("{}: cannot read: {source}", path.display())]
+    #[error("{}: cannot read: {cause}", path.display())]
     Read {
         path: PathBuf,
-        #[source]
-        source: std::io::Error,
+                cause: std::io::Error,
     },
     /// A statement the loader needs could not be parsed.
     #[error("{}:{line}: malformed `{keyword}` statement: {reason}", path.display())]
@@ -90,11 +89,10 @@ pub enum SceneError {
     #[error("built-in scene `{name}`: {reason}")]
     BadParam { name: String, reason: String },
     /// Writing an OBJ or MTL file failed.
-    #[error("{}: cannot write: {source}", path.display())]
+    #[error("{}: cannot write: {cause}", path.display())]
     Write {
         path: PathBuf,
-        #[source]
-        source: std::io::Error,
+                cause: std::io::Error,
     },
 }
 

@@ -58,9 +58,9 @@ struct MtlLines {
 /// Degenerate, non-planar and non-convex faces and a scene with no emitter are not
 /// errors: they end up in [`Scene::warnings`].
 pub fn load_obj(path: &Path) -> Result<Scene, SceneError> {
-    let text = std::fs::read_to_string(path).map_err(|source| SceneError::Read {
+    let text = std::fs::read_to_string(path).map_err(|cause| SceneError::Read {
         path: path.to_owned(),
-        source,
+        cause,
     })?;
     let pre = prepass(path, &text)?;
     let mut warnings = Vec::new();

@@ -74,9 +74,9 @@ pub fn write_obj(scene: &Scene, obj: &Path) -> Result<(), SceneError> {
     }
 
     for (path, text) in [(&mtl, m), (&obj.to_path_buf(), o)] {
-        std::fs::write(path, text).map_err(|source| SceneError::Write {
+        std::fs::write(path, text).map_err(|cause| SceneError::Write {
             path: path.clone(),
-            source,
+            cause,
         })?;
     }
     Ok(())

@@ -18,19 +18,6 @@ pub enum RowSelection {
     Needed,
 }
 
-impl std::str::FromStr for RowSelection {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, Self::Err> {
-        match s {
-            "all" => Ok(RowSelection::All),
-            "needed" => Ok(RowSelection::Needed),
-            _ => Err(format!(
-                "unknown row selection '{s}' (expected all or needed)"
-            )),
-        }
-    }
-}
-
 /// A fully validated compute job: everything every rank needs to take part.
 #[derive(Clone)]
 pub struct ComputeJob {

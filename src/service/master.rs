@@ -356,7 +356,7 @@ fn torn_own_header(job: &crate::service::ComputeJob) -> Result<bool, ServiceErro
     let io = |e: std::io::Error| FfzError::Io {
         path: job.output.clone(),
         op: "read for resume".into(),
-        source: e,
+        cause: e,
     };
     let mut head = Vec::with_capacity(48);
     {

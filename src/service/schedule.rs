@@ -17,19 +17,6 @@ pub enum Schedule {
     Folded,
 }
 
-impl std::str::FromStr for Schedule {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, Self::Err> {
-        match s {
-            "dynamic" => Ok(Schedule::Dynamic),
-            "folded" => Ok(Schedule::Folded),
-            _ => Err(format!(
-                "unknown schedule '{s}' (expected dynamic or folded)"
-            )),
-        }
-    }
-}
-
 impl std::fmt::Display for Schedule {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.write_str(match self {

@@ -8,7 +8,7 @@ use std::path::PathBuf;
 pub enum SolveError {
     /// The row source itself failed (the `.ffz` reader names file, chunk and offset).
     #[error("reading rows: {0}")]
-    Source(#[source] Box<dyn std::error::Error + Send + Sync>),
+    Source(Box<dyn std::error::Error + Send + Sync>),
 
     /// A row the solve needs was never delivered (a crash left it out of the file).
     #[error(
@@ -50,16 +50,11 @@ pub enum SolveError {
     #[error("invalid solve input: {0}")]
     InvalidInput(String),
 
-    /// `--method` named no solver.
-    #[error("unknown solve method \"{0}\" (expected jacobi, gauss-seidel or shooting)")]
-    UnknownMethod(String),
-
     /// Reading or writing a file.
-    #[error("{}: {source}", path.display())]
+    #[error("{}: {cause}", path.display())]
     Io {
         path: PathBuf,
-        #[source]
-        source: std::io::Error,
+        cause: std::io::Error,
     },
 
     /// A malformed line in an input CSV.
@@ -77,10 +72,10 @@ impl SolveError {
         SolveError::Source(Box::new(e))
     }
 
-    pub(crate) fn io(path: &std::path::Path, source: std::io::Error) -> Self {
+    pub(crate) fn io(path: &std::path::Path, cause: std::io::Error) -> Self {
         SolveError::Io {
             path: path.to_path_buf(),
-            source,
+            cause,
         }
     }
 }

@@ -53,7 +53,6 @@ mod source;
 mod system;
 
 use std::fmt;
-use std::str::FromStr;
 
 use tracing::info_span;
 
@@ -103,19 +102,6 @@ impl SolveMethod {
 impl fmt::Display for SolveMethod {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         f.write_str(self.name())
-    }
-}
-
-impl FromStr for SolveMethod {
-    type Err = SolveError;
-
-    fn from_str(s: &str) -> Result<Self, SolveError> {
-        match s.to_ascii_lowercase().as_str() {
-            "shooting" | "progressive" => Ok(SolveMethod::Shooting),
-            "jacobi" => Ok(SolveMethod::Jacobi),
-            "gauss-seidel" | "gauss_seidel" | "gs" => Ok(SolveMethod::GaussSeidel),
-            _ => Err(SolveError::UnknownMethod(s.to_string())),
-        }
     }
 }
 

@@ -38,7 +38,7 @@ fn cornell_box_run_renders_a_recognisable_picture() {
         "builtin:cornell",
         "--patches",
         "800",
-        "-o",
+        "--out-dir",
         path_str(&out),
         "--quiet",
     ]);

@@ -136,7 +136,7 @@ fn every_corpus_file_gives_one_error_line_or_a_warning_through_compute_and_run()
         let run = ffstream(&[
             "run",
             path_str(&path),
-            "-o",
+            "--out-dir",
             path_str(&out_dir),
             "--patches",
             "40",
@@ -256,4 +256,55 @@ fn unreadable_and_unwritable_paths_name_the_path_once() {
     ]);
     let line = assert_one_error(&out, "unwritable output", &["/nonexistent/dir/x.ffz"]);
     assert_eq!(line.matches("No such file").count(), 1, "{line}");
+}
+
+/// Every fixed choice of every command: a misspelt value exits 2 at once (before the
+/// scene, which does not exist here, is opened) with the list of possible values.
+#[test]
+fn every_fixed_choice_is_checked_before_any_work_and_lists_its_values() {
+    let cases: &[(&[&str], &[&str])] = &[
+        (&["compute", "no.obj", "-o", "x.ffz", "--method", "bogus"], &["point", "mc", "contour"]),
+        (&["compute", "no.obj", "-o", "x.ffz", "--preset", "bogus"], &["fast", "accurate", "reference"]),
+        (&["compute", "no.obj", "-o", "x.ffz", "--schedule", "bogus"], &["dynamic", "folded"]),
+        (&["compute", "no.obj", "-o", "x.ffz", "--rows", "bogus"], &["all", "needed"]),
+        (&["compute", "no.obj", "-o", "x.ffz", "--symmetric", "bogus"], &["auto", "on", "off"]),
+        (&["compute", "builtin:bogus", "-o", "x.ffz"], &["cornell", "cube", "room"]),
+        (&["compute", "builtin:room:many", "-o", "x.ffz"], &["not a number"]),
+        (&["run", "no.obj", "--method", "bogus"], &["point", "mc", "contour"]),
+        (&["run", "no.obj", "--solver", "bogus"], &["gauss-seidel", "jacobi", "shooting"]),
+        (&["run", "no.obj", "--preset", "bogus"], &["fast", "accurate", "reference"]),
+        (&["solve", "no.ffz", "-o", "r.csv", "--solver", "bogus"], &["gauss-seidel", "jacobi", "shooting"]),
+        (&["render", "no.ffz", "--radiosity", "r.csv", "-o", "i.png", "--camera", "1,2"], &["expected 10"]),
+        (&["scene", "bogus", "-o", "x.obj"], &["cornell", "cube", "plates", "perpendicular", "obstructed", "room"]),
+    ];
+    for (args, values) in cases {
+        let out = ffstream(args);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {stderr}");
+        for v in *values {
+            assert!(stderr.contains(v), "{args:?} should list {v}: {stderr}");
+        }
+        assert!(
+            !stderr.contains("no.obj: ") && !stderr.contains("no.ffz: "),
+            "{args:?} opened its input: {stderr}"
+        );
+    }
+}
+
+/// The old spellings of renamed options still work, hidden, for one release:
+/// `solve --method`, `export --patches`, `run -o DIR`.
+#[test]
+fn old_spellings_of_renamed_options_still_work() {
+    let dir = tempfile::tempdir().unwrap();
+    let ffz = dir.path().join("c.ffz");
+    let p = |name: &str| dir.path().join(name).to_str().unwrap().to_string();
+    crate::common::ok(&["compute", "builtin:cube", "--max-edge", "0.5", "-q", "-o", &p("c.ffz")]);
+    crate::common::ok(&["solve", path_str(&ffz), "-o", &p("r.csv"), "--method", "jacobi"]);
+    crate::common::ok(&["export", path_str(&ffz), "--patches", &p("p.csv")]);
+    assert!(dir.path().join("p.csv").is_file());
+    crate::common::ok(&["run", "builtin:cube", "--max-edge", "0.5", "-q", "-o", &p("run")]);
+    assert!(dir.path().join("run/image.png").is_file());
+    let help = ffstream(&["solve", "--help"]);
+    let help = String::from_utf8_lossy(&help.stdout);
+    assert!(help.contains("--solver") && !help.contains("--method <"), "{help}");
 }
