@@ -34,7 +34,7 @@ ifeq ($(origin RUSTFLAGS),undefined)
   endif
 endif
 
-.PHONY: demo demo-mpi test deps sys-deps py-deps build bench bench-quick fuzz clean
+.PHONY: demo demo-mpi test deps sys-deps py-deps rust-tools build bench bench-quick fuzz clean
 
 demo: deps build
 	./target/release/ffstream run builtin:cornell --out-dir out/cornell
@@ -46,6 +46,8 @@ demo-mpi: deps build
 # The Python reader is also checked against `ffstream export` of a real computed file
 # (the Cornell box at 300 patches), through FFZ_FILE/FFZ_MTX/FFZ_CSV.
 test: deps
+	$(CARGO) fmt --check
+	$(CARGO) clippy --all-targets --quiet -- -D warnings
 	$(CARGO) test
 	$(CARGO) bench --no-run --quiet
 	$(CARGO) check --no-default-features --all-targets --quiet
@@ -60,7 +62,13 @@ test: deps
 build:
 	$(CARGO) build --release
 
-deps: sys-deps py-deps
+deps: sys-deps py-deps rust-tools
+
+# clippy and rustfmt come with rustup's default profile; add them if the toolchain
+# was installed with the minimal one.
+rust-tools:
+	@$(CARGO) clippy --version >/dev/null 2>&1 || rustup component add clippy
+	@$(CARGO) fmt --version >/dev/null 2>&1 || rustup component add rustfmt
 
 sys-deps:
 	@missing=""; for p in $(APT_PACKAGES); do \

@@ -1,8 +1,8 @@
-"""Closed-form view factors used as known answers by the benchmark (REFERENCES.md).
+"""Closed-form view factors used as known answers by the benchmark (docs/known-answers.md §2, §3).
 
 Howell's catalogue, configurations C-11 (directly opposed parallel equal rectangles) and
 C-14 (perpendicular rectangles sharing an edge). Each formula is checked against the
-tabulated values of REFERENCES.md by `self_check()` before the benchmark uses it.
+tabulated values of docs/known-answers.md §2, §3 by `self_check()` before the benchmark uses it.
 """
 
 from __future__ import annotations
@@ -35,7 +35,7 @@ def perpendicular_rectangles(w: float, h: float, l: float) -> float:
     return s / (math.pi * ww)
 
 
-# (function, arguments, tabulated value) from REFERENCES.md.
+# (function, arguments, tabulated value) from docs/known-answers.md §2, §3.
 TABLE = [
     (parallel_rectangles, (0.5, 0.5, 1.0), 0.0685896),
     (parallel_rectangles, (1.0, 1.0, 1.0), 0.19982489570),

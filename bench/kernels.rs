@@ -99,11 +99,7 @@ impl Builder {
             patches: self.patches.clone(),
             groups: vec!["all".into()],
         };
-        RowEngine::new(
-            Arc::new(ps),
-            Arc::new(Occluders::new(self.tris.clone())),
-            cfg,
-        )
+        RowEngine::new(&ps, Arc::new(Occluders::new(self.tris.clone())), cfg)
     }
 }
 

@@ -223,7 +223,7 @@ fn main() {
     // The engine of the first mode, built here so that the set-up time covers the same
     // steps as `ffstream compute`'s "set-up (load, subdivide, Bvh, engine)" line.
     let first_engine = RowEngine::new(
-        Arc::clone(&patches),
+        &patches,
         Arc::clone(&fine),
         config_of(a.modes.first().map_or("default", String::as_str)),
     );
@@ -252,11 +252,7 @@ fn main() {
     let reference = if ref_idx.is_empty() {
         Vec::new()
     } else {
-        let e = RowEngine::new(
-            Arc::clone(&patches),
-            Arc::clone(&fine),
-            FormFactorConfig::reference(),
-        );
+        let e = RowEngine::new(&patches, Arc::clone(&fine), FormFactorConfig::reference());
         let (rows, _, wall) = run_rows(&e, &ref_idx, a.threads, full_row);
         println!("reference: {} rows in {wall:.1} s", rows.len());
         rows.iter().map(|r| r.to_dense(n)).collect::<Vec<_>>()
@@ -295,7 +291,7 @@ fn main() {
             Arc::clone(&fine)
         };
         let occ_tris = occ.len();
-        let e = RowEngine::new(Arc::clone(&patches), occ, config_of(mode));
+        let e = RowEngine::new(&patches, occ, config_of(mode));
         let cpu0 = cpu_seconds();
         let (timed_fn, checked_fn): (RowFn, RowFn) = if mode == "symmetric" {
             (half_row_all, half_row_as_stored)

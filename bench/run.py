@@ -7,7 +7,7 @@
                                     bench/out-quick/ only; exits non-zero when a run fails
                                     or an accuracy check that must hold is violated
 
-Sections (DESIGN.md section 7, REFERENCES.md):
+Sections (docs/numerics.md §10, docs/known-answers.md):
   1. time vs error: analytic cases (Howell C-11, C-14), the obstructed plates against a
      self-computed reference, the Cornell box radiosity against its most refined solution
   2. scaling: embedded threads and MPI ranks, time vs n on the `room` builtin (dense
@@ -208,7 +208,7 @@ def parse_summary(stderr: str) -> dict:
 
 
 def group_matrix(f: "ffz.FfzFile") -> tuple[list[str], np.ndarray]:
-    """F_IJ = sum_{i in I} (A_i / A_I) sum_{j in J} F_ij (REFERENCES.md), from the matrix a
+    """F_IJ = sum_{i in I} (A_i / A_I) sum_{j in J} F_ij (docs/known-answers.md §1), from the matrix a
     solver would use (top-k rows scaled so no light is lost)."""
     m = f.no_light_lost() if f.layout == "topk" else f.matrix.astype(np.float64)
     g = f.patches["group"].astype(np.int64)
@@ -272,7 +272,7 @@ def method_configs(quick: bool) -> list[tuple[str, str, list[str]]]:
 def section_time_error(r: Runner, quick: bool, res: dict) -> None:
     print("== 1. time vs error", flush=True)
     res["howell"] = analytic.self_check()
-    r.check("Howell C-11/C-14 formulas reproduce REFERENCES.md tables", True,
+    r.check("Howell C-11/C-14 formulas reproduce the tables of docs/known-answers.md §2, §3", True,
             f"max deviation {max(x[3] for x in res['howell']):.1e}")
     cases = [
         ("cube", "builtin:cube", 96 if quick else 384, analytic.cube_pairs()),
@@ -962,7 +962,7 @@ def write_results(res: dict, path: str, plot_note: list[str], command: str) -> N
     L.append("Group-to-group factors F_IJ = Σ_i (A_i/A_I) Σ_j F_ij computed from each file with "
              "`formats/ffz.py` (top-k files: kept entries scaled so no light is lost, as the solver does), "
              "against Howell C-11 (parallel) and C-14 (perpendicular) evaluated in `bench/analytic.py`. "
-             "Before use the formulas were checked against every tabulated value of REFERENCES.md "
+             "Before use the formulas were checked against every tabulated value of docs/known-answers.md §2, §3 "
              f"(largest deviation {max(x[3] for x in res['howell']):.1e}, within the tables' printed digits). "
              "Error = largest |F_IJ − analytic| over the group pairs of the case (cube: all 30 ordered pairs). "
              "Row-sum column: closed cube only, max |Σ_j F_ij + dropped_i − 1|.\n")

@@ -78,7 +78,7 @@ impl PatchSet {
     }
 
     /// Bounding box of all (finite) patch corners; `None` when there is none.
-    pub fn bounds(&self) -> Option<(DVec3, DVec3)> {
+    pub(crate) fn bounds(&self) -> Option<(DVec3, DVec3)> {
         let mut lo = DVec3::splat(f64::INFINITY);
         let mut hi = DVec3::splat(f64::NEG_INFINITY);
         for c in self
@@ -95,7 +95,7 @@ impl PatchSet {
 
     /// Length of the bounding box diagonal (0 for an empty or degenerate set): the
     /// scene size that relative tolerances scale with.
-    pub fn diagonal(&self) -> f64 {
+    pub(crate) fn diagonal(&self) -> f64 {
         self.bounds().map_or(0.0, |(lo, hi)| (hi - lo).length())
     }
 

@@ -89,7 +89,7 @@ choice! {
 
 /// `--symmetric`: whether each unordered pair is computed once (half rows).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
-pub enum SymmetricArg {
+pub(crate) enum SymmetricArg {
     /// On for dense files with --method contour, off otherwise.
     Auto,
     /// Half rows: each unordered pair once, the other direction by reciprocity.

@@ -25,7 +25,7 @@ use super::SceneInput;
 const MAX_PATCHES: usize = 1 << 26;
 
 #[derive(Args, Debug, Clone)]
-pub struct ComputeArgs {
+pub(crate) struct ComputeArgs {
     #[command(flatten)]
     pub input: SceneInput,
     /// Output .ffz file.
@@ -37,7 +37,7 @@ pub struct ComputeArgs {
 
 /// Settings of the form-factor computation and of the service (shared with `run`).
 #[derive(Args, Debug, Clone)]
-pub struct ComputeOptions {
+pub(crate) struct ComputeOptions {
     /// Settings preset. Options given explicitly override the preset's values.
     #[arg(long, value_enum, default_value_t = PresetArg::Accurate, value_name = "PRESET")]
     pub preset: PresetArg,
@@ -115,13 +115,13 @@ pub struct ComputeOptions {
 
 /// Load a scene: an OBJ path, or builtin:NAME[:PARAM] (or a bare built-in name when no
 /// file of that name exists).
-pub fn load_scene(spec: &str) -> anyhow::Result<Scene> {
+pub(super) fn load_scene(spec: &str) -> anyhow::Result<Scene> {
     Ok(scene::open_scene(spec)?)
 }
 
 /// What a process does in a run, which decides what [`build_job`] builds and prints.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Role {
+pub(super) enum Role {
     /// Computes rows and writes the file: an embedded run, or rank 0 of `--gather`.
     Alone,
     /// Rank 0 of a streaming MPI run: writes the file and computes nothing, so it
@@ -134,7 +134,7 @@ pub enum Role {
 
 /// Everything built from the scene: patches and, unless `role` is the I/O master, the
 /// engine. The master and a process running alone print what was chosen.
-pub fn build_job(
+pub(super) fn build_job(
     input: &SceneInput,
     output: PathBuf,
     o: &ComputeOptions,
@@ -202,6 +202,7 @@ pub fn build_job(
         Some(0) => bail!("--top-k must be at least 1"),
         k => k,
     };
+    cfg.validate()?;
     let occluder_triangles = match &o.occluders {
         Some(path) => scene::load_obj(path)?.triangles().collect(),
         None => scene.triangles().collect(),
@@ -210,14 +211,14 @@ pub fn build_job(
         let kept = Occluders::count_kept(occluder_triangles);
         (None, RowEngine::description(&cfg, kept))
     } else {
-        let occluders = Arc::new(tracing::info_span!("build_bvh").in_scope(|| {
-            match &o.occluders {
+        let occluders = Arc::new(tracing::info_span!("build_bvh").in_scope(
+            || match &o.occluders {
                 Some(_) => Occluders::new_foreign(occluder_triangles),
                 None => Occluders::new(occluder_triangles),
-            }
-        }));
+            },
+        ));
         let engine = tracing::info_span!("prepare_engine")
-            .in_scope(|| RowEngine::new(Arc::clone(&patches), occluders, cfg.clone()));
+            .in_scope(|| RowEngine::new(&patches, occluders, cfg.clone()));
         let description = engine.describe();
         (Some(Arc::new(engine)), description)
     };
@@ -225,7 +226,9 @@ pub fn build_job(
     match role {
         // Every process that computes does this set-up itself; this is its cost
         // (README: why ranks load the scene rather than receive it).
-        Role::Alone => eprintln!("ffstream: set-up (load, subdivide, Bvh, engine) took {took:.3} s"),
+        Role::Alone => {
+            eprintln!("ffstream: set-up (load, subdivide, Bvh, engine) took {took:.3} s")
+        }
         Role::Master => eprintln!(
             "ffstream: set-up of rank 0 (load, subdivide) took {took:.3} s; it builds no \
              Bvh or engine, every worker builds its own"
@@ -332,7 +335,7 @@ fn creation_info() -> String {
 }
 
 /// Where this process stands after a compute: rank 0 / embedded get the report.
-pub enum Outcome {
+pub(super) enum Outcome {
     Master(ComputeReport),
     /// An MPI worker rank: it has nothing to report (rank 0 does).
     #[cfg_attr(not(feature = "mpi"), allow(dead_code))]
@@ -340,7 +343,11 @@ pub enum Outcome {
 }
 
 /// Run a compute job, under MPI when launched by mpirun, else embedded.
-pub fn execute(input: &SceneInput, output: PathBuf, o: &ComputeOptions) -> anyhow::Result<Outcome> {
+pub(super) fn execute(
+    input: &SceneInput,
+    output: PathBuf,
+    o: &ComputeOptions,
+) -> anyhow::Result<Outcome> {
     if o.gather && o.top_k.is_some() {
         bail!("--gather reproduces the paper's dense design and cannot be combined with --top-k");
     }
@@ -434,7 +441,7 @@ fn scene_for_rank(input: &SceneInput, rank: i32) -> SceneInput {
     input
 }
 
-pub fn run(a: ComputeArgs) -> anyhow::Result<ExitCode> {
+pub(super) fn run(a: ComputeArgs) -> anyhow::Result<ExitCode> {
     match execute(&a.input, a.output.clone(), &a.opts)? {
         Outcome::Master(report) => {
             eprintln!("{}", report.summary());

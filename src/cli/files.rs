@@ -6,13 +6,13 @@ use std::process::ExitCode;
 use clap::Args;
 
 #[derive(Args, Debug)]
-pub struct InfoArgs {
+pub(crate) struct InfoArgs {
     /// The .ffz file.
     pub file: PathBuf,
 }
 
 #[derive(Args, Debug)]
-pub struct VerifyArgs {
+pub(crate) struct VerifyArgs {
     /// The .ffz file.
     pub file: PathBuf,
     /// Compare row by row with this file (same scene): reports identical rows, the
@@ -22,7 +22,7 @@ pub struct VerifyArgs {
 }
 
 #[derive(Args, Debug)]
-pub struct ExportArgs {
+pub(crate) struct ExportArgs {
     /// The .ffz file.
     pub file: PathBuf,
     /// Write the matrix as Matrix Market coordinate real general (1-based i j F_ij).
@@ -34,13 +34,13 @@ pub struct ExportArgs {
     pub patches_csv: Option<PathBuf>,
 }
 
-pub fn info(a: InfoArgs) -> anyhow::Result<ExitCode> {
+pub(super) fn info(a: InfoArgs) -> anyhow::Result<ExitCode> {
     let mut out = std::io::stdout().lock();
     ffstream::ffz::tools::info(&a.file, &mut out)?;
     Ok(ExitCode::SUCCESS)
 }
 
-pub fn verify(a: VerifyArgs) -> anyhow::Result<ExitCode> {
+pub(super) fn verify(a: VerifyArgs) -> anyhow::Result<ExitCode> {
     let mut out = std::io::stdout().lock();
     let ok = ffstream::ffz::tools::verify(&a.file, a.against.as_deref(), &mut out)?;
     Ok(if ok {
@@ -50,7 +50,7 @@ pub fn verify(a: VerifyArgs) -> anyhow::Result<ExitCode> {
     })
 }
 
-pub fn export(a: ExportArgs) -> anyhow::Result<ExitCode> {
+pub(super) fn export(a: ExportArgs) -> anyhow::Result<ExitCode> {
     if a.matrix.is_none() && a.patches_csv.is_none() {
         anyhow::bail!("nothing to export: give --matrix F.mtx and/or --patches-csv patches.csv");
     }

@@ -26,7 +26,7 @@ Run without mpirun for one process (embedded mode); under `mpirun -n P` rank 0 w
 file and ranks 1..P-1 compute. Scenes are OBJ+MTL files (Kd = reflectance, Ke = emitted \
 exitance) or built-in scenes written as builtin:NAME (see `ffstream scene --help`)."
 )]
-pub struct Cli {
+pub(crate) struct Cli {
     /// More log output (-v: info, -vv: debug). RUST_LOG overrides.
     #[arg(short, long, action = clap::ArgAction::Count, global = true)]
     pub verbose: u8,
@@ -38,8 +38,10 @@ pub struct Cli {
     pub command: Command,
 }
 
+// Parsed once per run: the size of its largest variant does not matter.
+#[allow(clippy::large_enum_variant)]
 #[derive(Subcommand, Debug)]
-pub enum Command {
+pub(crate) enum Command {
     /// Write a built-in scene as OBJ + MTL (cornell, cube, plates, perpendicular, obstructed, room).
     Scene(scene::SceneArgs),
     /// Compute the form-factor matrix of a scene into an .ffz file.
@@ -60,7 +62,7 @@ pub enum Command {
 
 /// How the scene is given and cut into patches (shared by compute and run).
 #[derive(Args, Debug, Clone)]
-pub struct SceneInput {
+pub(crate) struct SceneInput {
     /// OBJ file (with its MTL), or builtin:NAME[:PARAM] for a built-in scene (NAME one
     /// of cornell, cube, plates, perpendicular, obstructed, room; see `ffstream scene
     /// --help`).
@@ -71,7 +73,7 @@ pub struct SceneInput {
     #[arg(long, value_name = "L")]
     pub max_edge: Option<f64>,
     /// Target patch count used to choose --max-edge when it is not given.
-    #[arg(long, value_name = "N", default_value_t = 2000)]
+    #[arg(long, value_name = "N", default_value_t = ffstream::geometry::subdivide::DEFAULT_TARGET_PATCHES)]
     pub patches: usize,
 }
 
@@ -79,7 +81,9 @@ pub struct SceneInput {
 /// possible scenes); a file path is checked when it is opened.
 fn scene_spec(spec: &str) -> Result<String, String> {
     if let Some(body) = spec.strip_prefix("builtin:") {
-        let (name, param) = body.split_once(':').map_or((body, None), |(n, p)| (n, Some(p)));
+        let (name, param) = body
+            .split_once(':')
+            .map_or((body, None), |(n, p)| (n, Some(p)));
         let names = ffstream::scene::builtin_names();
         if !names.contains(&name) {
             return Err(format!(
@@ -95,7 +99,7 @@ fn scene_spec(spec: &str) -> Result<String, String> {
     Ok(spec.to_string())
 }
 
-pub fn init_tracing(verbose: u8) {
+pub(crate) fn init_tracing(verbose: u8) {
     use tracing_subscriber::EnvFilter;
     let default = match verbose {
         0 => "warn",
@@ -110,7 +114,7 @@ pub fn init_tracing(verbose: u8) {
         .try_init();
 }
 
-pub fn dispatch(cli: Cli) -> anyhow::Result<ExitCode> {
+pub(crate) fn dispatch(cli: Cli) -> anyhow::Result<ExitCode> {
     match cli.command {
         Command::Scene(a) => scene::run(a),
         Command::Compute(mut a) => {
@@ -130,7 +134,7 @@ pub fn dispatch(cli: Cli) -> anyhow::Result<ExitCode> {
 }
 
 /// Default output directory of `run`.
-pub fn default_run_dir(scene: &str) -> PathBuf {
+pub(crate) fn default_run_dir(scene: &str) -> PathBuf {
     let stem = scene
         .strip_prefix("builtin:")
         .map(|s| s.split(':').next().unwrap_or(s).to_string())

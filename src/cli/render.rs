@@ -10,7 +10,7 @@ use ffstream::patch::PatchSet;
 use ffstream::render::{self, Camera, RenderOptions};
 
 #[derive(Args, Debug, Clone)]
-pub struct RenderArgs {
+pub(crate) struct RenderArgs {
     /// The .ffz file (for the patch table: geometry and groups).
     pub file: PathBuf,
     /// Radiosity CSV written by `ffstream solve`.
@@ -25,7 +25,7 @@ pub struct RenderArgs {
 
 /// How to draw (shared with `run`).
 #[derive(Args, Debug, Clone)]
-pub struct ViewOptions {
+pub(crate) struct ViewOptions {
     /// Camera as ex,ey,ez,tx,ty,tz,ux,uy,uz,fov (eye, target, up, vertical field of view
     /// in degrees). Default: the published Cornell box camera for the Cornell box,
     /// otherwise a view that frames the whole scene.
@@ -82,7 +82,7 @@ fn default_camera(patches: &PatchSet) -> Camera {
 }
 
 /// Render `radiosity` on `patches` to `output`.
-pub fn render_to(
+pub(super) fn render_to(
     patches: &PatchSet,
     radiosity: &[[f32; 3]],
     output: &Path,
@@ -118,7 +118,7 @@ pub fn render_to(
     Ok(())
 }
 
-pub fn run(a: RenderArgs) -> anyhow::Result<ExitCode> {
+pub(super) fn run(a: RenderArgs) -> anyhow::Result<ExitCode> {
     let reader = FfzReader::open(&a.file)?;
     let patches = reader.meta().patches.clone();
     let radiosity = ffstream::solve::read_radiosity_csv(&a.radiosity, patches.len())?;

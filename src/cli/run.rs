@@ -13,7 +13,7 @@ use super::solve::{solve_file, SolveOptions};
 use super::SceneInput;
 
 #[derive(Args, Debug)]
-pub struct RunArgs {
+pub(crate) struct RunArgs {
     #[command(flatten)]
     pub input: SceneInput,
     /// Output directory (default: out/SCENE_NAME). It receives form_factors.ffz,
@@ -32,7 +32,7 @@ pub struct RunArgs {
     pub view: ViewOptions,
 }
 
-pub fn run(mut a: RunArgs) -> anyhow::Result<ExitCode> {
+pub(super) fn run(mut a: RunArgs) -> anyhow::Result<ExitCode> {
     let dir = a
         .out_dir
         .clone()

@@ -6,7 +6,7 @@ use std::process::ExitCode;
 use clap::Args;
 
 #[derive(Args, Debug)]
-pub struct SceneArgs {
+pub(crate) struct SceneArgs {
     /// Scene name.
     #[arg(value_parser = clap::builder::PossibleValuesParser::new(ffstream::scene::builtin_names()))]
     pub name: String,
@@ -18,7 +18,7 @@ pub struct SceneArgs {
     pub param: Option<f64>,
 }
 
-pub fn run(a: SceneArgs) -> anyhow::Result<ExitCode> {
+pub(super) fn run(a: SceneArgs) -> anyhow::Result<ExitCode> {
     let scene = ffstream::scene::builtin(&a.name, a.param)?;
     ffstream::scene::write_obj(&scene, &a.output)?;
     eprintln!(

@@ -14,7 +14,7 @@ use ffstream::solve::{self, Solution, SolveConfig, SolveMethod};
 use super::choices::SolverArg;
 
 #[derive(Args, Debug, Clone)]
-pub struct SolveArgs {
+pub(crate) struct SolveArgs {
     /// The .ffz file.
     pub file: PathBuf,
     /// Radiosity CSV to write (header patch,group,area,B_r,B_g,B_b,E_*,rho_*,H_*). With
@@ -36,7 +36,7 @@ pub struct SolveArgs {
 
 /// Settings of the solve (shared with `run`, where the solver is chosen with --solver).
 #[derive(Args, Debug, Clone)]
-pub struct SolveOptions {
+pub(crate) struct SolveOptions {
     /// Stop when the relative residual (shooting: unshot / emitted power) is below this.
     #[arg(long, default_value_t = 1e-6, value_name = "E")]
     pub tolerance: f64,
@@ -106,7 +106,7 @@ fn materials_from_scene(
 }
 
 /// Solve `file` and write the outputs; returns the solution and the patches.
-pub fn solve_file(
+pub(super) fn solve_file(
     file: &Path,
     output: &Path,
     method: SolveMethod,
@@ -173,7 +173,7 @@ pub fn solve_file(
     Ok((solution, patches))
 }
 
-pub fn run(a: SolveArgs) -> anyhow::Result<ExitCode> {
+pub(super) fn run(a: SolveArgs) -> anyhow::Result<ExitCode> {
     solve_file(&a.file, &a.output, a.solver.into(), &a.opts)?;
     Ok(ExitCode::SUCCESS)
 }

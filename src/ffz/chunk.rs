@@ -2,7 +2,7 @@
 //! `ChunkHeaderV1` + zstd payload, and back.
 //!
 //! Encoding is a free function so that compute workers compress their own rows and the
-//! I/O master only appends finished records (DESIGN §4: rank 0 bounded by the disk,
+//! I/O master only appends finished records (docs/architecture.md §3.5: rank 0 bounded by the disk,
 //! not by its CPU). Decoding checks both checksums before a number leaves this module.
 
 use super::error::{FfzError, Result};
@@ -26,55 +26,6 @@ pub struct EncodedChunk {
     pub bytes: Vec<u8>,
     /// Length of the decompressed payload (row directory + row data).
     pub raw_len: u64,
-}
-
-impl EncodedChunk {
-    /// One byte buffer holding the whole chunk, for sending between processes:
-    /// `n_rows u32, n_skipped u32, row_ids u32[n_rows], skipped u32[n_skipped], record`.
-    /// (`raw_len` is inside the record's header.) Not part of the file format.
-    pub fn to_wire(&self) -> Vec<u8> {
-        let mut out = Vec::with_capacity(
-            8 + 4 * (self.row_ids.len() + self.skipped.len()) + self.bytes.len(),
-        );
-        out.extend_from_slice(&(self.row_ids.len() as u32).to_le_bytes());
-        out.extend_from_slice(&(self.skipped.len() as u32).to_le_bytes());
-        for r in self.row_ids.iter().chain(&self.skipped) {
-            out.extend_from_slice(&r.to_le_bytes());
-        }
-        out.extend_from_slice(&self.bytes);
-        out
-    }
-
-    /// Inverse of [`EncodedChunk::to_wire`].
-    ///
-    /// # Errors
-    /// `BadEncodedChunk` (with an empty path) when the buffer is cut short or its
-    /// record header is corrupt.
-    pub fn from_wire(buf: &[u8]) -> Result<Self> {
-        let bad = |what: String| FfzError::BadEncodedChunk {
-            path: Default::default(),
-            what,
-        };
-        let mut r = spec::Le::new(buf);
-        let n_rows = r.u32().ok_or_else(|| bad("wire buffer cut short".into()))? as usize;
-        let n_skipped = r.u32().ok_or_else(|| bad("wire buffer cut short".into()))? as usize;
-        let mut ids = Vec::with_capacity(n_rows.min(buf.len() / 4));
-        for _ in 0..n_rows + n_skipped {
-            ids.push(
-                r.u32()
-                    .ok_or_else(|| bad("wire buffer cut short in the row ids".into()))?,
-            );
-        }
-        let skipped = ids.split_off(n_rows);
-        let bytes = buf[r.pos()..].to_vec();
-        let header = ChunkHeaderV1::decode(&bytes).map_err(|(_, w)| bad(w))?;
-        Ok(EncodedChunk {
-            row_ids: ids,
-            skipped,
-            bytes,
-            raw_len: header.raw_len,
-        })
-    }
 }
 
 /// Knobs of the chunk encoder.
@@ -146,9 +97,9 @@ pub fn encode_chunk_with(
 
 /// The decompressed payload of a chunk and the rows it names.
 pub(crate) struct RawPayload {
-    pub bytes: Vec<u8>,
-    pub row_ids: Vec<u32>,
-    pub skipped: Vec<u32>,
+    pub(crate) bytes: Vec<u8>,
+    pub(crate) row_ids: Vec<u32>,
+    pub(crate) skipped: Vec<u32>,
 }
 
 /// Raw size a row adds to a chunk (directory entry + data, spec §5.3, §5.4).
@@ -338,7 +289,7 @@ impl<I: Iterator<Item = u32>> ExactSizeIterator for ExactLen<I> {}
 
 /// Where a chunk failed: byte offset relative to the chunk start (or, for payload
 /// faults, of the chunk start) and the reason.
-pub type ChunkFault = (u64, String);
+pub(crate) type ChunkFault = (u64, String);
 
 /// Check a chunk record that starts at `rec[0]` (which may run on past the chunk):
 /// header, length, checksum of the compressed payload. Returns the header and the
@@ -374,7 +325,7 @@ pub fn check_record(rec: &[u8]) -> std::result::Result<(ChunkHeaderV1, u64), Chu
 /// A decompressed, checked chunk.
 #[derive(Debug)]
 pub struct DecodedChunk {
-    pub header: ChunkHeaderV1,
+    pub(crate) header: ChunkHeaderV1,
     raw: Vec<u8>,
     entries: Vec<RowDirEntryV1>,
     /// (row id, entry number), sorted by row id, for lookups.
@@ -383,24 +334,19 @@ pub struct DecodedChunk {
 
 impl DecodedChunk {
     /// Directory entries in stored order.
-    pub fn entries(&self) -> &[RowDirEntryV1] {
+    pub(crate) fn entries(&self) -> &[RowDirEntryV1] {
         &self.entries
     }
 
-    /// Decompressed payload length.
-    pub fn raw_len(&self) -> usize {
-        self.raw.len()
-    }
-
     /// The directory entry of row `row`, if this chunk holds it.
-    pub fn find(&self, row: u32) -> Option<&RowDirEntryV1> {
+    pub(crate) fn find(&self, row: u32) -> Option<&RowDirEntryV1> {
         let k = self.by_row.binary_search_by_key(&row, |&(r, _)| r).ok()?;
         self.entries.get(self.by_row[k].1 as usize)
     }
 
     /// Materialize one row. `Err` names the row and what is wrong (the caller adds the
     /// chunk and offset).
-    pub fn row(&self, e: &RowDirEntryV1, n: u32) -> std::result::Result<Row, String> {
+    pub(crate) fn row(&self, e: &RowDirEntryV1, n: u32) -> std::result::Result<Row, String> {
         let shuffle = self.header.flags & spec::CHUNK_FLAG_SHUFFLED != 0;
         let data = usize::try_from(e.offset)
             .ok()
@@ -604,7 +550,6 @@ mod tests {
         let d = decode_record(h, &c.bytes, n, layout).unwrap();
         let back: Vec<Row> = d.entries().iter().map(|e| d.row(e, n).unwrap()).collect();
         assert_eq!(back, rows);
-        assert_eq!(EncodedChunk::from_wire(&c.to_wire()).unwrap(), c);
     }
 
     #[test]

@@ -16,7 +16,7 @@ pub enum FfzError {
         path: PathBuf,
         /// What was being done ("write chunk", "fsync", ...).
         op: String,
-                cause: std::io::Error,
+        cause: std::io::Error,
     },
     /// The file does not start with the `.ffz` magic (spec §3).
     #[error("{path}: not an .ffz file (magic at byte 0 is {found:02x?})")]
@@ -82,11 +82,7 @@ pub enum FfzError {
 }
 
 impl FfzError {
-    pub(crate) fn io(
-        path: &std::path::Path,
-        op: impl Into<String>,
-        cause: std::io::Error,
-    ) -> Self {
+    pub(crate) fn io(path: &std::path::Path, op: impl Into<String>, cause: std::io::Error) -> Self {
         FfzError::Io {
             path: path.to_path_buf(),
             op: op.into(),
@@ -96,4 +92,4 @@ impl FfzError {
 }
 
 /// Shorthand for results of this layer.
-pub type Result<T, E = FfzError> = std::result::Result<T, E>;
+pub(crate) type Result<T, E = FfzError> = std::result::Result<T, E>;

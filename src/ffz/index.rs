@@ -6,19 +6,19 @@ use super::spec::{self, FooterV1, IndexV1, Le};
 
 /// The index in memory: O(chunks + n).
 #[derive(Clone, Debug, PartialEq)]
-pub struct IndexData {
+pub(crate) struct IndexData {
     /// File offset of each chunk, ascending (chunk number = position).
-    pub chunk_offsets: Vec<u64>,
+    pub(crate) chunk_offsets: Vec<u64>,
     /// Chunk number of each row, `spec::NO_CHUNK` when missing.
-    pub row_chunk: Vec<u32>,
-    pub presence: RowPresence,
+    pub(crate) row_chunk: Vec<u32>,
+    pub(crate) presence: RowPresence,
     /// Offset of the index = end of the chunk area.
-    pub index_offset: u64,
+    pub(crate) index_offset: u64,
 }
 
 /// Stream the index bytes (spec §6) to `sink` in pieces, so that no second O(n) buffer
 /// is needed. Returns the index length.
-pub fn write_index(
+pub(crate) fn write_index(
     chunk_offsets: &[u64],
     row_chunk: &[u32],
     presence: &RowPresence,
@@ -58,7 +58,7 @@ pub fn write_index(
 
 /// Read footer and index from a whole file image (spec §7 then §6). `Err` holds the
 /// file offset of the failing field and the reason; the caller falls back to a scan.
-pub fn read_index(file: &[u8], n: u32, meta_len: u64) -> Result<IndexData, spec::Fault> {
+pub(crate) fn read_index(file: &[u8], n: u32, meta_len: u64) -> Result<IndexData, spec::Fault> {
     let len = file.len() as u64;
     if len < meta_len + spec::FOOTER_LEN as u64 {
         return Err((

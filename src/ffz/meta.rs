@@ -17,7 +17,7 @@ pub enum Layout {
 
 impl Layout {
     /// (layout code, k) as stored in the header.
-    pub fn to_code(self) -> (u32, u32) {
+    pub(crate) fn to_code(self) -> (u32, u32) {
         match self {
             Layout::Dense => (spec::LAYOUT_DENSE, 0),
             Layout::TopK { k } => (spec::LAYOUT_TOPK, k),
@@ -25,7 +25,7 @@ impl Layout {
     }
 
     /// Inverse of [`Layout::to_code`] (the header decoder has validated the pair).
-    pub fn from_code(code: u32, k: u32) -> Option<Layout> {
+    pub(crate) fn from_code(code: u32, k: u32) -> Option<Layout> {
         match code {
             spec::LAYOUT_DENSE => Some(Layout::Dense),
             spec::LAYOUT_TOPK if k > 0 => Some(Layout::TopK { k }),
@@ -33,7 +33,7 @@ impl Layout {
         }
     }
 
-    pub fn is_sparse(self) -> bool {
+    pub(crate) fn is_sparse(self) -> bool {
         matches!(self, Layout::TopK { .. })
     }
 }
@@ -76,7 +76,7 @@ impl FileMeta {
 /// # Errors
 /// `InvalidMeta` when n does not fit u32, a patch names a group that does not exist or
 /// has 3 or 4 corners, or a string is longer than u32.
-pub fn encode_meta(meta: &FileMeta, zstd_level: i32) -> Result<Vec<u8>, super::FfzError> {
+pub(crate) fn encode_meta(meta: &FileMeta, zstd_level: i32) -> Result<Vec<u8>, super::FfzError> {
     use super::FfzError::InvalidMeta;
     let n = u32::try_from(meta.patches.len()).map_err(|_| {
         InvalidMeta(format!(
@@ -149,7 +149,7 @@ pub fn encode_meta(meta: &FileMeta, zstd_level: i32) -> Result<Vec<u8>, super::F
 
 /// Decode the fixed header from the first 64 bytes. `Err` holds (offset, reason); magic
 /// and version faults are reported by the caller, which has the path.
-pub fn decode_header(bytes: &[u8]) -> Result<HeaderV1, spec::Fault> {
+pub(crate) fn decode_header(bytes: &[u8]) -> Result<HeaderV1, spec::Fault> {
     let Some(b) = bytes.get(..spec::HEADER_LEN) else {
         return Err((
             0,
@@ -166,7 +166,7 @@ pub fn decode_header(bytes: &[u8]) -> Result<HeaderV1, spec::Fault> {
 
 /// Decode the meta block that follows the header (spec §3.2 to §4.3). `bytes` is the
 /// whole file prefix (at least `header.meta_len` bytes). `Err` holds (file offset, reason).
-pub fn decode_meta(bytes: &[u8], header: &HeaderV1) -> Result<FileMeta, spec::Fault> {
+pub(crate) fn decode_meta(bytes: &[u8], header: &HeaderV1) -> Result<FileMeta, spec::Fault> {
     let meta_len =
         usize::try_from(header.meta_len).map_err(|_| (40, "meta_len too large".to_string()))?;
     let min = spec::HEADER_LEN as u64

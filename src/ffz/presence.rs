@@ -21,17 +21,12 @@ pub struct RowPresence {
 
 impl RowPresence {
     /// All `n` rows missing.
-    pub fn new(n: u32) -> Self {
+    pub(crate) fn new(n: u32) -> Self {
         RowPresence {
             states: vec![RowState::Missing; n as usize],
             present: 0,
             skipped: 0,
         }
-    }
-
-    /// Number of rows (n).
-    pub fn n(&self) -> u32 {
-        self.states.len() as u32
     }
 
     /// State of row `i`; `Missing` for `i >= n`.
@@ -43,7 +38,7 @@ impl RowPresence {
     }
 
     /// Set the state of row `i` (ignored for `i >= n`), keeping the counts right.
-    pub fn set(&mut self, i: u32, state: RowState) {
+    pub(crate) fn set(&mut self, i: u32, state: RowState) {
         let Some(s) = self.states.get_mut(i as usize) else {
             return;
         };
@@ -86,15 +81,10 @@ impl RowPresence {
     }
 
     /// Ids of the rows in `state`, ascending.
-    pub fn ids(&self, state: RowState) -> Vec<u32> {
+    pub(crate) fn ids(&self, state: RowState) -> Vec<u32> {
         (0..self.states.len() as u32)
             .filter(|&i| self.states[i as usize] == state)
             .collect()
-    }
-
-    /// All states, indexed by row.
-    pub fn states(&self) -> &[RowState] {
-        &self.states
     }
 }
 

@@ -184,10 +184,6 @@ impl FfzReader {
         self.bad_regions = scan.bad;
     }
 
-    pub fn path(&self) -> &Path {
-        &self.path
-    }
-
     pub fn meta(&self) -> &FileMeta {
         &self.meta
     }
@@ -233,17 +229,17 @@ impl FfzReader {
     }
 
     /// File length in bytes.
-    pub fn file_len(&self) -> u64 {
+    pub(crate) fn file_len(&self) -> u64 {
         self.map.len() as u64
     }
 
     /// End of the chunk area (where the index starts, or the file end after a scan).
-    pub fn chunk_area_end(&self) -> u64 {
+    pub(crate) fn chunk_area_end(&self) -> u64 {
         self.chunk_area_end
     }
 
     /// Regions a recovery scan could not read (empty when the index was used).
-    pub fn bad_regions(&self) -> &[BadRegion] {
+    pub(crate) fn bad_regions(&self) -> &[BadRegion] {
         &self.bad_regions
     }
 
@@ -293,7 +289,7 @@ impl FfzReader {
     }
 
     /// Header of chunk `k` if it decodes (checksum of the header only; for `info`).
-    pub fn chunk_header(&self, k: u32) -> Option<spec::ChunkHeaderV1> {
+    pub(crate) fn chunk_header(&self, k: u32) -> Option<spec::ChunkHeaderV1> {
         let start = *self.chunk_offsets.get(k as usize)? as usize;
         spec::ChunkHeaderV1::decode(&self.map[start..]).ok()
     }
@@ -302,7 +298,7 @@ impl FfzReader {
     ///
     /// # Errors
     /// `Chunk` naming the chunk and its offset when any check fails.
-    pub fn decode_chunk(&self, k: u32) -> Result<DecodedChunk> {
+    pub(crate) fn decode_chunk(&self, k: u32) -> Result<DecodedChunk> {
         let (h, _) = self.chunk_record(k)?;
         let start = self.chunk_offsets[k as usize] as usize; // exists: chunk_record checked k
         chunk::decode_record(h, &self.map[start..], self.header.n, self.meta.layout)

@@ -9,31 +9,31 @@ use super::spec;
 
 /// A chunk the scan accepted.
 #[derive(Debug)]
-pub struct ScannedChunk {
-    pub offset: u64,
+pub(crate) struct ScannedChunk {
+    pub(crate) offset: u64,
     /// Record length (header + payload).
-    pub len: u64,
-    pub decoded: DecodedChunk,
+    pub(crate) len: u64,
+    pub(crate) decoded: DecodedChunk,
 }
 
 /// A byte range the scan could not use, with the first reason it saw.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct BadRegion {
-    pub start: u64,
-    pub end: u64,
-    pub reason: String,
+    pub(crate) start: u64,
+    pub(crate) end: u64,
+    pub(crate) reason: String,
 }
 
 /// What a scan found.
 #[derive(Debug, Default)]
-pub struct ScanOutcome {
-    pub chunks: Vec<ScannedChunk>,
-    pub bad: Vec<BadRegion>,
+pub(crate) struct ScanOutcome {
+    pub(crate) chunks: Vec<ScannedChunk>,
+    pub(crate) bad: Vec<BadRegion>,
     /// End of the run of good chunks that starts at the meta block: what `resume`
     /// keeps (the rest is truncated).
-    pub prefix_end: u64,
+    pub(crate) prefix_end: u64,
     /// Number of chunks in that run.
-    pub prefix_chunks: usize,
+    pub(crate) prefix_chunks: usize,
 }
 
 /// Try to read one chunk at `file[pos..]`.
@@ -46,7 +46,7 @@ fn try_chunk(rest: &[u8], n: u32, layout: Layout) -> Result<(DecodedChunk, u64),
 /// Scan `file[start..end]` for chunks. With `stop_at_first_bad`, stop at the first
 /// position that does not hold a good chunk (what `resume` needs); otherwise search on
 /// for the next chunk magic (what a reader recovering a damaged file needs).
-pub fn scan_chunks(
+pub(crate) fn scan_chunks(
     file: &[u8],
     start: u64,
     end: u64,

@@ -8,93 +8,93 @@
 
 /// File magic (spec §3.1): `\x89 F F Z \r \n \x1a \n`. The high byte catches 7-bit
 /// transfers, CR LF catches newline translation, `\x1a` stops `type` on old systems.
-pub const FILE_MAGIC: [u8; 8] = *b"\x89FFZ\r\n\x1a\n";
+pub(crate) const FILE_MAGIC: [u8; 8] = *b"\x89FFZ\r\n\x1a\n";
 /// The version this code writes and reads (spec §2).
-pub const VERSION: u32 = 1;
+pub(crate) const VERSION: u32 = 1;
 /// Chunk magic (spec §5.1).
-pub const CHUNK_MAGIC: [u8; 4] = *b"FFZC";
+pub(crate) const CHUNK_MAGIC: [u8; 4] = *b"FFZC";
 /// Index magic (spec §6).
-pub const INDEX_MAGIC: [u8; 4] = *b"FFZI";
+pub(crate) const INDEX_MAGIC: [u8; 4] = *b"FFZI";
 /// Footer magic, the last 8 bytes of a complete file (spec §7).
-pub const FOOTER_MAGIC: [u8; 8] = *b"FFZ-END\n";
+pub(crate) const FOOTER_MAGIC: [u8; 8] = *b"FFZ-END\n";
 
 /// Size of [`HeaderV1`] (spec §3.1).
-pub const HEADER_LEN: usize = 64;
+pub(crate) const HEADER_LEN: usize = 64;
 /// Size of one [`PatchRecordV1`] (spec §4.1).
-pub const PATCH_RECORD_LEN: usize = 168;
+pub(crate) const PATCH_RECORD_LEN: usize = 168;
 /// Size of [`ChunkHeaderV1`] (spec §5.1).
 pub const CHUNK_HEADER_LEN: usize = 40;
 /// Size of one [`RowDirEntryV1`] (spec §5.3).
-pub const ROW_DIR_ENTRY_LEN: usize = 24;
+pub(crate) const ROW_DIR_ENTRY_LEN: usize = 24;
 /// Size of the fixed part of [`IndexV1`] (spec §6).
-pub const INDEX_FIXED_LEN: usize = 24;
+pub(crate) const INDEX_FIXED_LEN: usize = 24;
 /// Size of [`FooterV1`] (spec §7).
-pub const FOOTER_LEN: usize = 32;
+pub(crate) const FOOTER_LEN: usize = 32;
 
 /// `layout` code of a dense file (spec §3.1).
-pub const LAYOUT_DENSE: u32 = 0;
+pub(crate) const LAYOUT_DENSE: u32 = 0;
 /// `layout` code of a top-k sparse file (spec §3.1).
-pub const LAYOUT_TOPK: u32 = 1;
+pub(crate) const LAYOUT_TOPK: u32 = 1;
 
 /// Chunk flag (spec §5.1): float and column arrays are byte-shuffled (spec §5.5).
-pub const CHUNK_FLAG_SHUFFLED: u32 = 1;
+pub(crate) const CHUNK_FLAG_SHUFFLED: u32 = 1;
 /// Row flag (spec §5.3): deliberately not computed; nnz = 0, no data.
 pub const ROW_FLAG_SKIPPED: u32 = 1;
 /// Row flag (spec §5.3): sparse row (columns + values); clear for dense rows.
 pub const ROW_FLAG_SPARSE: u32 = 2;
 
 /// Row state code in the index row table (spec §6).
-pub const STATE_MISSING: u32 = 0;
+pub(crate) const STATE_MISSING: u32 = 0;
 /// Row state code in the index row table (spec §6).
-pub const STATE_PRESENT: u32 = 1;
+pub(crate) const STATE_PRESENT: u32 = 1;
 /// Row state code in the index row table (spec §6).
-pub const STATE_SKIPPED: u32 = 2;
+pub(crate) const STATE_SKIPPED: u32 = 2;
 /// Chunk number of a missing row in the index row table (spec §6).
-pub const NO_CHUNK: u32 = u32::MAX;
+pub(crate) const NO_CHUNK: u32 = u32::MAX;
 
 /// CRC-32C (Castagnoli), the checksum used everywhere in the file (spec §2).
 #[inline]
-pub fn crc(bytes: &[u8]) -> u32 {
+pub(crate) fn crc(bytes: &[u8]) -> u32 {
     crc32c::crc32c(bytes)
 }
 
 /// Little-endian reader over a byte slice that never panics: every read past the end
 /// returns `None`.
 #[derive(Clone, Debug)]
-pub struct Le<'a> {
+pub(crate) struct Le<'a> {
     buf: &'a [u8],
     pos: usize,
 }
 
 impl<'a> Le<'a> {
-    pub fn new(buf: &'a [u8]) -> Self {
+    pub(crate) fn new(buf: &'a [u8]) -> Self {
         Le { buf, pos: 0 }
     }
-    pub fn pos(&self) -> usize {
+    pub(crate) fn pos(&self) -> usize {
         self.pos
     }
-    pub fn take(&mut self, len: usize) -> Option<&'a [u8]> {
+    pub(crate) fn take(&mut self, len: usize) -> Option<&'a [u8]> {
         let end = self.pos.checked_add(len)?;
         let s = self.buf.get(self.pos..end)?;
         self.pos = end;
         Some(s)
     }
-    pub fn array<const N: usize>(&mut self) -> Option<[u8; N]> {
+    pub(crate) fn array<const N: usize>(&mut self) -> Option<[u8; N]> {
         self.take(N)?.try_into().ok()
     }
-    pub fn u32(&mut self) -> Option<u32> {
+    pub(crate) fn u32(&mut self) -> Option<u32> {
         self.array().map(u32::from_le_bytes)
     }
-    pub fn i32(&mut self) -> Option<i32> {
+    pub(crate) fn i32(&mut self) -> Option<i32> {
         self.array().map(i32::from_le_bytes)
     }
-    pub fn u64(&mut self) -> Option<u64> {
+    pub(crate) fn u64(&mut self) -> Option<u64> {
         self.array().map(u64::from_le_bytes)
     }
-    pub fn f32(&mut self) -> Option<f32> {
+    pub(crate) fn f32(&mut self) -> Option<f32> {
         self.array().map(f32::from_le_bytes)
     }
-    pub fn f64(&mut self) -> Option<f64> {
+    pub(crate) fn f64(&mut self) -> Option<f64> {
         self.array().map(f64::from_le_bytes)
     }
 }
@@ -105,7 +105,7 @@ pub struct HeaderV1 {
     // 0: magic [8] = FILE_MAGIC
     // 8: version u32 = 1
     /// 12: flags u32; no flag is defined in version 1, so it must be 0.
-    pub flags: u32,
+    pub(crate) flags: u32,
     /// 16: n u32, the number of patches = rows = columns.
     pub n: u32,
     /// 20: layout u32 (`LAYOUT_DENSE` | `LAYOUT_TOPK`).
@@ -129,10 +129,10 @@ pub struct HeaderV1 {
 }
 
 /// Why a header could not be read: the offset of the failing field and what failed.
-pub type Fault = (u64, String);
+pub(crate) type Fault = (u64, String);
 
 impl HeaderV1 {
-    pub fn encode(&self) -> [u8; HEADER_LEN] {
+    pub(crate) fn encode(&self) -> [u8; HEADER_LEN] {
         let mut b = [0u8; HEADER_LEN];
         b[0..8].copy_from_slice(&FILE_MAGIC);
         b[8..12].copy_from_slice(&VERSION.to_le_bytes());
@@ -225,7 +225,7 @@ pub struct PatchRecordV1 {
 }
 
 impl PatchRecordV1 {
-    pub fn encode_into(&self, out: &mut Vec<u8>) {
+    pub(crate) fn encode_into(&self, out: &mut Vec<u8>) {
         out.extend_from_slice(&self.n_corners.to_le_bytes());
         out.extend_from_slice(&self.group.to_le_bytes());
         out.extend_from_slice(&self.face.to_le_bytes());
@@ -307,7 +307,7 @@ pub struct ChunkHeaderV1 {
 }
 
 impl ChunkHeaderV1 {
-    pub fn encode(&self) -> [u8; CHUNK_HEADER_LEN] {
+    pub(crate) fn encode(&self) -> [u8; CHUNK_HEADER_LEN] {
         let mut b = [0u8; CHUNK_HEADER_LEN];
         b[0..4].copy_from_slice(&CHUNK_MAGIC);
         b[4..8].copy_from_slice(&self.flags.to_le_bytes());
@@ -380,7 +380,7 @@ pub struct RowDirEntryV1 {
 }
 
 impl RowDirEntryV1 {
-    pub fn encode_into(&self, out: &mut Vec<u8>) {
+    pub(crate) fn encode_into(&self, out: &mut Vec<u8>) {
         out.extend_from_slice(&self.row.to_le_bytes());
         out.extend_from_slice(&self.flags.to_le_bytes());
         out.extend_from_slice(&self.nnz.to_le_bytes());
@@ -401,7 +401,7 @@ impl RowDirEntryV1 {
     }
 
     /// Bytes of row data this entry describes (spec §5.4).
-    pub fn data_len(&self) -> u64 {
+    pub(crate) fn data_len(&self) -> u64 {
         if self.flags & ROW_FLAG_SKIPPED != 0 {
             0
         } else if self.flags & ROW_FLAG_SPARSE != 0 {
@@ -414,17 +414,17 @@ impl RowDirEntryV1 {
 
 /// Fixed part of the index, spec §6 (24 bytes, then the chunk table and the row table).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct IndexV1 {
+pub(crate) struct IndexV1 {
     // 0: magic [4] = INDEX_MAGIC
     // 4: reserved u32 = 0
     /// 8: n_chunks u64.
-    pub n_chunks: u64,
+    pub(crate) n_chunks: u64,
     /// 16: n_rows u64, must equal the header's n.
-    pub n_rows: u64,
+    pub(crate) n_rows: u64,
 }
 
 impl IndexV1 {
-    pub fn encode_into(&self, out: &mut Vec<u8>) {
+    pub(crate) fn encode_into(&self, out: &mut Vec<u8>) {
         out.extend_from_slice(&INDEX_MAGIC);
         out.extend_from_slice(&0u32.to_le_bytes());
         out.extend_from_slice(&self.n_chunks.to_le_bytes());
@@ -432,7 +432,7 @@ impl IndexV1 {
     }
 
     /// Total index length for this many chunks and rows (spec §6).
-    pub fn total_len(n_chunks: u64, n_rows: u64) -> Option<u64> {
+    pub(crate) fn total_len(n_chunks: u64, n_rows: u64) -> Option<u64> {
         let chunk_table = n_chunks.checked_mul(8)?;
         let row_table = n_rows.checked_mul(8)?;
         (INDEX_FIXED_LEN as u64)
@@ -443,19 +443,19 @@ impl IndexV1 {
 
 /// Footer, spec §7 (the last 32 bytes of a complete file).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct FooterV1 {
+pub(crate) struct FooterV1 {
     /// 0: index_offset u64.
-    pub index_offset: u64,
+    pub(crate) index_offset: u64,
     /// 8: index_len u64.
-    pub index_len: u64,
+    pub(crate) index_len: u64,
     /// 16: index_crc u32 = crc32c(index bytes).
-    pub index_crc: u32,
+    pub(crate) index_crc: u32,
     // 20: footer_crc u32 = crc32c(footer bytes 0..20)
     // 24: magic [8] = FOOTER_MAGIC
 }
 
 impl FooterV1 {
-    pub fn encode(&self) -> [u8; FOOTER_LEN] {
+    pub(crate) fn encode(&self) -> [u8; FOOTER_LEN] {
         let mut b = [0u8; FOOTER_LEN];
         b[0..8].copy_from_slice(&self.index_offset.to_le_bytes());
         b[8..16].copy_from_slice(&self.index_len.to_le_bytes());
@@ -466,7 +466,7 @@ impl FooterV1 {
         b
     }
 
-    pub fn decode(b: &[u8]) -> Result<Self, Fault> {
+    pub(crate) fn decode(b: &[u8]) -> Result<Self, Fault> {
         let Some(b) = b.get(..FOOTER_LEN) else {
             return Err((0, "footer cut short".into()));
         };

@@ -1,5 +1,5 @@
 //! Library side of `ffstream info`, `verify` and `export` (the CLI wires its flags to
-//! these functions; output formats are DESIGN §6).
+//! these functions; output formats are docs/architecture.md §7).
 
 use std::io::{BufWriter, Write};
 use std::path::Path;

@@ -57,7 +57,7 @@ pub struct BadChunk {
 pub struct Reciprocity {
     pub pairs: u64,
     pub max_rel_error: f64,
-    pub mean_rel_error: f64,
+    pub(crate) mean_rel_error: f64,
     pub weighted_rel_error: f64,
     /// (i, j) of the worst pair.
     pub worst: Option<(u32, u32)>,
@@ -68,24 +68,24 @@ pub struct Reciprocity {
 /// What [`FfzReader::verify`] found.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct VerifyReport {
-    pub n: u32,
-    pub chunks_checked: u64,
+    pub(crate) n: u32,
+    pub(crate) chunks_checked: u64,
     pub bad_chunks: Vec<BadChunk>,
     /// Warnings from opening (footer/index unusable, recovery scan).
-    pub open_warnings: Vec<String>,
-    pub rows_present: u64,
-    pub rows_skipped: u64,
+    pub(crate) open_warnings: Vec<String>,
+    pub(crate) rows_present: u64,
+    pub(crate) rows_skipped: u64,
     pub rows_missing: u64,
     /// Rows decoded and checked (present rows in good chunks).
     pub rows_checked: u64,
     /// True row sums (stored + dropped) over checked rows: min, max, mean.
     pub row_sum_min: f64,
     pub row_sum_max: f64,
-    pub row_sum_mean: f64,
+    pub(crate) row_sum_mean: f64,
     /// Largest dropped mass of a row (top-k).
-    pub dropped_max: f64,
-    pub negative_entries: u64,
-    pub non_finite_entries: u64,
+    pub(crate) dropped_max: f64,
+    pub(crate) negative_entries: u64,
+    pub(crate) non_finite_entries: u64,
     pub reciprocity: Option<Reciprocity>,
 }
 
@@ -372,12 +372,12 @@ impl FfzReader {
 /// Row-by-row comparison of two files (`verify --against`).
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct CompareReport {
-    pub n_a: u32,
-    pub n_b: u32,
+    pub(crate) n_a: u32,
+    pub(crate) n_b: u32,
     /// Header fields that differ (scene hash, layout, method, params).
-    pub meta_differences: Vec<String>,
+    pub(crate) meta_differences: Vec<String>,
     /// Rows held (present or skipped) by both files.
-    pub rows_compared: u64,
+    pub(crate) rows_compared: u64,
     /// Of those, bitwise equal (values, columns, dropped mass, skipped state).
     pub identical_rows: u64,
     pub differing_rows: u64,
@@ -389,9 +389,9 @@ pub struct CompareReport {
     pub only_in_b: u64,
     /// The first few row ids only in a / only in b.
     pub first_only_in_a: Vec<u32>,
-    pub first_only_in_b: Vec<u32>,
+    pub(crate) first_only_in_b: Vec<u32>,
     /// Chunk errors met while comparing (those rows count as differing).
-    pub errors: Vec<String>,
+    pub(crate) errors: Vec<String>,
 }
 
 impl CompareReport {

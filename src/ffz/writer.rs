@@ -48,7 +48,7 @@ pub struct WriterStats {
     /// Rows in the file (present + skipped).
     pub rows: u64,
     /// Of which skipped on purpose.
-    pub skipped: u64,
+    pub(crate) skipped: u64,
     pub chunks: u64,
     /// File length (including the index and footer after `finish`).
     pub bytes_on_disk: u64,
@@ -292,37 +292,8 @@ impl FfzWriter {
         Ok((w, presence))
     }
 
-    /// [`FfzWriter::resume`] when `path` exists, else [`FfzWriter::create`] (with every
-    /// row missing).
-    ///
-    /// # Errors
-    /// As `resume` and `create`.
-    pub fn resume_or_create(
-        path: impl AsRef<Path>,
-        meta: &FileMeta,
-        opts: WriterOptions,
-    ) -> Result<(Self, RowPresence)> {
-        let path = path.as_ref();
-        if path.exists() {
-            Self::resume(path, meta, opts)
-        } else {
-            let w = Self::create(path, meta, opts)?;
-            let p = w.presence.clone();
-            Ok((w, p))
-        }
-    }
-
-    pub fn path(&self) -> &Path {
-        &self.path
-    }
-
-    /// Rows written or accepted so far (buffered rows of `push_row` count as present).
-    pub fn presence(&self) -> &RowPresence {
-        &self.presence
-    }
-
     /// Notes from `resume` (bytes dropped, ...).
-    pub fn warnings(&self) -> &[String] {
+    pub(crate) fn warnings(&self) -> &[String] {
         &self.warnings
     }
 
@@ -458,7 +429,7 @@ impl FfzWriter {
     ///
     /// # Errors
     /// As [`FfzWriter::append_chunk`].
-    pub fn flush(&mut self) -> Result<()> {
+    pub(crate) fn flush(&mut self) -> Result<()> {
         self.check_usable()?;
         if self.pending.is_empty() {
             return Ok(());
@@ -472,7 +443,7 @@ impl FfzWriter {
     }
 
     /// Counts so far.
-    pub fn stats(&self) -> WriterStats {
+    pub(crate) fn stats(&self) -> WriterStats {
         WriterStats {
             rows: self.presence.present_count() + self.presence.skipped_count(),
             skipped: self.presence.skipped_count(),
@@ -610,7 +581,10 @@ mod tests {
     fn io_error_names_the_path() {
         // /dev/full accepts the open and fails every write with ENOSPC.
         let path = Path::new("/dev/full");
-        assert!(path.exists(), "this test needs /dev/full (every Linux has it)");
+        assert!(
+            path.exists(),
+            "this test needs /dev/full (every Linux has it)"
+        );
         let e = FfzWriter::create(path, &meta(2), WriterOptions::default())
             .err()
             .unwrap();

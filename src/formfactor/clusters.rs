@@ -26,7 +26,7 @@ use super::engine::PatchGeom;
 use crate::geometry::bvh::{Between, Occluders};
 
 /// Patches per cluster the grid aims at (4 × 4 on a quad grid).
-pub const CLUSTER_PATCHES: f64 = 16.0;
+pub(crate) const CLUSTER_PATCHES: f64 = 16.0;
 
 /// Clustering is used only when clusters hold at least this many patches on average
 /// (scenes whose faces are single patches would only pay for a second query).
@@ -34,7 +34,7 @@ const MIN_MEAN_CLUSTER: f64 = 4.0;
 
 /// Most triangles a cluster pair's list holds; with more, the pairs of the two clusters
 /// query the hierarchy themselves.
-pub const MAX_CLUSTER_CANDIDATES: usize = 48;
+pub(crate) const MAX_CLUSTER_CANDIDATES: usize = 48;
 
 /// Work bound of a cluster pair's query (triangles examined in detail).
 const MAX_CLUSTER_REJECTED: usize = 256;

@@ -12,7 +12,7 @@
 //! ```
 //!
 //! with both boundaries traversed counter-clockwise about their own front normals.
-//! The sign was checked against the analytic values of REFERENCES.md (parallel facing
+//! The sign was checked against the analytic values of docs/known-answers.md §2, §3 (parallel facing
 //! squares, perpendicular squares sharing an edge): with this orientation the integral
 //! is positive for facing patches as written, no extra minus sign.
 //!
@@ -51,17 +51,19 @@
 
 use glam::DVec3;
 
-use super::polygon::{Edge, EdgeSet, Polygon};
+#[cfg(test)]
+use super::polygon::Polygon;
+use super::polygon::{Edge, EdgeSet};
 use super::quadrature::{GaussTable, MAX_ORDER};
 
 /// Accuracy parameters of the outer quadrature.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct ContourParams {
+pub(crate) struct ContourParams {
     /// Most Gauss–Legendre points on one panel (1..=24); a panel that would need more
     /// is split.
-    pub max_order: usize,
+    pub(crate) max_order: usize,
     /// Target relative error of a panel (relative to the size of its own term).
-    pub tol: f64,
+    pub(crate) tol: f64,
 }
 
 impl Default for ContourParams {
@@ -86,7 +88,13 @@ const MAX_PANELS: usize = 96;
 
 /// A_a F_ab for two (already clipped) polygons whose contours wind counter-clockwise
 /// about their front normals. Returns 0 for fewer than 3 vertices on either side.
-pub fn area_form_factor(a: &Polygon, b: &Polygon, gauss: &GaussTable, p: ContourParams) -> f64 {
+#[cfg(test)]
+pub(crate) fn area_form_factor(
+    a: &Polygon,
+    b: &Polygon,
+    gauss: &GaussTable,
+    p: ContourParams,
+) -> f64 {
     if a.n < 3 || b.n < 3 {
         return 0.0;
     }
@@ -107,7 +115,7 @@ pub fn area_form_factor(a: &Polygon, b: &Polygon, gauss: &GaussTable, p: Contour
 /// As [`area_form_factor`] on precomputed edges, with the reference length `r_ref`
 /// (> 0; any value gives the same exact result, the distance between the polygons
 /// gives the best conditioning).
-pub fn area_form_factor_edges(
+pub(crate) fn area_form_factor_edges(
     ea: &EdgeSet,
     eb: &EdgeSet,
     r_ref: f64,

@@ -150,19 +150,19 @@ impl Scratch {
 #[derive(Clone, Debug)]
 #[repr(C)]
 pub(crate) struct PatchGeom {
-    pub normal: DVec3,
+    pub(crate) normal: DVec3,
     /// normal · x for x on the patch's plane.
-    pub offset: f64,
-    pub centroid: DVec3,
-    pub area: f64,
+    pub(crate) offset: f64,
+    pub(crate) centroid: DVec3,
+    pub(crate) area: f64,
     /// Longest edge.
-    pub size: f64,
+    pub(crate) size: f64,
     /// Largest distance from the centroid to a corner.
-    pub radius: f64,
-    pub face: u32,
-    pub poly: Polygon,
-    pub map: PatchMap,
-    pub edges: EdgeSet,
+    pub(crate) radius: f64,
+    pub(crate) face: u32,
+    pub(crate) poly: Polygon,
+    pub(crate) map: PatchMap,
+    pub(crate) edges: EdgeSet,
 }
 
 impl PatchGeom {
@@ -241,7 +241,6 @@ pub struct RowEngine {
     /// Process-unique id, so a [`Scratch`] moved between engines never reuses
     /// cached per-row data.
     id: u64,
-    patches: Arc<PatchSet>,
     occluders: Arc<Occluders>,
     cfg: FormFactorConfig,
     geom: Vec<PatchGeom>,
@@ -268,13 +267,13 @@ pub struct RowEngine {
 /// (188 triangles) at 8.5k patches 45.1 → 39.8 CPU-s, but rooms of 64, 200 and 900 boxes
 /// (780, 2120, 9470 triangles) 9-21 % slower, because finding every candidate of a
 /// cluttered pair costs more than the rays save. Both ways give the same answers.
-pub const PAIR_LISTS_MAX_OCCLUDERS: usize = 256;
+pub(crate) const PAIR_LISTS_MAX_OCCLUDERS: usize = 256;
 
 impl RowEngine {
     /// Precomputes per-patch data. Patches with zero area (or no proper normal) get
     /// zero rows and columns. The configuration should have passed
     /// [`FormFactorConfig::validate`]; out-of-range values are clamped.
-    pub fn new(patches: Arc<PatchSet>, occluders: Arc<Occluders>, cfg: FormFactorConfig) -> Self {
+    pub fn new(patches: &PatchSet, occluders: Arc<Occluders>, cfg: FormFactorConfig) -> Self {
         let geom: Vec<PatchGeom> = patches.patches.iter().map(PatchGeom::new).collect();
         let valid: Vec<bool> = geom.iter().map(PatchGeom::is_valid).collect();
         let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
@@ -310,7 +309,6 @@ impl RowEngine {
         static NEXT_ID: AtomicU64 = AtomicU64::new(0);
         RowEngine {
             id: NEXT_ID.fetch_add(1, Ordering::Relaxed),
-            patches,
             occluders,
             cfg,
             geom,
@@ -341,18 +339,6 @@ impl RowEngine {
     pub(crate) fn without_clusters(mut self) -> Self {
         self.clusters = None;
         self
-    }
-
-    pub fn patches(&self) -> &Arc<PatchSet> {
-        &self.patches
-    }
-
-    pub fn occluders(&self) -> &Arc<Occluders> {
-        &self.occluders
-    }
-
-    pub fn config(&self) -> &FormFactorConfig {
-        &self.cfg
     }
 
     /// Number of patches (rows and columns).
@@ -399,7 +385,7 @@ impl RowEngine {
 
     /// The compute side of `--symmetric` (reciprocity half, bench/PERF.md section 6):
     /// each unordered pair {a < b} is evaluated once, as `pair_value(a, b)` = F_ab, and
-    /// its other direction follows from reciprocity A_a F_ab = A_b F_ba (DESIGN.md §3):
+    /// its other direction follows from reciprocity A_a F_ab = A_b F_ba (docs/numerics.md §6):
     /// F_ba = F_ab · A_a / A_b.
     ///
     /// `in_run[j]` says whether row j is computed in this run. Row i owns the pairs
@@ -924,7 +910,7 @@ mod tests {
     #[test]
     fn contour_single_pair_matches_howell() {
         let e = RowEngine::new(
-            Arc::new(facing_pair()),
+            &facing_pair(),
             Arc::new(Occluders::empty()),
             FormFactorConfig::accurate(),
         );
@@ -956,9 +942,9 @@ mod tests {
             let patches = Arc::new(subdivide(&scene, default_max_edge(&scene, target)));
             let occ = Arc::new(Occluders::new(scene.triangles().collect()));
             let cfg = FormFactorConfig::accurate();
-            let with = RowEngine::new(patches.clone(), occ.clone(), cfg.clone());
+            let with = RowEngine::new(&patches, occ.clone(), cfg.clone());
             assert!(with.clusters.is_some(), "{name}: no clusters");
-            let without = RowEngine::new(patches, occ, cfg).without_clusters();
+            let without = RowEngine::new(&patches, occ, cfg).without_clusters();
             let n = with.n();
             // A partial run (rows already in the file or skipped), so half rows also
             // evaluate pairs (j, i) with j < i; the rows in a shuffled order through one
@@ -1017,10 +1003,9 @@ mod tests {
                     FormFactorConfig::accurate(),
                     FormFactorConfig::fast().with_top_k(Some(32)),
                 ] {
-                    let packets = RowEngine::new(patches.clone(), occ.clone(), cfg.clone());
+                    let packets = RowEngine::new(&patches, occ.clone(), cfg.clone());
                     assert_eq!(packets.pair_lists, lists, "{boxes} boxes");
-                    let single =
-                        RowEngine::new(patches.clone(), occ.clone(), cfg).one_ray_at_a_time();
+                    let single = RowEngine::new(&patches, occ.clone(), cfg).one_ray_at_a_time();
                     let (mut s1, mut s2) = (Scratch::new(), Scratch::new());
                     for i in (0..packets.n() as u32).step_by(11) {
                         assert_eq!(
@@ -1056,7 +1041,7 @@ mod tests {
             1,
         );
         let e = RowEngine::new(
-            Arc::new(ps),
+            &ps,
             Arc::new(Occluders::empty()),
             FormFactorConfig::accurate(),
         );

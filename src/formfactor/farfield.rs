@@ -26,17 +26,17 @@ use super::sampling::PatchMap;
 /// evaluations; with the inner loop over j's points in SIMD lanes
 /// ([`area_form_factor_soa`]) that is ~4k instructions, half of the contour integral
 /// of two quads (~8.6k with its logarithms and arc tangents; callgrind, 8.5k room).
-pub const MAX_FAR_ORDER: usize = 4;
+pub(crate) const MAX_FAR_ORDER: usize = 4;
 
 /// Lanes of the inner loop of [`area_form_factor_soa`] (point counts padded to it).
-pub const LANES: usize = 4;
+pub(crate) const LANES: usize = 4;
 
 /// One patch's points of one order, structure-of-arrays (x, y, z, area weight),
 /// padded to a multiple of [`LANES`] with zero weights, for [`area_form_factor_soa`].
 /// Built per pair on the stack (a per-patch table of all orders would cost ~1 KiB per
 /// patch, 100 MB at 100k patches, for ~2 % of the time).
 #[derive(Clone, Copy)]
-pub struct PatchLanes {
+pub(crate) struct PatchLanes {
     x: [f64; MAX_FAR_ORDER * MAX_FAR_ORDER],
     y: [f64; MAX_FAR_ORDER * MAX_FAR_ORDER],
     z: [f64; MAX_FAR_ORDER * MAX_FAR_ORDER],
@@ -45,7 +45,7 @@ pub struct PatchLanes {
 }
 
 impl PatchLanes {
-    pub fn new(p: &PatchPoints) -> Self {
+    pub(crate) fn new(p: &PatchPoints) -> Self {
         let len = p.n.div_ceil(LANES) * LANES;
         let mut out = PatchLanes {
             x: [0.0; MAX_FAR_ORDER * MAX_FAR_ORDER],
@@ -69,7 +69,7 @@ impl PatchLanes {
         out
     }
 
-    pub fn slice(&self) -> FarSlice<'_> {
+    pub(crate) fn slice(&self) -> FarSlice<'_> {
         FarSlice {
             x: &self.x[..self.len],
             y: &self.y[..self.len],
@@ -81,11 +81,11 @@ impl PatchLanes {
 
 /// Points of one patch and order as slices (length a multiple of [`LANES`]).
 #[derive(Clone, Copy)]
-pub struct FarSlice<'a> {
-    pub x: &'a [f64],
-    pub y: &'a [f64],
-    pub z: &'a [f64],
-    pub w: &'a [f64],
+pub(crate) struct FarSlice<'a> {
+    pub(crate) x: &'a [f64],
+    pub(crate) y: &'a [f64],
+    pub(crate) z: &'a [f64],
+    pub(crate) w: &'a [f64],
 }
 
 /// Constant in front of the error bound ρ^(−2q) (see [`FarOrders`]). The kernel has
@@ -96,22 +96,23 @@ const SAFETY: f64 = 1000.0;
 
 /// Gauss points with area weights (Σ w = area) on one patch, for one order.
 #[derive(Clone, Copy, Debug)]
-pub struct PatchPoints {
-    pub p: [DVec3; MAX_FAR_ORDER * MAX_FAR_ORDER],
-    pub w: [f64; MAX_FAR_ORDER * MAX_FAR_ORDER],
-    pub n: usize,
+pub(crate) struct PatchPoints {
+    pub(crate) p: [DVec3; MAX_FAR_ORDER * MAX_FAR_ORDER],
+    pub(crate) w: [f64; MAX_FAR_ORDER * MAX_FAR_ORDER],
+    pub(crate) n: usize,
 }
 
 impl PatchPoints {
     /// The q × q rule (q clamped to 1..=MAX_FAR_ORDER) on a triangle or quad.
-    pub fn new(corners: &[DVec3], area: f64, q: usize, gauss: &GaussTable) -> Self {
+    #[cfg(test)]
+    pub(crate) fn new(corners: &[DVec3], area: f64, q: usize, gauss: &GaussTable) -> Self {
         Self::on(&PatchMap::new(corners, area), q, gauss)
     }
 
     /// As [`PatchPoints::new`] on the patch whose map is `map` (built once per patch,
     /// not once per pair): triangles through the collapsed square, quads through the
     /// bilinear map of sampling (affine with a constant Jacobian for parallelograms).
-    pub fn on(map: &PatchMap, q: usize, gauss: &GaussTable) -> Self {
+    pub(crate) fn on(map: &PatchMap, q: usize, gauss: &GaussTable) -> Self {
         let q = q.clamp(1, MAX_FAR_ORDER);
         let rule = gauss.rule(q);
         let mut out = PatchPoints {
@@ -188,13 +189,13 @@ fn degree7_square_rule() -> [(f64, f64, f64); 12] {
 /// once; a pair then costs a division and up to [`MAX_FAR_ORDER`] comparisons (it runs
 /// for every pair that faces the other).
 #[derive(Clone, Copy, Debug)]
-pub struct FarOrders {
+pub(crate) struct FarOrders {
     /// `min_b[q - 1]`: the smallest gap / radius for which order q is enough.
     min_b: [f64; MAX_FAR_ORDER],
 }
 
 impl FarOrders {
-    pub fn new(tol: f64) -> Self {
+    pub(crate) fn new(tol: f64) -> Self {
         let l = (SAFETY / tol).ln();
         let mut min_b = [0.0; MAX_FAR_ORDER];
         for (k, b) in min_b.iter_mut().enumerate() {
@@ -205,7 +206,7 @@ impl FarOrders {
 
     /// The order for these two patches (see [`FarOrders`]).
     #[inline]
-    pub fn order(&self, gap: f64, radius: f64) -> Option<usize> {
+    pub(crate) fn order(&self, gap: f64, radius: f64) -> Option<usize> {
         if gap.is_nan() || gap <= 0.0 || radius <= 0.0 {
             return None;
         }
@@ -217,7 +218,8 @@ impl FarOrders {
 /// A_i F_ij (unoccluded) by the tensor rule: Σ_a Σ_b w_a w_b (n_i·d)(−n_j·d) / (π |d|⁴).
 /// Valid only when both cosines are non-negative over the whole pair (the caller
 /// checks that neither patch reaches behind the other's plane).
-pub fn area_form_factor(pi: &PatchPoints, ni: DVec3, pj: &PatchPoints, nj: DVec3) -> f64 {
+#[cfg(test)]
+pub(crate) fn area_form_factor(pi: &PatchPoints, ni: DVec3, pj: &PatchPoints, nj: DVec3) -> f64 {
     let mut sum = 0.0;
     for a in 0..pi.n {
         let x = pi.p[a];
@@ -241,7 +243,12 @@ pub fn area_form_factor(pi: &PatchPoints, ni: DVec3, pj: &PatchPoints, nj: DVec3
 /// chosen at run time. Only AVX2, not FMA: every operation is the same IEEE
 /// multiply, add or divide in the same order, so both versions give bitwise equal
 /// results (rows stay identical across machines and ranks).
-pub fn area_form_factor_soa(pi: &PatchPoints, ni: DVec3, pj: FarSlice<'_>, nj: DVec3) -> f64 {
+pub(crate) fn area_form_factor_soa(
+    pi: &PatchPoints,
+    ni: DVec3,
+    pj: FarSlice<'_>,
+    nj: DVec3,
+) -> f64 {
     #[cfg(target_arch = "x86_64")]
     {
         if std::arch::is_x86_feature_detected!("avx2") {

@@ -1,4 +1,4 @@
-//! Form factors: the kernels and the row engine (DESIGN.md §3).
+//! Form factors: the kernels and the row engine (docs/numerics.md §5).
 //!
 //! F_ij = 1/A_i ∫_Ai ∫_Aj cosθ_i cosθ_j / (π r²) V_ij dA_j dA_i  (eq. (1) of the paper)
 //!
@@ -17,17 +17,17 @@
 //! drawn from a stream seeded by (i, j, seed), so a row is bitwise the same on any
 //! thread or rank.
 
-pub mod clusters;
-pub mod contour;
-pub mod engine;
-pub mod farfield;
-pub mod mc;
-pub mod point;
-pub mod polygon;
-pub mod quadrature;
+pub(crate) mod clusters;
+pub(crate) mod contour;
+pub(crate) mod engine;
+pub(crate) mod farfield;
+pub(crate) mod mc;
+pub(crate) mod point;
+pub(crate) mod polygon;
+pub(crate) mod quadrature;
 pub mod sampling;
-pub mod topk;
-pub mod visibility;
+pub(crate) mod topk;
+pub(crate) mod visibility;
 
 use std::fmt;
 
@@ -41,7 +41,7 @@ pub enum FormFactorError {
     InvalidConfig(String),
 }
 
-/// The form-factor kernel (a fixed set, STYLE.md point 4).
+/// The form-factor kernel (a fixed set, docs/conventions.md §5).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Method {
     /// Centroid-to-centroid differential kernel with one ray: the paper's baseline.
@@ -56,7 +56,7 @@ pub enum Method {
 impl Method {
     pub const ALL: [Method; 3] = [Method::Point, Method::Mc, Method::Contour];
 
-    pub fn as_str(self) -> &'static str {
+    pub(crate) fn as_str(self) -> &'static str {
         match self {
             Method::Point => "point",
             Method::Mc => "mc",
@@ -83,9 +83,9 @@ pub enum Preset {
 }
 
 impl Preset {
-    pub const ALL: [Preset; 3] = [Preset::Fast, Preset::Accurate, Preset::Reference];
+    pub(crate) const ALL: [Preset; 3] = [Preset::Fast, Preset::Accurate, Preset::Reference];
 
-    pub fn name(self) -> &'static str {
+    pub(crate) fn name(self) -> &'static str {
         match self {
             Preset::Fast => "fast",
             Preset::Accurate => "accurate",
@@ -123,7 +123,7 @@ pub struct FormFactorConfig {
 /// Top-k rows of the `contour` method: candidates are visited in decreasing order of
 /// their unoccluded value F⁰_ij, an upper bound of the occluded value. Once F⁰ falls
 /// below the k-th largest final value found so far, no later candidate can enter the
-/// top k, so their rays are needed only for the dropped mass (DESIGN.md §3).
+/// top k, so their rays are needed only for the dropped mass (docs/numerics.md §8, §9).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum TopKTail {
     /// Cast their rays anyway: `dropped` is the same as for a dense row.
@@ -261,7 +261,7 @@ impl FormFactorConfig {
     }
 
     /// `key=value` pairs of every parameter that changes the numbers.
-    pub fn describe(&self) -> String {
+    pub(crate) fn describe(&self) -> String {
         let top_k = match self.top_k {
             Some(k) => k.to_string(),
             None => "none".to_string(),
@@ -303,7 +303,10 @@ mod tests {
         for (_, cfg) in FormFactorConfig::presets() {
             cfg.validate().unwrap();
         }
-        assert_eq!(FormFactorConfig::preset(Preset::default()), FormFactorConfig::default());
+        assert_eq!(
+            FormFactorConfig::preset(Preset::default()),
+            FormFactorConfig::default()
+        );
         assert!(FormFactorConfig::default()
             .with_samples(0)
             .validate()

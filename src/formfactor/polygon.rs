@@ -8,18 +8,18 @@
 use glam::DVec3;
 
 /// Capacity of a [`Polygon`].
-pub const MAX_VERTS: usize = 8;
+pub(crate) const MAX_VERTS: usize = 8;
 
 /// A closed planar polygon; the first `n` entries of `v` count, in contour order.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Polygon {
-    pub v: [DVec3; MAX_VERTS],
-    pub n: usize,
+pub(crate) struct Polygon {
+    pub(crate) v: [DVec3; MAX_VERTS],
+    pub(crate) n: usize,
 }
 
 impl Polygon {
     /// A polygon from up to [`MAX_VERTS`] vertices (extra vertices are ignored).
-    pub fn new(pts: &[DVec3]) -> Self {
+    pub(crate) fn new(pts: &[DVec3]) -> Self {
         let mut v = [DVec3::ZERO; MAX_VERTS];
         let n = pts.len().min(MAX_VERTS);
         v[..n].copy_from_slice(&pts[..n]);
@@ -28,13 +28,14 @@ impl Polygon {
 
     /// The vertices that count.
     #[inline]
-    pub fn verts(&self) -> &[DVec3] {
+    pub(crate) fn verts(&self) -> &[DVec3] {
         &self.v[..self.n]
     }
 
     /// Vector area (½ Σ v_k × v_{k+1}): its length is the area, its direction the
     /// normal of the side the contour winds counter-clockwise around.
-    pub fn vector_area(&self) -> DVec3 {
+    #[cfg(test)]
+    pub(crate) fn vector_area(&self) -> DVec3 {
         if self.n < 3 {
             return DVec3::ZERO;
         }
@@ -47,7 +48,7 @@ impl Polygon {
     }
 
     /// Mean of the vertices (a point inside a convex polygon).
-    pub fn vertex_mean(&self) -> DVec3 {
+    pub(crate) fn vertex_mean(&self) -> DVec3 {
         let mut s = DVec3::ZERO;
         for p in self.verts() {
             s += *p;
@@ -59,7 +60,7 @@ impl Polygon {
     /// plane). Signed distances within `tol` of zero count as on the plane, so a
     /// polygon touching the plane along an edge is kept whole and not split into
     /// slivers.
-    pub fn clip_front(&self, normal: DVec3, offset: f64, tol: f64) -> Polygon {
+    pub(crate) fn clip_front(&self, normal: DVec3, offset: f64, tol: f64) -> Polygon {
         let mut out = Polygon {
             v: [DVec3::ZERO; MAX_VERTS],
             n: 0,
@@ -107,29 +108,22 @@ impl Polygon {
 
 /// One directed polygon edge: `start + t·dir` for t in [0, len], `dir` unit.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Edge {
-    pub start: DVec3,
-    pub dir: DVec3,
-    pub len: f64,
-}
-
-impl Edge {
-    #[inline]
-    pub fn end(&self) -> DVec3 {
-        self.start + self.dir * self.len
-    }
+pub(crate) struct Edge {
+    pub(crate) start: DVec3,
+    pub(crate) dir: DVec3,
+    pub(crate) len: f64,
 }
 
 /// The edges of a polygon in contour order; zero-length edges are dropped (they
 /// contribute nothing to a contour integral).
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct EdgeSet {
-    pub e: [Edge; MAX_VERTS],
-    pub n: usize,
+pub(crate) struct EdgeSet {
+    pub(crate) e: [Edge; MAX_VERTS],
+    pub(crate) n: usize,
 }
 
 impl EdgeSet {
-    pub fn from_polygon(p: &Polygon) -> Self {
+    pub(crate) fn from_polygon(p: &Polygon) -> Self {
         let blank = Edge {
             start: DVec3::ZERO,
             dir: DVec3::ZERO,
@@ -157,7 +151,7 @@ impl EdgeSet {
     }
 
     #[inline]
-    pub fn edges(&self) -> &[Edge] {
+    pub(crate) fn edges(&self) -> &[Edge] {
         &self.e[..self.n]
     }
 }

@@ -10,25 +10,25 @@
 use std::sync::OnceLock;
 
 /// Largest order held by [`GaussTable`].
-pub const MAX_ORDER: usize = 24;
+pub(crate) const MAX_ORDER: usize = 24;
 
 /// Nodes and weights for every order 1..=[`MAX_ORDER`].
 #[derive(Clone, Debug)]
-pub struct GaussTable {
+pub(crate) struct GaussTable {
     /// `rules[n]` holds the n-point rule as (node, weight) pairs; `rules[0]` is empty.
     rules: Vec<Vec<(f64, f64)>>,
 }
 
 impl GaussTable {
     /// Computes every rule up to [`MAX_ORDER`] points.
-    pub fn new() -> Self {
+    pub(crate) fn new() -> Self {
         let rules = (0..=MAX_ORDER).map(gauss_legendre).collect();
         GaussTable { rules }
     }
 
     /// The n-point rule on [-1, 1] as (node, weight) pairs, n clamped to 1..=MAX_ORDER.
     #[inline]
-    pub fn rule(&self, n: usize) -> &[(f64, f64)] {
+    pub(crate) fn rule(&self, n: usize) -> &[(f64, f64)] {
         &self.rules[n.clamp(1, MAX_ORDER)]
     }
 }
@@ -40,13 +40,13 @@ impl Default for GaussTable {
 }
 
 /// The process-wide table (computed once; a few microseconds).
-pub fn gauss_table() -> &'static GaussTable {
+pub(crate) fn gauss_table() -> &'static GaussTable {
     static TABLE: OnceLock<GaussTable> = OnceLock::new();
     TABLE.get_or_init(GaussTable::new)
 }
 
 /// The n-point Gauss–Legendre rule on [-1, 1], nodes ascending.
-pub fn gauss_legendre(n: usize) -> Vec<(f64, f64)> {
+pub(crate) fn gauss_legendre(n: usize) -> Vec<(f64, f64)> {
     let mut out = Vec::with_capacity(n);
     if n == 0 {
         return out;

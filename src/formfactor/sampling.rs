@@ -1,5 +1,5 @@
 //! Deterministic sampling: a small counter-based random generator seeded by the pair
-//! (i, j) and the run seed (never by thread or rank, DESIGN.md §3), Latin-hypercube
+//! (i, j) and the run seed (never by thread or rank, docs/numerics.md §6), Latin-hypercube
 //! stratification, and the maps from the unit square onto a patch.
 //!
 //! Stratification: S point pairs are drawn as a 4-dimensional Latin hypercube
@@ -25,7 +25,7 @@ impl SplitMix64 {
     }
 
     #[inline]
-    pub fn next_u64(&mut self) -> u64 {
+    pub(crate) fn next_u64(&mut self) -> u64 {
         self.state = self.state.wrapping_add(0x9E37_79B9_7F4A_7C15);
         mix64(self.state)
     }
@@ -38,8 +38,9 @@ impl SplitMix64 {
 
     /// Uniform integer in [0, n) (multiply-shift; the bias is below 2⁻³² for the
     /// small n used here and the result is deterministic either way).
+    #[cfg(test)]
     #[inline]
-    pub fn below(&mut self, n: u32) -> u32 {
+    pub(crate) fn below(&mut self, n: u32) -> u32 {
         below_from(self.next_u64() >> 32, n)
     }
 }
@@ -62,7 +63,7 @@ fn two_unit(rng: &mut SplitMix64) -> (f64, f64) {
 
 /// The SplitMix64 output function (a bijective 64-bit mixer).
 #[inline]
-pub fn mix64(mut z: u64) -> u64 {
+pub(crate) fn mix64(mut z: u64) -> u64 {
     z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
     z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
     z ^ (z >> 31)
@@ -71,7 +72,7 @@ pub fn mix64(mut z: u64) -> u64 {
 /// Seed of the random stream for the ordered pair (i, j), the run seed and a stream
 /// tag (so that different uses of the same pair draw independent numbers).
 #[inline]
-pub fn pair_seed(seed: u64, i: u32, j: u32, stream: u64) -> u64 {
+pub(crate) fn pair_seed(seed: u64, i: u32, j: u32, stream: u64) -> u64 {
     let ij = ((i as u64) << 32) | j as u64;
     mix64(
         mix64(mix64(seed ^ 0x5851_F42D_4C95_7F2D) ^ ij)
@@ -81,7 +82,7 @@ pub fn pair_seed(seed: u64, i: u32, j: u32, stream: u64) -> u64 {
 
 /// Fills `out` with a random permutation of 0..out.len() (Fisher–Yates), two swaps
 /// per step of the generator (32 bits each).
-pub fn permutation(rng: &mut SplitMix64, out: &mut [u32]) {
+pub(crate) fn permutation(rng: &mut SplitMix64, out: &mut [u32]) {
     for (k, x) in out.iter_mut().enumerate() {
         *x = k as u32;
     }
@@ -99,7 +100,12 @@ pub fn permutation(rng: &mut SplitMix64, out: &mut [u32]) {
 /// S stratified point pairs in the unit square × unit square (a Latin hypercube).
 /// `perms` is scratch space (3·S entries); the result goes to `out` as
 /// `[u_i, v_i, u_j, v_j]`.
-pub fn latin_pairs(rng: &mut SplitMix64, s: usize, perms: &mut Vec<u32>, out: &mut Vec<[f64; 4]>) {
+pub(crate) fn latin_pairs(
+    rng: &mut SplitMix64,
+    s: usize,
+    perms: &mut Vec<u32>,
+    out: &mut Vec<[f64; 4]>,
+) {
     perms.clear();
     perms.resize(3 * s, 0);
     out.clear();
@@ -127,7 +133,7 @@ pub fn latin_pairs(rng: &mut SplitMix64, s: usize, perms: &mut Vec<u32>, out: &m
 /// A map from the unit square onto a patch, with its area Jacobian, so that
 /// ∫_patch f dA = ∫∫ f(x(u, v)) J(u, v) du dv.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub enum PatchMap {
+pub(crate) enum PatchMap {
     /// Area-preserving square-to-triangle map x = (1 − √u) a + √u (1 − v) b + √u v c
     /// (Shirley & Chiu 1997 style); J = area everywhere.
     Triangle {
@@ -149,7 +155,7 @@ pub enum PatchMap {
 }
 
 impl PatchMap {
-    pub fn new(corners: &[DVec3], area: f64) -> Self {
+    pub(crate) fn new(corners: &[DVec3], area: f64) -> Self {
         if corners.len() == 3 {
             PatchMap::Triangle {
                 a: corners[0],
@@ -177,7 +183,7 @@ impl PatchMap {
 
     /// Point and Jacobian at (u, v) ∈ [0, 1]².
     #[inline]
-    pub fn eval(&self, u: f64, v: f64) -> (DVec3, f64) {
+    pub(crate) fn eval(&self, u: f64, v: f64) -> (DVec3, f64) {
         match *self {
             PatchMap::Triangle { a, b, c, area } => {
                 let s = u.sqrt();

@@ -1,7 +1,7 @@
 //! Top-k rows: keep the k largest entries of a row, record the rest as dropped mass.
 //!
 //! The paper's future work proposed keeping the top 10–20 % of each row "renormalised
-//! so no light is lost" (DESIGN.md §1). Here the kept entries are stored unchanged
+//! so no light is lost" (docs/architecture.md §1). Here the kept entries are stored unchanged
 //! and `Row::dropped` holds the sum of the others, so the true row sum is
 //! `stored + dropped` and a reader can redistribute it (scale the kept entries by
 //! (stored + dropped) / stored) or not (see `formats/` and [`crate::rows`]).
@@ -16,7 +16,7 @@ use crate::rows::{Row, RowValues};
 /// Builds the row from f64 values: every positive entry if there are at most `k`,
 /// else the `k` largest (columns ascending) with the rest summed into `dropped`.
 /// `order` is scratch space.
-pub fn top_k_row(index: u32, values: &[f64], k: usize, order: &mut Vec<u32>) -> Row {
+pub(crate) fn top_k_row(index: u32, values: &[f64], k: usize, order: &mut Vec<u32>) -> Row {
     order.clear();
     order.extend((0..values.len() as u32).filter(|&j| values[j as usize] > 0.0));
     let mut dropped = 0.0f64;

@@ -7,7 +7,7 @@
 //! V̄ = ∫∫ K V dA dA / ∫∫ K dA dA ≈ Σ_k w_k V_k / Σ_k w_k,   w_k = J_i J_j cosθ_i cosθ_j / r²
 //! ```
 //!
-//! over stratified point pairs (DESIGN.md §3: weight the samples by the kernel rather
+//! over stratified point pairs (docs/numerics.md §5.5: weight the samples by the kernel rather
 //! than multiplying by a plain hit fraction; the ratio estimator is consistent, and
 //! exact whenever V is constant over the pair). Samples where either cosine is not
 //! positive get weight 0 (the clipped-away parts) and cast no ray.
@@ -41,15 +41,15 @@ const STREAM_SECOND: u64 = 1;
 /// What blocks the rays of a pair: the occluders, and when known the only triangles of
 /// them that can come between the two patches (`Occluders::collect_between`).
 pub(crate) struct Blockers<'a> {
-    pub occluders: &'a Occluders,
-    pub candidates: Option<&'a [u32]>,
+    pub(crate) occluders: &'a Occluders,
+    pub(crate) candidates: Option<&'a [u32]>,
     /// The candidate that blocked the pair's last blocked ray (tested first).
-    pub last: std::cell::Cell<usize>,
+    pub(crate) last: std::cell::Cell<usize>,
     /// A pair's rays go as packets, through the hierarchy
     /// ([`Occluders::occluded_packet`]) or against the candidate list
     /// ([`Occluders::occluded_packet_by`]); `false` casts them one at a time (the same
     /// answers; for tests).
-    pub packets: bool,
+    pub(crate) packets: bool,
 }
 
 impl Blockers<'_> {

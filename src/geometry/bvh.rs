@@ -3,11 +3,11 @@
 //!
 //! - [`Occluders::occluded`]: does any triangle (other than those of two given scene
 //!   faces) cut the open segment between two points? Every face is opaque from both
-//!   sides (REFERENCES.md, Cornell box: the blocks have no bottom faces, and the floor
+//!   sides (docs/known-answers.md §7, Cornell box: the blocks have no bottom faces, and the floor
 //!   under them must stay dark, so rays from the floor hit the blocks from inside).
 //! - [`Occluders::any_between`]: can any triangle come between two given polygons at
-//!   all? When not, the pair needs no rays (DESIGN.md §3 "pairs with no possible
-//!   occluder need no rays"), decided from the hierarchy, not from a flag.
+//!   all? When not, the pair needs no rays (docs/numerics.md §9, "pairs with no possible
+//!   occluder cast no rays"), decided from the hierarchy, not from a flag.
 //!
 //! The hierarchy is built by obvhs (PLOC, then its collapse to an eight-wide tree,
 //! Ylitie et al. 2017) and laid out for SIMD traversal by `geometry/bvh8.rs`; it works in
@@ -20,14 +20,14 @@
 //!
 //! Traversal takes closures (`Bvh8::any_hit`, `Bvh8::for_each_in_box`), so the
 //! geometry tests stay out of the hierarchy and the accelerator can be swapped
-//! (STYLE.md point 6).
+//! (docs/conventions.md §7).
 
 use std::time::Duration;
 
 use glam::DVec3;
 use obvhs::{cwbvh::builder::build_cwbvh_from_tris, triangle::Triangle, BvhBuildParams};
 
-pub use super::bvh8::TreeStats;
+pub(crate) use super::bvh8::TreeStats;
 use super::bvh8::{Bvh8, SegmentPacket, SegmentRay};
 
 /// Most segments [`Occluders::occluded_packet`] takes at once.
@@ -39,15 +39,15 @@ pub const RAY_EPSILON: f64 = 1e-6;
 
 /// Tolerance (normalized units) of the plane-side tests of [`Occluders::any_between`]:
 /// a triangle that only touches the pair's hull within it cannot block a ray.
-pub const PLANE_TOLERANCE: f64 = 1e-9;
+pub(crate) const PLANE_TOLERANCE: f64 = 1e-9;
 
 /// Most candidate triangles [`Occluders::collect_between`] hands out for one pair; with
 /// more, the pair's rays use the hierarchy.
-pub const MAX_PAIR_CANDIDATES: usize = 16;
+pub(crate) const MAX_PAIR_CANDIDATES: usize = 16;
 
 /// Work bound of [`Occluders::any_between`]: candidate triangles examined in detail
 /// before it gives up and answers "rays needed".
-pub const MAX_REJECTED_CANDIDATES: usize = 32;
+pub(crate) const MAX_REJECTED_CANDIDATES: usize = 32;
 
 /// obvhs' build of the occluder hierarchy: its slowest preset (PLOC over pre-split
 /// triangles) with four times that preset's reinsertion passes (Meister and Bittner,
@@ -363,11 +363,11 @@ impl HullAxes {
 /// to the other's front half-space; triangles of the faces `ignore` never count.
 #[derive(Clone, Copy, Debug)]
 pub struct Between<'a> {
-    pub a: &'a [DVec3],
-    pub na: DVec3,
-    pub b: &'a [DVec3],
-    pub nb: DVec3,
-    pub ignore: (u32, u32),
+    pub(crate) a: &'a [DVec3],
+    pub(crate) na: DVec3,
+    pub(crate) b: &'a [DVec3],
+    pub(crate) nb: DVec3,
+    pub(crate) ignore: (u32, u32),
 }
 
 impl<'a> Between<'a> {
@@ -493,8 +493,7 @@ pub struct Occluders {
     /// Triangles in hierarchy primitive order (so no index indirection at traversal).
     tris: Vec<OccluderTriangle>,
     center: DVec3,
-    /// Scene diagonal (world units): normalized = (world − center) / scale.
-    scale: f64,
+    /// 1 / the scene diagonal (world units): normalized = (world − center) · inv_scale.
     inv_scale: f64,
     /// Built from another mesh than the patches' (`--occluders`): face ids of the
     /// patches mean nothing here, so self-occlusion is told apart by planes instead
@@ -515,7 +514,7 @@ impl Occluders {
     }
 
     /// Whether the triangles come from another mesh than the patches.
-    pub fn is_foreign(&self) -> bool {
+    pub(crate) fn is_foreign(&self) -> bool {
         self.foreign
     }
 
@@ -546,7 +545,6 @@ impl Occluders {
             bvh: Bvh8::from_cwbvh(&bvh, &ordered),
             tris: ordered,
             center,
-            scale: diag,
             inv_scale: 1.0 / diag,
             foreign: false,
         }
@@ -595,12 +593,11 @@ impl Occluders {
     }
 
     /// No occluders at all: nothing is ever occluded.
-    pub fn empty() -> Self {
+    pub(crate) fn empty() -> Self {
         Occluders {
             bvh: None,
             tris: Vec::new(),
             center: DVec3::ZERO,
-            scale: 1.0,
             inv_scale: 1.0,
             foreign: false,
         }
@@ -618,12 +615,6 @@ impl Occluders {
     /// The shape of the hierarchy (`None` without triangles), for benchmarks.
     pub fn stats(&self) -> Option<TreeStats> {
         self.bvh.as_ref().map(Bvh8::stats)
-    }
-
-    /// Diagonal of the triangles' bounding box (world units), the length that ray
-    /// offsets and tolerances are relative to.
-    pub fn diagonal(&self) -> f64 {
-        self.scale
     }
 
     #[inline]
@@ -653,7 +644,7 @@ impl Occluders {
     /// coarse mesh of the same flat faces has triangles on those planes, which the
     /// face ids of the fine patches cannot name). For native occluders the planes are
     /// not needed and `ignore` works as in [`Occluders::occluded`].
-    pub fn occluded_between_planes(
+    pub(crate) fn occluded_between_planes(
         &self,
         from: DVec3,
         to: DVec3,
@@ -877,7 +868,7 @@ impl Occluders {
     /// candidates, `max_rejected` triangles examined in detail), for queries between
     /// larger polygons whose lists are then narrowed pair by pair with
     /// [`Occluders::filter_between`].
-    pub fn collect_between_up_to(
+    pub(crate) fn collect_between_up_to(
         &self,
         q: &Between<'_>,
         max_found: usize,
@@ -902,7 +893,7 @@ impl Occluders {
     /// hierarchy:
     /// a triangle that cannot come between the larger polygons cannot come between the
     /// smaller ones. Stops once `out` holds more than `max_found` (0: "is there any").
-    pub fn filter_between(
+    pub(crate) fn filter_between(
         &self,
         q: &Between<'_>,
         list: &[u32],
@@ -985,7 +976,8 @@ impl Occluders {
     /// Checks internal invariants (for tests): every triangle is finite with a unit
     /// normal, lies inside the normalized unit-diagonal box, and the hierarchy holds
     /// each triangle exactly once.
-    pub fn validate(&self) {
+    #[cfg(test)]
+    pub(crate) fn validate(&self) {
         for t in &self.tris {
             assert!((t.normal.length() - 1.0).abs() < 1e-12);
             for v in t.vertices() {

@@ -57,7 +57,7 @@ use wide::{f32x16 as Lanes16, f32x4, f32x8};
 /// Padding of every box (normalized units, i.e. a fraction of the scene diagonal):
 /// about 50 times the largest f32 rounding error of a slab test on the clipped
 /// segments of [`SegmentRay`], so that no box a segment passes through is missed.
-pub const BOX_PAD: f64 = 1e-5;
+pub(crate) const BOX_PAD: f64 = 1e-5;
 
 /// Error allowance of the f32 triangle filter ([`Block::classify`]), normalized units:
 /// at least 50 times the f32 rounding of its inputs and products, plus
@@ -119,7 +119,7 @@ struct Block {
 /// ±[`CLIP`]) for the triangle filter, and its inverse direction with origin ×
 /// inverse direction for the slab tests (t ∈ [0, 1] over the clipped segment).
 #[derive(Clone, Copy, Debug)]
-pub struct SegmentRay {
+pub(crate) struct SegmentRay {
     p0: [f32; 3],
     p1: [f32; 3],
     inv: [f32; 3],
@@ -129,7 +129,7 @@ pub struct SegmentRay {
 impl SegmentRay {
     /// The segment from `f` to `f + d` (normalized frame), clipped to ±[`CLIP`];
     /// `None` when nothing of it lies in that box (then no triangle can meet it).
-    pub fn new(f: DVec3, d: DVec3) -> Option<Self> {
+    pub(crate) fn new(f: DVec3, d: DVec3) -> Option<Self> {
         let [p0, p1, dd] = clipped_f32(f, d)?;
         let inv = inverse(Vec3A::from_array(dd));
         Some(SegmentRay {
@@ -218,13 +218,13 @@ impl RayLanes {
 
 /// Most segments a [`SegmentPacket`] holds, one per lane of its vectors (sixteen
 /// f32: two AVX registers, or one AVX-512 register when built for it).
-pub const PACKET: usize = 16;
+pub(crate) const PACKET: usize = 16;
 
 /// Up to [`PACKET`] shadow segments walked together ([`Bvh8::any_hit_packet`]), one
 /// per lane: the rays of one pair of patches start and end close to each other, so
 /// they pass through mostly the same nodes, and a node is then fetched and tested once
 /// for all of them, with no chain of dependent steps per ray.
-pub struct SegmentPacket {
+pub(crate) struct SegmentPacket {
     inv: [Lanes16; 3],
     oi: [Lanes16; 3],
     p0: [Lanes16; 3],
@@ -240,7 +240,7 @@ impl SegmentPacket {
     ///
     /// # Panics
     /// With more than [`PACKET`] segments.
-    pub fn new(ends: &[(DVec3, DVec3)]) -> Self {
+    pub(crate) fn new(ends: &[(DVec3, DVec3)]) -> Self {
         assert!(ends.len() <= PACKET, "{} segments in a packet", ends.len());
         // p0, p1, p1 − p0; per axis; per lane.
         let mut v = [[[0f32; PACKET]; 3]; 3];
@@ -533,7 +533,7 @@ pub struct TreeStats {
 
 /// The hierarchy: nodes, leaves and the root reference.
 #[derive(Clone, Debug)]
-pub struct Bvh8 {
+pub(crate) struct Bvh8 {
     nodes: Vec<Node>,
     blocks: Vec<Block>,
     /// Per lane position: its triangle (index into the `tris` given to
@@ -627,7 +627,7 @@ impl Bvh8 {
     /// With 2²⁸ lane positions or more, padding included (a leaf reference holds its
     /// first position in 28 bits); such a mesh would need some 25 GB or more for its
     /// f64 triangles alone.
-    pub fn from_cwbvh(cw: &CwBvh, tris: &[Tri]) -> Option<Self> {
+    pub(crate) fn from_cwbvh(cw: &CwBvh, tris: &[Tri]) -> Option<Self> {
         assert!(
             tris.len() < 1 << 28,
             "{} occluder triangles: fewer than 2^28 are supported",
@@ -823,7 +823,7 @@ impl Bvh8 {
     /// usually has one, and then never reads the f64 triangles. Near children are
     /// visited first.
     #[inline(always)]
-    pub fn any_hit(
+    pub(crate) fn any_hit(
         &self,
         ray: &SegmentRay,
         ignore: (u32, u32),
@@ -903,7 +903,7 @@ impl Bvh8 {
     /// crossing, or a put-off exact test that hits), and the walk stops when no lane
     /// is left. Triangles a lane may meet are put off, as in
     /// [`Bvh8::any_hit`], with the lanes that may meet them.
-    pub fn any_hit_packet(
+    pub(crate) fn any_hit_packet(
         &self,
         pk: &SegmentPacket,
         ignore: (u32, u32),
@@ -973,7 +973,7 @@ impl Bvh8 {
     /// and `*first` becomes the last candidate found to block for sure; the answer does
     /// not depend on it. Each candidate's filter runs for all open lanes at once;
     /// undecided (lane, triangle) pairs are put off, as in the hierarchy walks.
-    pub fn any_hit_list(
+    pub(crate) fn any_hit_list(
         &self,
         pk: &SegmentPacket,
         ids: &[u32],
@@ -1012,7 +1012,7 @@ impl Bvh8 {
     /// Calls `visit` with every triangle in a leaf whose box overlaps [lo, hi] and
     /// which `keep` (asked about each child box, f64) keeps, until `visit` returns true
     /// ("stop"). Returns whether a visit stopped the walk.
-    pub fn for_each_in_box(
+    pub(crate) fn for_each_in_box(
         &self,
         lo: DVec3,
         hi: DVec3,
@@ -1038,7 +1038,7 @@ impl Bvh8 {
     }
 
     /// The shape of the hierarchy ([`TreeStats`]).
-    pub fn stats(&self) -> TreeStats {
+    pub(crate) fn stats(&self) -> TreeStats {
         let area = |(lo, hi): (DVec3, DVec3)| {
             let d = (hi - lo).max(DVec3::ZERO);
             2.0 * (d.x * d.y + d.y * d.z + d.z * d.x)
@@ -1081,7 +1081,8 @@ impl Bvh8 {
     /// lane, inside the boxes of its leaf and of every node above it; a leaf spans no
     /// more blocks than its size needs; padding lanes are missed; a node's children
     /// fill its first slots, by triangles below them, most first; the stack bound holds.
-    pub fn validate(&self, tris: &[Tri]) {
+    #[cfg(test)]
+    pub(crate) fn validate(&self, tris: &[Tri]) {
         let mut seen = vec![false; tris.len()];
         let mut levels = 0;
         let mut todo = vec![(self.root, DVec3::NEG_INFINITY, DVec3::INFINITY, 1usize)];
@@ -1149,6 +1150,7 @@ impl Bvh8 {
     }
 
     /// The number of triangles below reference `r`.
+    #[cfg(test)]
     fn triangles_below(&self, r: u32) -> usize {
         if r & LEAF_BIT != 0 {
             return leaf_range(r).1;
@@ -1164,7 +1166,7 @@ impl Bvh8 {
     /// For tests: what [`Block::classify`] says of every triangle for `ray`, as
     /// (sure, maybe) per triangle id (neither: missed for sure).
     #[cfg(test)]
-    pub fn classify_all(&self, ray: &SegmentRay, n: usize) -> Vec<(bool, bool)> {
+    pub(crate) fn classify_all(&self, ray: &SegmentRay, n: usize) -> Vec<(bool, bool)> {
         let ray = &RayLanes::new(ray);
         (0..n)
             .map(|id| {

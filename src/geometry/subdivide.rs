@@ -1,4 +1,4 @@
-//! Subdivision of scene faces into patches (DESIGN.md §3: no patch edge longer than
+//! Subdivision of scene faces into patches (docs/numerics.md §4: no patch edge longer than
 //! `--max-edge`).
 //!
 //! - A triangle ABC becomes k² congruent triangles, k = ⌈longest edge / max_edge⌉:

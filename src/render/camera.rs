@@ -34,20 +34,20 @@ pub struct Camera {
 
 /// Field of view used by [`Camera::frame`] when it stands outside the scene (close to
 /// the Cornell camera's 39.3°).
-pub const FRAME_FOV_Y_DEG: f64 = 40.0;
+pub(crate) const FRAME_FOV_Y_DEG: f64 = 40.0;
 
 /// Extra room around the bounding box in [`Camera::frame`] (5 %).
 const FRAME_MARGIN: f64 = 1.05;
 
 /// The orthonormal camera frame of a valid [`Camera`].
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct CameraBasis {
+pub(crate) struct CameraBasis {
     /// Image right, `forward × up` normalised.
-    pub right: DVec3,
+    pub(crate) right: DVec3,
     /// Image up, perpendicular to `forward` and `right`.
-    pub up: DVec3,
+    pub(crate) up: DVec3,
     /// View direction, from eye towards target.
-    pub forward: DVec3,
+    pub(crate) forward: DVec3,
 }
 
 impl Camera {
@@ -193,7 +193,7 @@ impl Camera {
     /// # Errors
     /// [`RenderError::InvalidCamera`] for non-finite values, `eye == target`, an `up`
     /// parallel to the view direction, or `fov_y_deg` outside (0, 180).
-    pub fn validate(&self) -> Result<(), RenderError> {
+    pub(crate) fn validate(&self) -> Result<(), RenderError> {
         self.basis().map(|_| ())
     }
 
@@ -201,7 +201,7 @@ impl Camera {
     ///
     /// # Errors
     /// As [`Camera::validate`].
-    pub fn basis(&self) -> Result<CameraBasis, RenderError> {
+    pub(crate) fn basis(&self) -> Result<CameraBasis, RenderError> {
         let bad = |reason: &str| {
             Err(RenderError::InvalidCamera {
                 camera: self.to_string(),
@@ -314,19 +314,19 @@ impl fmt::Display for Camera {
 
 /// A camera bound to an image (or sample grid) size: the transform the rasterizer uses.
 #[derive(Clone, Copy, Debug)]
-pub struct View {
-    pub eye: DVec3,
-    pub basis: CameraBasis,
+pub(crate) struct View {
+    pub(crate) eye: DVec3,
+    pub(crate) basis: CameraBasis,
     /// `(height/2) / tan(fov_y/2)`: grid units per unit of `y_c / z_c`.
-    pub focal: f64,
-    pub width: f64,
-    pub height: f64,
+    pub(crate) focal: f64,
+    pub(crate) width: f64,
+    pub(crate) height: f64,
 }
 
 impl View {
     /// # Errors
     /// As [`Camera::validate`].
-    pub fn new(cam: &Camera, width: u32, height: u32) -> Result<Self, RenderError> {
+    pub(crate) fn new(cam: &Camera, width: u32, height: u32) -> Result<Self, RenderError> {
         let basis = cam.basis()?;
         let height = f64::from(height);
         Ok(Self {
@@ -340,7 +340,7 @@ impl View {
 
     /// Camera coordinates `(x_c, y_c, z_c)`: right, up, depth along the view direction.
     #[inline]
-    pub fn to_camera(&self, p: DVec3) -> DVec3 {
+    pub(crate) fn to_camera(self, p: DVec3) -> DVec3 {
         let d = p - self.eye;
         DVec3::new(
             d.dot(self.basis.right),
@@ -351,7 +351,7 @@ impl View {
 
     /// Grid coordinates of a camera-space point with `z_c > 0`.
     #[inline]
-    pub fn to_screen(&self, c: DVec3) -> (f64, f64) {
+    pub(crate) fn to_screen(self, c: DVec3) -> (f64, f64) {
         let k = self.focal / c.z;
         (0.5 * self.width + k * c.x, 0.5 * self.height - k * c.y)
     }

@@ -22,7 +22,8 @@ pub struct Image {
 
 impl Image {
     /// A black image.
-    pub fn new(width: u32, height: u32) -> Self {
+    #[cfg(test)]
+    pub(crate) fn new(width: u32, height: u32) -> Self {
         Self {
             width,
             height,
@@ -44,7 +45,7 @@ impl Image {
     ///
     /// # Errors
     /// [`RenderError::InvalidImage`] otherwise.
-    pub fn validate(&self) -> Result<(), RenderError> {
+    pub(crate) fn validate(&self) -> Result<(), RenderError> {
         let expected = self.width as usize * self.height as usize * 3;
         if self.width == 0 || self.height == 0 {
             return Err(RenderError::InvalidImage(format!(
@@ -68,7 +69,7 @@ impl Image {
     /// # Errors
     /// [`RenderError::InvalidImage`] for an inconsistent image,
     /// [`RenderError::PngEncode`] (with an empty path) if the encoder fails.
-    pub fn to_png_bytes(&self) -> Result<Vec<u8>, RenderError> {
+    pub(crate) fn to_png_bytes(&self) -> Result<Vec<u8>, RenderError> {
         self.validate()?;
         let encode_err = |cause| RenderError::PngEncode {
             path: Default::default(),

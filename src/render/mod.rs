@@ -26,12 +26,12 @@
 //!   looking at the back of a one-sided wall.
 //! - Background is black.
 
-pub mod camera;
-pub mod image;
-pub mod raster;
-pub mod setup;
-pub mod shading;
-pub mod tonemap;
+pub(crate) mod camera;
+pub(crate) mod image;
+pub(crate) mod raster;
+pub(crate) mod setup;
+pub(crate) mod shading;
+pub(crate) mod tonemap;
 
 use std::path::PathBuf;
 
@@ -129,7 +129,7 @@ impl Default for RenderOptions {
 }
 
 /// Largest image side accepted (keeps sample buffers and `u32` arithmetic sane).
-pub const MAX_IMAGE_SIDE: u32 = 1 << 15;
+pub(crate) const MAX_IMAGE_SIDE: u32 = 1 << 15;
 
 impl RenderOptions {
     /// Supersampling factor per axis, `√samples_per_pixel`.
@@ -137,7 +137,7 @@ impl RenderOptions {
     /// # Errors
     /// [`RenderError::InvalidOptions`] when `samples_per_pixel` is not a perfect square
     /// between 1 and 256.
-    pub fn supersampling(&self) -> Result<u32, RenderError> {
+    pub(crate) fn supersampling(&self) -> Result<u32, RenderError> {
         let spp = self.samples_per_pixel;
         let s = (1..=16u32).find(|s| s * s == spp);
         s.ok_or_else(|| {
@@ -151,7 +151,7 @@ impl RenderOptions {
     ///
     /// # Errors
     /// [`RenderError::InvalidOptions`] naming the field that is out of range.
-    pub fn validate(&self) -> Result<(), RenderError> {
+    pub(crate) fn validate(&self) -> Result<(), RenderError> {
         let bad = |m: String| Err(RenderError::InvalidOptions(m));
         if self.width == 0 || self.height == 0 {
             return bad(format!(

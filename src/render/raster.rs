@@ -22,7 +22,7 @@ use super::setup::{edge_function, ScreenScene, Triangle, WIRE_COLOUR};
 const MAX_BAND_SAMPLES: usize = 1 << 20;
 
 /// Linear RGB per pixel, row-major, top row first, black background.
-pub fn rasterize(
+pub(crate) fn rasterize(
     scene: &ScreenScene,
     width: u32,
     height: u32,

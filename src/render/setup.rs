@@ -27,52 +27,52 @@ use crate::patch::PatchSet;
 const NEAR_FRACTION: f64 = 1e-5;
 
 /// Linear colour of wireframe lines (dark grey, before exposure: not scaled).
-pub const WIRE_COLOUR: [f64; 3] = [0.01, 0.01, 0.01];
+pub(crate) const WIRE_COLOUR: [f64; 3] = [0.01, 0.01, 0.01];
 
 /// Settings for [`setup`].
 #[derive(Clone, Copy, Debug)]
-pub struct SetupParams {
+pub(crate) struct SetupParams {
     /// Multiplies every colour.
-    pub exposure: f64,
+    pub(crate) exposure: f64,
     /// Multiplies the colour of patches seen from their back side.
-    pub back_face_scale: f64,
+    pub(crate) back_face_scale: f64,
     /// Record patch boundaries for wireframe lines.
-    pub wireframe: bool,
+    pub(crate) wireframe: bool,
     /// Half the line width, in sample units.
-    pub wire_half_width: f64,
+    pub(crate) wire_half_width: f64,
 }
 
 /// One screen triangle with everything the rasterizer interpolates.
 #[derive(Clone, Debug)]
-pub struct Triangle {
+pub(crate) struct Triangle {
     /// Vertex positions on the sample grid.
-    pub v: [[f64; 2]; 3],
+    pub(crate) v: [[f64; 2]; 3],
     /// Orientation (+1 or −1) that makes inside samples give non-negative edge values.
-    pub sign: f64,
+    pub(crate) sign: f64,
     /// 1 / |twice the signed area|.
-    pub inv_area: f64,
+    pub(crate) inv_area: f64,
     /// `1/z_c` per vertex.
-    pub w: [f64; 3],
+    pub(crate) w: [f64; 3],
     /// Colour (exposure and back-face scale applied) times `w`, per vertex.
-    pub cw: [[f64; 3]; 3],
+    pub(crate) cw: [[f64; 3]; 3],
     /// `[min x, min y, max x, max y]` of the vertices.
-    pub bbox: [f64; 4],
+    pub(crate) bbox: [f64; 4],
     /// Index into [`ScreenScene::wires`], when wireframe is on.
-    pub wire: Option<u32>,
+    pub(crate) wire: Option<u32>,
 }
 
 /// The outline of one clipped patch polygon: lines `a x + b y + c = 0` with
 /// `a² + b² = 1`, so `|a x + b y + c|` is the distance in sample units.
 #[derive(Clone, Debug, Default)]
-pub struct WirePolygon {
-    pub lines: [[f64; 3]; 5],
-    pub n: usize,
+pub(crate) struct WirePolygon {
+    pub(crate) lines: [[f64; 3]; 5],
+    pub(crate) n: usize,
 }
 
 impl WirePolygon {
     /// Distance from `(x, y)` to the nearest outlined edge line (infinity when none).
     #[inline]
-    pub fn distance(&self, x: f64, y: f64) -> f64 {
+    pub(crate) fn distance(&self, x: f64, y: f64) -> f64 {
         self.lines[..self.n]
             .iter()
             .map(|l| (l[0] * x + l[1] * y + l[2]).abs())
@@ -82,10 +82,10 @@ impl WirePolygon {
 
 /// Everything the rasterizer needs.
 #[derive(Clone, Debug, Default)]
-pub struct ScreenScene {
-    pub triangles: Vec<Triangle>,
-    pub wires: Vec<WirePolygon>,
-    pub wire_half_width: f64,
+pub(crate) struct ScreenScene {
+    pub(crate) triangles: Vec<Triangle>,
+    pub(crate) wires: Vec<WirePolygon>,
+    pub(crate) wire_half_width: f64,
 }
 
 /// A polygon vertex during clipping: camera-space position, colour, and whether the
@@ -99,7 +99,7 @@ struct ClipVertex {
 
 /// Builds screen triangles for all patches. `colours[i][k]` is the linear colour of
 /// corner `k` of patch `i`; `view` is sized to the sample grid.
-pub fn setup(
+pub(crate) fn setup(
     patches: &PatchSet,
     colours: &CornerColours,
     view: &View,
@@ -245,7 +245,7 @@ fn outline(poly: &[ClipVertex], screen: &[[f64; 2]]) -> WirePolygon {
 /// that the two triangles sharing edge `a`–`b` get exactly opposite values at any
 /// sample: a sample on a shared edge is inside at least one of them (no cracks).
 #[inline]
-pub fn edge_function(a: [f64; 2], b: [f64; 2], p: [f64; 2]) -> f64 {
+pub(crate) fn edge_function(a: [f64; 2], b: [f64; 2], p: [f64; 2]) -> f64 {
     if a <= b {
         (b[0] - a[0]) * (p[1] - a[1]) - (b[1] - a[1]) * (p[0] - a[0])
     } else {

@@ -24,27 +24,27 @@ use glam::DVec3;
 use crate::patch::PatchSet;
 
 /// Creases sharper than this (angle between patch normals, degrees) are not smoothed.
-pub const CREASE_DEG: f64 = 60.0;
+pub(crate) const CREASE_DEG: f64 = 60.0;
 
 /// Weld quantum as a fraction of the bounding box diagonal.
 const WELD_FRACTION: f64 = 1e-6;
 
 /// Per-corner linear RGB colour, one entry per patch (only `n_corners` entries used).
-pub type CornerColours = Vec<[[f32; 3]; 4]>;
+pub(crate) type CornerColours = Vec<[[f32; 3]; 4]>;
 
 fn clamp_colour(b: [f32; 3]) -> [f32; 3] {
     b.map(|x| x.max(0.0))
 }
 
 /// Flat shading: every corner of patch `i` has patch `i`'s radiosity.
-pub fn flat_colours(radiosity: &[[f32; 3]]) -> CornerColours {
+pub(crate) fn flat_colours(radiosity: &[[f32; 3]]) -> CornerColours {
     radiosity.iter().map(|&b| [clamp_colour(b); 4]).collect()
 }
 
 /// Gouraud shading: area-weighted average radiosity at each vertex, welded per group
 /// and split at creases (see the module docs). `radiosity.len()` must equal
 /// `patches.len()`.
-pub fn vertex_colours(patches: &PatchSet, radiosity: &[[f32; 3]]) -> CornerColours {
+pub(crate) fn vertex_colours(patches: &PatchSet, radiosity: &[[f32; 3]]) -> CornerColours {
     debug_assert_eq!(patches.len(), radiosity.len());
     let quantum = weld_quantum(patches);
     let cos_crease = CREASE_DEG.to_radians().cos();

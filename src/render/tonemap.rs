@@ -14,14 +14,14 @@ use super::image::Image;
 use crate::patch::PatchSet;
 
 /// Linear value the reference luminance is mapped to.
-pub const AUTO_EXPOSURE_TARGET: f32 = 0.8;
+pub(crate) const AUTO_EXPOSURE_TARGET: f32 = 0.8;
 
 /// Area fraction below the reference luminance.
-pub const AUTO_EXPOSURE_PERCENTILE: f64 = 0.99;
+pub(crate) const AUTO_EXPOSURE_PERCENTILE: f64 = 0.99;
 
 /// Relative luminance of linear RGB with sRGB (ITU-R BT.709) primaries.
 #[inline]
-pub fn luminance(c: [f32; 3]) -> f32 {
+pub(crate) fn luminance(c: [f32; 3]) -> f32 {
     0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2]
 }
 
@@ -93,12 +93,12 @@ pub fn srgb_encode(linear: f32) -> f32 {
 
 /// Encoded [0, 1] → 8-bit code, rounding to nearest.
 #[inline]
-pub fn quantise(encoded: f32) -> u8 {
+pub(crate) fn quantise(encoded: f32) -> u8 {
     (encoded.clamp(0.0, 1.0) * 255.0).round() as u8
 }
 
 /// Linear pixels (already exposed, in [0, 1]) → 8-bit sRGB image.
-pub fn to_image(linear: &[[f32; 3]], width: u32, height: u32) -> Image {
+pub(crate) fn to_image(linear: &[[f32; 3]], width: u32, height: u32) -> Image {
     debug_assert_eq!(linear.len(), width as usize * height as usize);
     let rgb = linear
         .iter()

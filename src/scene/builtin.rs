@@ -2,14 +2,14 @@
 //!
 //! | name | what | param |
 //! |---|---|---|
-//! | `cornell` | the Cornell box of `scenes/cornell_box.obj` (REFERENCES.md "Scenes"), mm | none |
+//! | `cornell` | the Cornell box of `tests/data/scenes/cornell_box.obj` (docs/known-answers.md §7), mm | none |
 //! | `cube` | closed cube [0,s]³, faces inward, groups `x0 x1 y0 y1 z0 z1`, ρ = 0.5, `y1` emits 1 | side s (1) |
 //! | `plates` | unit squares facing each other, `bottom` (emits 1) and `top` | distance (1) |
 //! | `perpendicular` | unit square `bottom` and 1 × h rectangle `side` sharing an edge at 90° | h (1) |
 //! | `obstructed` | `plates` at distance 1 with a two-sided 0.5 × 0.5 `blocker` midway | none |
 //! | `room` | closed room, ceiling light, many boxes (see [`super::room`]) | boxes (16) |
 //!
-//! The small scenes have analytic form factors (REFERENCES.md), e.g. between the two
+//! The small scenes have analytic form factors (docs/known-answers.md §2, §3), e.g. between the two
 //! `plates` at distance 1: 0.19982; `perpendicular` with h = 1: 0.20004.
 
 use std::collections::HashMap;
@@ -137,7 +137,7 @@ impl Builder {
     }
 }
 
-/// Cornell box vertices, as in `scenes/cornell_box.obj` (1-based in the face table).
+/// Cornell box vertices, as in `tests/data/scenes/cornell_box.obj` (1-based in the face table).
 #[rustfmt::skip]
 const CORNELL_VERTICES: [[f64; 3]; 32] = [
     [552.8, 0.0, 0.0], [0.0, 0.0, 0.0], [0.0, 0.0, 559.2], [549.6, 0.0, 559.2],
@@ -174,7 +174,7 @@ const CORNELL_FACES: [(&str, usize, [usize; 4]); 19] = [
     ("tall_block", 0, [32, 26, 25, 29]),
 ];
 
-/// The Cornell box: geometry and materials of `scenes/cornell_box.obj` + `.mtl`
+/// The Cornell box: geometry and materials of `tests/data/scenes/cornell_box.obj` + `.mtl`
 /// (units mm; `Ke` is exitance = π × radiance (17, 12, 4)).
 fn cornell() -> Scene {
     let mut b = Builder::new("cornell");

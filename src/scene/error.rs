@@ -10,7 +10,7 @@ pub enum SceneError {
     #[error("{}: cannot read: {cause}", path.display())]
     Read {
         path: PathBuf,
-                cause: std::io::Error,
+        cause: std::io::Error,
     },
     /// A statement the loader needs could not be parsed.
     #[error("{}:{line}: malformed `{keyword}` statement: {reason}", path.display())]
@@ -58,7 +58,7 @@ pub enum SceneError {
     /// A face comes before any `usemtl`: it has no reflectance.
     #[error("{}:{line}: face has no material (no `usemtl` before it)", path.display())]
     NoMaterial { path: PathBuf, line: u32 },
-    /// A `Kd` channel outside [0, 1) (DESIGN.md §3); `path` is the MTL file.
+    /// A `Kd` channel outside [0, 1) (docs/numerics.md §3); `path` is the MTL file.
     #[error("{}:{line}: material `{material}`: Kd {value} is outside [0, 1)", path.display())]
     Reflectance {
         path: PathBuf,
@@ -92,7 +92,7 @@ pub enum SceneError {
     #[error("{}: cannot write: {cause}", path.display())]
     Write {
         path: PathBuf,
-                cause: std::io::Error,
+        cause: std::io::Error,
     },
 }
 

@@ -1,7 +1,7 @@
 //! Scenes: the input of the pipeline, before subdivision into patches.
 //!
 //! A [`Scene`] is a list of one-sided planar [`Face`]s (triangles and planar convex
-//! quads, counter-clockwise seen from the front, DESIGN.md §3), each tagged with the
+//! quads, counter-clockwise seen from the front, docs/numerics.md §3), each tagged with the
 //! OBJ group it came from and a [`Material`] (diffuse reflectance `Kd`, emitted
 //! exitance `Ke`). Scenes come from two places:
 //!
@@ -25,7 +25,7 @@ mod write;
 pub use builtin::{builtin, builtin_names, builtin_perpendicular};
 pub use error::SceneError;
 pub use obj::load_obj;
-pub use polygon::{polygon_area, polygon_normal};
+pub(crate) use polygon::{polygon_area, polygon_normal};
 pub use room::builtin_room;
 pub use spec::open_scene;
 pub use write::write_obj;
@@ -45,7 +45,7 @@ pub struct Material {
 
 impl Material {
     /// True when any channel emits.
-    pub fn is_emitter(&self) -> bool {
+    pub(crate) fn is_emitter(&self) -> bool {
         self.emission.iter().any(|&e| e > 0.0)
     }
 }
@@ -75,7 +75,7 @@ impl Face {
     }
 
     /// Length of the longest edge.
-    pub fn longest_edge(&self) -> f64 {
+    pub(crate) fn longest_edge(&self) -> f64 {
         let n = self.corners.len();
         (0..n)
             .map(|i| self.corners[i].distance(self.corners[(i + 1) % n]))
@@ -133,11 +133,6 @@ impl Scene {
             }
         }
         out
-    }
-
-    /// Material of face `i`.
-    pub fn material_of(&self, i: usize) -> &Material {
-        &self.materials[self.faces[i].material as usize]
     }
 
     /// True when at least one face uses an emitting material.

@@ -495,7 +495,7 @@ fn mtl_prepass(path: &Path, text: &str) -> Result<HashMap<String, MtlLines>, Sce
     Ok(out)
 }
 
-/// Turn a tobj material into ours, enforcing DESIGN.md §3: `Kd` in [0, 1), `Ke` >= 0.
+/// Turn a tobj material into ours, enforcing docs/numerics.md §3: `Kd` in [0, 1), `Ke` >= 0.
 fn convert_material(
     mtl: &Path,
     m: &tobj::Material,

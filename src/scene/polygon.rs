@@ -3,7 +3,7 @@
 //! the repair of OBJ polygons into faces the pipeline accepts.
 //!
 //! Tolerances are relative to the polygon's own size, so a scene means the same at any
-//! scale (DESIGN.md §3: results independent of scene scale).
+//! scale (docs/numerics.md §6: results independent of scene scale).
 
 use glam::{DVec2, DVec3};
 
@@ -20,7 +20,7 @@ const PLANAR_REL: f64 = 1e-6;
 /// Vector area ½ Σ (p_k − p_0) × (p_{k+1} − p_0): a fan around the first corner, so
 /// rounding does not depend on the distance to the origin. Its length is the area and
 /// its direction the front normal, for any planar polygon.
-pub fn vector_area(c: &[DVec3]) -> DVec3 {
+pub(crate) fn vector_area(c: &[DVec3]) -> DVec3 {
     let mut s = DVec3::ZERO;
     for k in 1..c.len().saturating_sub(1) {
         s += (c[k] - c[0]).cross(c[k + 1] - c[0]);
@@ -29,13 +29,13 @@ pub fn vector_area(c: &[DVec3]) -> DVec3 {
 }
 
 /// Area of a planar polygon (triangle or planar quad).
-pub fn polygon_area(c: &[DVec3]) -> f64 {
+pub(crate) fn polygon_area(c: &[DVec3]) -> f64 {
     vector_area(c).length()
 }
 
 /// Unit front normal of a planar polygon (counter-clockwise corners); zero when the
 /// polygon is degenerate.
-pub fn polygon_normal(c: &[DVec3]) -> DVec3 {
+pub(crate) fn polygon_normal(c: &[DVec3]) -> DVec3 {
     vector_area(c).normalize_or_zero()
 }
 
@@ -48,7 +48,7 @@ fn longest_edge(c: &[DVec3]) -> f64 {
 
 /// What a corner list is, as far as the pipeline is concerned.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Shape {
+pub(crate) enum Shape {
     /// Fewer than 3 distinct corners, zero area or all corners collinear.
     Degenerate,
     Triangle,
@@ -60,7 +60,7 @@ pub enum Shape {
 }
 
 /// Classify a corner list without changing it.
-pub fn classify(c: &[DVec3]) -> Shape {
+pub(crate) fn classify(c: &[DVec3]) -> Shape {
     if c.len() < 3 {
         return Shape::Degenerate;
     }
@@ -100,7 +100,7 @@ pub fn classify(c: &[DVec3]) -> Shape {
 
 /// What had to be done to turn an OBJ polygon into pipeline faces.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Repair {
+pub(crate) enum Repair {
     /// Nothing: a triangle or planar convex quad as given (possibly with duplicate or
     /// collinear corners removed).
     None,
@@ -115,7 +115,7 @@ pub enum Repair {
 }
 
 /// Turn one OBJ polygon into faces of 3 or 4 corners with the same orientation.
-pub fn repair(corners: &[DVec3]) -> (Vec<Vec<DVec3>>, Repair) {
+pub(crate) fn repair(corners: &[DVec3]) -> (Vec<Vec<DVec3>>, Repair) {
     let c = simplify(corners);
     match classify(&c) {
         Shape::Degenerate => (Vec::new(), Repair::Degenerate),

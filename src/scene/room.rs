@@ -15,7 +15,7 @@ use super::builtin::Builder;
 use super::Scene;
 
 /// Boxes in `builtin("room", None)`.
-pub const DEFAULT_BOXES: usize = 16;
+pub(crate) const DEFAULT_BOXES: usize = 16;
 
 const CELL: f64 = 2.0;
 const MARGIN: f64 = 1.0;

@@ -72,20 +72,19 @@ impl WorkerLink for WorkerSide {
     }
 
     fn send_chunk(&mut self, chunk: EncodedChunk) -> Result<(), ServiceError> {
-        self.send(ToMaster::Chunk { worker: 0, chunk })
+        self.send(ToMaster::Chunk { chunk })
     }
 
     fn send_piece(&mut self, chunk: EncodedChunk) -> Result<(), ServiceError> {
-        self.send(ToMaster::Piece { worker: 0, chunk })
+        self.send(ToMaster::Piece { chunk })
     }
 
     fn half_rows_done(&mut self, rows: Vec<u32>) -> Result<(), ServiceError> {
         self.send(ToMaster::HalfRowsDone { worker: 0, rows })
     }
 
-    fn failed(&mut self, row: i64, message: &str) -> Result<(), ServiceError> {
+    fn failed(&mut self, row: Option<u32>, message: &str) -> Result<(), ServiceError> {
         self.send(ToMaster::Failed {
-            worker: 0,
             rank: 0,
             row,
             message: message.to_string(),
@@ -93,7 +92,7 @@ impl WorkerLink for WorkerSide {
     }
 
     fn done(&mut self, stats: WorkerStats) -> Result<(), ServiceError> {
-        self.send(ToMaster::Done { worker: 0, stats })
+        self.send(ToMaster::Done { stats })
     }
 }
 

@@ -9,10 +9,11 @@ pub enum ServiceError {
     #[error(transparent)]
     File(#[from] FfzError),
     /// A worker reported a failure; the run was stopped.
-    #[error("rank {rank}: row {row}: {message}")]
+    #[error("rank {rank}: {}{message}", row.map_or(String::new(), |r| format!("row {r}: ")))]
     WorkerFailed {
         rank: i32,
-        row: i64,
+        /// The row being computed, if any.
+        row: Option<u32>,
         message: String,
     },
     /// A worker could not set up (scene missing, different scene, ...).

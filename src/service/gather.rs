@@ -11,7 +11,7 @@ use crate::service::{ComputeJob, ComputeReport, ServiceError};
 
 /// Compute `rows` on `job.threads` threads; call `sink(i, row_as_f64)` for each, on the
 /// calling thread.
-pub fn compute_rows_f64(job: &ComputeJob, rows: &[u32], mut sink: impl FnMut(u32, &[f64])) {
+pub(crate) fn compute_rows_f64(job: &ComputeJob, rows: &[u32], mut sink: impl FnMut(u32, &[f64])) {
     let threads = job.threads.max(1);
     let n = job.patches.len();
     let (tx, rx) = crossbeam::channel::bounded::<(u32, Vec<f64>)>(2 * threads);
@@ -47,7 +47,7 @@ pub fn compute_rows_f64(job: &ComputeJob, rows: &[u32], mut sink: impl FnMut(u32
 ///
 /// # Errors
 /// File errors.
-pub fn write_dense(job: &ComputeJob, matrix: &[f64]) -> Result<ComputeReport, ServiceError> {
+pub(crate) fn write_dense(job: &ComputeJob, matrix: &[f64]) -> Result<ComputeReport, ServiceError> {
     let n = job.patches.len();
     if !job.overwrite && job.output.exists() {
         return Err(ServiceError::Config(format!(

@@ -14,7 +14,7 @@ pub enum RowSelection {
     /// Every row.
     All,
     /// Only rows a gathering solve needs: patches that neither reflect nor emit get a
-    /// row marked *skipped* in the file (DESIGN.md §3, "skip what a scene does not need").
+    /// row marked *skipped* in the file (docs/numerics.md §9, "work that is skipped").
     Needed,
 }
 
@@ -50,7 +50,7 @@ impl ComputeJob {
     ///
     /// # Panics
     /// On a job built without one (an I/O master's): a caller bug.
-    pub fn engine(&self) -> &Arc<RowEngine> {
+    pub(crate) fn engine(&self) -> &Arc<RowEngine> {
         self.engine
             .as_ref()
             .expect("this job was built for the I/O master, which computes no rows")
@@ -60,32 +60,32 @@ impl ComputeJob {
 /// What one worker (embedded pool or MPI rank) did.
 #[derive(Clone, Debug, Default)]
 pub struct WorkerStats {
-    pub rank: i32,
-    pub rows: u64,
+    pub(crate) rank: i32,
+    pub(crate) rows: u64,
     /// Seconds the compute threads spent computing rows, summed over threads.
-    pub busy_seconds: f64,
-    pub threads: u32,
+    pub(crate) busy_seconds: f64,
+    pub(crate) threads: u32,
     /// Peak resident set size of the worker process in bytes (0 if unknown).
-    pub peak_rss: u64,
+    pub(crate) peak_rss: u64,
 }
 
 /// What a finished compute run reports.
 #[derive(Clone, Debug, Default)]
 pub struct ComputeReport {
-    pub n: usize,
-    pub rows_computed: u64,
-    pub rows_skipped: u64,
-    pub rows_already_present: u64,
-    pub wall_seconds: f64,
+    pub(crate) n: usize,
+    pub(crate) rows_computed: u64,
+    pub(crate) rows_skipped: u64,
+    pub(crate) rows_already_present: u64,
+    pub(crate) wall_seconds: f64,
     /// Fraction of the master's wall time spent waiting for messages.
-    pub master_idle_fraction: f64,
-    pub bytes_on_disk: u64,
-    pub raw_bytes: u64,
+    pub(crate) master_idle_fraction: f64,
+    pub(crate) bytes_on_disk: u64,
+    pub(crate) raw_bytes: u64,
     /// `--symmetric`: bytes of half rows that went through the spill file (deleted at
     /// the end; its peak size on disk).
-    pub spill_bytes: u64,
-    pub master_peak_rss: u64,
-    pub workers: Vec<WorkerStats>,
+    pub(crate) spill_bytes: u64,
+    pub(crate) master_peak_rss: u64,
+    pub(crate) workers: Vec<WorkerStats>,
 }
 
 impl ComputeReport {

@@ -8,28 +8,27 @@ use crate::service::{ServiceError, WorkerStats};
 
 /// A message a worker sends to the master.
 #[derive(Debug)]
-pub enum ToMaster {
+pub(crate) enum ToMaster {
     /// Worker `worker` wants more rows (dynamic schedule).
     Request { worker: usize },
     /// Compressed rows, ready to append.
-    Chunk { worker: usize, chunk: EncodedChunk },
+    Chunk { chunk: EncodedChunk },
     /// `--symmetric`: a piece of partial rows for the spill (service::symmetric).
-    Piece { worker: usize, chunk: EncodedChunk },
+    Piece { chunk: EncodedChunk },
     /// `--symmetric`: these half rows are complete (all their pieces were sent before).
     HalfRowsDone { worker: usize, rows: Vec<u32> },
-    /// The worker failed; `row` is -1 when no row was involved.
+    /// The worker failed, computing `row` if any.
     Failed {
-        worker: usize,
         rank: i32,
-        row: i64,
+        row: Option<u32>,
         message: String,
     },
     /// The worker computed all its rows and sent every chunk.
-    Done { worker: usize, stats: WorkerStats },
+    Done { stats: WorkerStats },
 }
 
 /// The master's side of the link.
-pub trait MasterLink {
+pub(crate) trait MasterLink {
     /// Number of workers (embedded: 1 pool; MPI: P-1 ranks).
     fn workers(&self) -> usize;
     /// Wait up to `timeout` for the next message. Waiting must not burn a core: the
@@ -40,7 +39,7 @@ pub trait MasterLink {
 }
 
 /// A worker's side of the link.
-pub trait WorkerLink {
+pub(crate) trait WorkerLink {
     /// Ask for more rows (dynamic schedule); the answer arrives via `try_assignment`.
     fn request(&mut self) -> Result<(), ServiceError>;
     /// The answer to the last request if it has arrived; `Some(vec![])` = no more work.
@@ -49,6 +48,6 @@ pub trait WorkerLink {
     /// `--symmetric`: a spill piece; then, after a row's pieces, `half_rows_done`.
     fn send_piece(&mut self, piece: EncodedChunk) -> Result<(), ServiceError>;
     fn half_rows_done(&mut self, rows: Vec<u32>) -> Result<(), ServiceError>;
-    fn failed(&mut self, row: i64, message: &str) -> Result<(), ServiceError>;
+    fn failed(&mut self, row: Option<u32>, message: &str) -> Result<(), ServiceError>;
     fn done(&mut self, stats: WorkerStats) -> Result<(), ServiceError>;
 }

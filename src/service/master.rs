@@ -25,33 +25,33 @@ use crate::service::{ServiceError, WorkerStats};
 const WRITER_QUEUE: usize = 8;
 
 /// What the master is told to do.
-pub struct MasterPlan {
+pub(crate) struct MasterPlan {
     /// Rows the workers compute (already excludes rows present in a resumed file).
-    pub todo: Vec<u32>,
+    pub(crate) todo: Vec<u32>,
     /// Rows to record as skipped on purpose (not needed by a gathering solve).
-    pub skipped: Vec<u32>,
-    pub schedule: Schedule,
+    pub(crate) skipped: Vec<u32>,
+    pub(crate) schedule: Schedule,
     /// Smallest dynamic batch (usually the threads per worker).
-    pub min_batch: usize,
-    pub layout: Layout,
-    pub n: u32,
-    pub zstd_level: i32,
-    pub progress: bool,
+    pub(crate) min_batch: usize,
+    pub(crate) layout: Layout,
+    pub(crate) n: u32,
+    pub(crate) zstd_level: i32,
+    pub(crate) progress: bool,
     /// `--symmetric`: workers send half rows as spill pieces, kept in this file until
     /// their row block is complete (service::symmetric).
-    pub spill: Option<std::path::PathBuf>,
+    pub(crate) spill: Option<std::path::PathBuf>,
 }
 
 /// What the master observed.
 #[derive(Debug, Default)]
-pub struct MasterOutcome {
-    pub writer: WriterStats,
+pub(crate) struct MasterOutcome {
+    pub(crate) writer: WriterStats,
     /// `--symmetric`: bytes that went through the spill file.
-    pub spill_bytes: u64,
-    pub rows_received: u64,
-    pub idle_seconds: f64,
-    pub wall_seconds: f64,
-    pub workers: Vec<WorkerStats>,
+    pub(crate) spill_bytes: u64,
+    pub(crate) rows_received: u64,
+    pub(crate) idle_seconds: f64,
+    pub(crate) wall_seconds: f64,
+    pub(crate) workers: Vec<WorkerStats>,
 }
 
 enum WriterJob {
@@ -77,7 +77,7 @@ struct WriterCounters {
 /// # Errors
 /// A worker failure, a broken link, or a file error (disk full, ...). In every case the
 /// chunks written so far stay recoverable.
-pub fn run_master(
+pub(crate) fn run_master(
     link: &mut dyn MasterLink,
     writer: FfzWriter,
     plan: &MasterPlan,
@@ -295,7 +295,7 @@ fn writer_gone() -> ServiceError {
 /// # Errors
 /// The file cannot be created, or (with `resume`) belongs to a different scene or
 /// layout.
-pub fn prepare(
+pub(crate) fn prepare(
     job: &crate::service::ComputeJob,
     min_batch: usize,
 ) -> Result<(FfzWriter, MasterPlan, u64), ServiceError> {
@@ -310,6 +310,9 @@ pub fn prepare(
     }
     let (writer, presence) = if job.resume && job.output.exists() && !torn_own_header(job)? {
         let (w, p) = FfzWriter::resume(&job.output, &job.meta, job.writer)?;
+        for note in w.warnings() {
+            eprintln!("ffstream: warning: {note}");
+        }
         (w, Some(p))
     } else {
         (FfzWriter::create(&job.output, &job.meta, job.writer)?, None)
@@ -385,7 +388,7 @@ fn torn_own_header(job: &crate::service::ComputeJob) -> Result<bool, ServiceErro
 }
 
 /// Turn what the master saw into the run's report.
-pub fn report(
+pub(crate) fn report(
     job: &crate::service::ComputeJob,
     plan: &MasterPlan,
     present: u64,

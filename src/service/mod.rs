@@ -1,6 +1,6 @@
 //! The compute service: who computes which rows and how they reach the file.
 //!
-//! One design serves both launch modes (DESIGN.md §4):
+//! One design serves both launch modes (docs/architecture.md §3):
 //!
 //! * **Embedded** (no `mpirun`): one process. The calling thread is the I/O master; one
 //!   worker driver thread feeds `--threads` compute threads; they talk over bounded
@@ -17,16 +17,16 @@
 pub mod embedded;
 pub mod error;
 pub mod gather;
-pub mod job;
-pub mod link;
+pub(crate) mod job;
+pub(crate) mod link;
 pub mod master;
 #[cfg(feature = "mpi")]
 pub mod mpi;
-pub mod progress;
-pub mod rss;
+pub(crate) mod progress;
+pub(crate) mod rss;
 pub mod schedule;
 pub mod symmetric;
-pub mod worker;
+pub(crate) mod worker;
 
 pub use error::ServiceError;
 pub use job::{ComputeJob, ComputeReport, RowSelection, WorkerStats};

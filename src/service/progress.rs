@@ -9,7 +9,7 @@ use std::time::{Duration, Instant};
 
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 
-pub struct Progress {
+pub(crate) struct Progress {
     enabled: bool,
     total: u64,
     done: u64,
@@ -25,7 +25,7 @@ pub struct Progress {
 }
 
 impl Progress {
-    pub fn new(total: u64, enabled: bool) -> Self {
+    pub(crate) fn new(total: u64, enabled: bool) -> Self {
         use std::io::IsTerminal;
         let now = Instant::now();
         Progress {
@@ -44,13 +44,13 @@ impl Progress {
 
     /// Rows of unequal cost: `total_work` units in all; pass each row's units to
     /// [`Progress::advance_work`] (half rows: row i holds about n − i pairs).
-    pub fn with_work(mut self, total_work: u64) -> Self {
+    pub(crate) fn with_work(mut self, total_work: u64) -> Self {
         self.work = Some((0, total_work.max(1)));
         self
     }
 
     /// `rows` more rows holding `work` units are done (see [`Progress::with_work`]).
-    pub fn advance_work(&mut self, rows: u64, work: u64, disk: u64, raw: u64) {
+    pub(crate) fn advance_work(&mut self, rows: u64, work: u64, disk: u64, raw: u64) {
         if let Some((done, _)) = &mut self.work {
             *done += work;
         }
@@ -58,7 +58,7 @@ impl Progress {
     }
 
     /// `rows` more rows are done; `disk`/`raw` are the file's bytes so far.
-    pub fn advance(&mut self, rows: u64, disk: u64, raw: u64) {
+    pub(crate) fn advance(&mut self, rows: u64, disk: u64, raw: u64) {
         self.done += rows;
         if !self.enabled {
             return;
@@ -140,7 +140,7 @@ impl Progress {
         )
     }
 
-    pub fn finish(&mut self) {
+    pub(crate) fn finish(&mut self) {
         if let Some(bar) = self.bar.take() {
             bar.finish_and_clear();
         }

@@ -28,7 +28,7 @@ impl std::fmt::Display for Schedule {
 
 /// The paper's folded order of `rows`: first half ascending interleaved with the second
 /// half descending.
-pub fn folded_order(rows: &[u32]) -> Vec<u32> {
+pub(crate) fn folded_order(rows: &[u32]) -> Vec<u32> {
     let n = rows.len();
     let mut out = Vec::with_capacity(n);
     let (mut lo, mut hi) = (0usize, n);
@@ -45,7 +45,7 @@ pub fn folded_order(rows: &[u32]) -> Vec<u32> {
 
 /// The rows worker `w` of `workers` computes under the folded schedule: pairs of the
 /// folded order dealt round robin.
-pub fn folded_share(rows: &[u32], workers: usize, w: usize) -> Vec<u32> {
+pub(crate) fn folded_share(rows: &[u32], workers: usize, w: usize) -> Vec<u32> {
     debug_assert!(w < workers);
     folded_order(rows)
         .chunks(2)
@@ -57,7 +57,7 @@ pub fn folded_share(rows: &[u32], workers: usize, w: usize) -> Vec<u32> {
 
 /// Guided self-scheduling queue for the dynamic schedule (lives at the master).
 #[derive(Debug)]
-pub struct DynamicQueue {
+pub(crate) struct DynamicQueue {
     rows: Vec<u32>,
     next: usize,
     workers: usize,
@@ -68,7 +68,7 @@ pub struct DynamicQueue {
 impl DynamicQueue {
     /// `min_batch` is usually the compute threads per worker, so one request keeps
     /// every thread of a worker busy.
-    pub fn new(rows: Vec<u32>, workers: usize, min_batch: usize, max_batch: usize) -> Self {
+    pub(crate) fn new(rows: Vec<u32>, workers: usize, min_batch: usize, max_batch: usize) -> Self {
         DynamicQueue {
             rows,
             next: 0,
@@ -78,12 +78,12 @@ impl DynamicQueue {
         }
     }
 
-    pub fn remaining(&self) -> usize {
+    pub(crate) fn remaining(&self) -> usize {
         self.rows.len() - self.next
     }
 
     /// Next batch: a quarter of the per-worker remainder, clamped; empty when done.
-    pub fn next_batch(&mut self) -> Vec<u32> {
+    pub(crate) fn next_batch(&mut self) -> Vec<u32> {
         let remaining = self.remaining();
         let size = (remaining / (4 * self.workers))
             .clamp(self.min_batch, self.max_batch)

@@ -1,5 +1,5 @@
 //! `--symmetric`: each unordered pair is computed once and its mirror follows from
-//! reciprocity (the paper's trick, DESIGN.md §1 and §3), without any process holding
+//! reciprocity (the paper's trick, docs/architecture.md §1 and §4), without any process holding
 //! the matrix. Design and measurements: bench/PERF.md section 6.
 //!
 //! * A worker computes the *half row* of each row i it is given
@@ -34,7 +34,7 @@ use crate::rows::{Row, RowValues};
 /// about 2^22 entries (16 MB); and a matrix has at least ~16 blocks, so that rows reach
 /// the file (and survive a kill) while the run goes on. Between 8 and 4096 rows. A
 /// function of n only: workers and master agree on it without a message.
-pub fn block_rows(n: u32) -> u32 {
+pub(crate) fn block_rows(n: u32) -> u32 {
     let n = u64::from(n.max(1));
     ((1u64 << 22) / n).min(n / 16).clamp(8, 4096) as u32
 }
@@ -47,7 +47,7 @@ pub fn spill_path(output: &Path) -> PathBuf {
 }
 
 /// `in_run[i]`: whether row i is one of `todo` (the rows computed in this run).
-pub fn in_run(todo: &[u32], n: u32) -> Vec<bool> {
+pub(crate) fn in_run(todo: &[u32], n: u32) -> Vec<bool> {
     let mut v = vec![false; n as usize];
     for &r in todo {
         v[r as usize] = true;
@@ -56,7 +56,7 @@ pub fn in_run(todo: &[u32], n: u32) -> Vec<bool> {
 }
 
 /// Worker side: entries of finished half rows, bucketed by destination block.
-pub struct HalfRowBuffer {
+pub(crate) struct HalfRowBuffer {
     n: u32,
     block: u32,
     /// Per block: (destination row, column, value).
@@ -67,7 +67,7 @@ pub struct HalfRowBuffer {
 }
 
 impl HalfRowBuffer {
-    pub fn new(n: u32) -> Self {
+    pub(crate) fn new(n: u32) -> Self {
         let block = block_rows(n);
         HalfRowBuffer {
             n,
@@ -79,7 +79,7 @@ impl HalfRowBuffer {
     }
 
     /// Add the half row of row `i` (the two lists of `RowEngine::half_row`).
-    pub fn add(&mut self, i: u32, own: &[(u32, f64)], mirrored: &[(u32, f64)]) {
+    pub(crate) fn add(&mut self, i: u32, own: &[(u32, f64)], mirrored: &[(u32, f64)]) {
         let home = &mut self.buckets[(i / self.block) as usize];
         home.extend(own.iter().map(|&(j, f)| (i, j, f as f32)));
         for &(j, f) in mirrored {
@@ -90,12 +90,12 @@ impl HalfRowBuffer {
     }
 
     /// Half rows held.
-    pub fn rows(&self) -> usize {
+    pub(crate) fn rows(&self) -> usize {
         self.sources.len()
     }
 
     /// Uncompressed bytes the pieces would take (8 per entry).
-    pub fn pending_bytes(&self) -> usize {
+    pub(crate) fn pending_bytes(&self) -> usize {
         8 * self.entries
     }
 
@@ -104,7 +104,10 @@ impl HalfRowBuffer {
     ///
     /// # Errors
     /// As [`encode_chunk`] (only a zstd failure in practice).
-    pub fn flush(&mut self, zstd_level: i32) -> Result<(Vec<EncodedChunk>, Vec<u32>), FfzError> {
+    pub(crate) fn flush(
+        &mut self,
+        zstd_level: i32,
+    ) -> Result<(Vec<EncodedChunk>, Vec<u32>), FfzError> {
         let mut pieces = Vec::new();
         // A piece's rows hold at most n entries: the top-k layout with k = n is the
         // partial-row container (never written to the .ffz file itself).
@@ -146,7 +149,7 @@ impl HalfRowBuffer {
 }
 
 /// Master side: which blocks are complete, from the half rows reported so far.
-pub struct Frontier {
+pub(crate) struct Frontier {
     /// Rows of the run, ascending.
     todo: Vec<u32>,
     done: Vec<bool>,
@@ -159,7 +162,7 @@ pub struct Frontier {
 }
 
 impl Frontier {
-    pub fn new(n: u32, todo: &[u32]) -> Self {
+    pub(crate) fn new(n: u32, todo: &[u32]) -> Self {
         let mut todo = todo.to_vec();
         todo.sort_unstable();
         let block = block_rows(n);
@@ -178,7 +181,7 @@ impl Frontier {
     ///
     /// # Errors
     /// A row that is not in the run or was reported twice (a protocol error).
-    pub fn finish(&mut self, rows: &[u32]) -> Result<Vec<u32>, String> {
+    pub(crate) fn finish(&mut self, rows: &[u32]) -> Result<Vec<u32>, String> {
         for &r in rows {
             let ok = self.todo.binary_search(&r).is_ok();
             match self.done.get_mut(r as usize) {
@@ -211,25 +214,25 @@ impl Frontier {
 impl Frontier {
     /// Pairs the half row of row `i` (of the run) owns: the n − 1 − i columns after it
     /// and the columns before it whose rows are not in the run (`RowEngine::half_row`).
-    pub fn work(&self, i: u32) -> u64 {
+    pub(crate) fn work(&self, i: u32) -> u64 {
         let n = self.done.len() as u64;
         let run_below = self.todo.partition_point(|&r| r < i) as u64;
         (n - 1 - u64::from(i)) + (u64::from(i) - run_below)
     }
 
     /// Σ of [`Frontier::work`] over the run.
-    pub fn total_work(&self) -> u64 {
+    pub(crate) fn total_work(&self) -> u64 {
         self.todo.iter().map(|&i| self.work(i)).sum()
     }
 
     /// Every block holding rows of the run has been released.
-    pub fn complete(&self) -> bool {
+    pub(crate) fn complete(&self) -> bool {
         self.pos == self.todo.len()
     }
 }
 
 /// The master's spill file of pieces, and the merge of a complete block into rows.
-pub struct Spill {
+pub(crate) struct Spill {
     path: PathBuf,
     file: File,
     end: u64,
@@ -249,7 +252,12 @@ impl Spill {
     ///
     /// # Errors
     /// The file cannot be created.
-    pub fn create(path: PathBuf, n: u32, todo: &[u32], layout: Layout) -> Result<Self, FfzError> {
+    pub(crate) fn create(
+        path: PathBuf,
+        n: u32,
+        todo: &[u32],
+        layout: Layout,
+    ) -> Result<Self, FfzError> {
         let file = OpenOptions::new()
             .read(true)
             .write(true)
@@ -271,12 +279,13 @@ impl Spill {
         })
     }
 
-    pub fn path(&self) -> &Path {
+    #[cfg(test)]
+    pub(crate) fn path(&self) -> &Path {
         &self.path
     }
 
     /// Bytes written to the spill so far.
-    pub fn bytes(&self) -> u64 {
+    pub(crate) fn bytes(&self) -> u64 {
         self.end
     }
 
@@ -284,7 +293,7 @@ impl Spill {
     ///
     /// # Errors
     /// A piece whose rows span blocks or lie outside the run; a write error (disk full).
-    pub fn append(&mut self, piece: &EncodedChunk) -> Result<(), FfzError> {
+    pub(crate) fn append(&mut self, piece: &EncodedChunk) -> Result<(), FfzError> {
         let bad = |what: String| FfzError::Spill {
             path: self.path.clone(),
             what,
@@ -314,7 +323,7 @@ impl Spill {
     /// # Errors
     /// A read error, a piece whose checksum fails, an entry given twice; or the error
     /// of `emit`.
-    pub fn merge(
+    pub(crate) fn merge(
         &mut self,
         j: u32,
         mut emit: impl FnMut(Row) -> Result<(), FfzError>,
@@ -385,7 +394,7 @@ impl Spill {
 
     /// Delete the spill file (the end of a run, successful or not: a spill cannot be
     /// resumed).
-    pub fn remove(self) {
+    pub(crate) fn remove(self) {
         drop(self.file);
         let _ = std::fs::remove_file(&self.path);
     }

@@ -26,28 +26,28 @@ use crate::service::{ComputeJob, ServiceError, WorkerStats};
 
 /// Environment variable that makes a worker fail on purpose when it reaches this row
 /// (fault-injection for tests of the failure path). Documented in the README.
-pub const FAIL_ROW_ENV: &str = "FFSTREAM_FAIL_ROW";
+pub(crate) const FAIL_ROW_ENV: &str = "FFSTREAM_FAIL_ROW";
 
 /// How one worker runs.
 #[derive(Clone, Debug)]
-pub struct WorkerConfig {
-    pub rank: i32,
-    pub threads: usize,
-    pub layout: Layout,
-    pub n: u32,
-    pub zstd_level: i32,
+pub(crate) struct WorkerConfig {
+    pub(crate) rank: i32,
+    pub(crate) threads: usize,
+    pub(crate) layout: Layout,
+    pub(crate) n: u32,
+    pub(crate) zstd_level: i32,
     /// Target uncompressed bytes per chunk.
-    pub chunk_bytes: usize,
-    pub flush_seconds: f64,
+    pub(crate) chunk_bytes: usize,
+    pub(crate) flush_seconds: f64,
     /// `--symmetric`: compute half rows; `in_run[i]` says whether row i is computed in
     /// this run (see [`RowEngine::half_row`]).
-    pub symmetric: Option<Arc<Vec<bool>>>,
+    pub(crate) symmetric: Option<Arc<Vec<bool>>>,
 }
 
 impl WorkerConfig {
     /// The configuration of worker `rank` for `job`, whose run computes the rows `todo`
     /// (needed with `--symmetric`, where a half row depends on which rows are in the run).
-    pub fn for_job(job: &ComputeJob, rank: i32, todo: &[u32]) -> Self {
+    pub(crate) fn for_job(job: &ComputeJob, rank: i32, todo: &[u32]) -> Self {
         let n = job.patches.len() as u32;
         WorkerConfig {
             rank,
@@ -71,7 +71,7 @@ enum FromCompute {
         rows: Vec<u32>,
     },
     Failed {
-        row: i64,
+        row: Option<u32>,
         message: String,
     },
 }
@@ -81,7 +81,7 @@ enum FromCompute {
 ///
 /// # Errors
 /// A failed row (reported to the master first) or a broken link.
-pub fn run_worker(
+pub(crate) fn run_worker(
     engine: &RowEngine,
     cfg: &WorkerConfig,
     link: &mut dyn WorkerLink,
@@ -281,7 +281,7 @@ impl Pending {
                 let msg = match encode_chunk(rows, cfg.layout, cfg.n, cfg.zstd_level) {
                     Ok(chunk) => FromCompute::Chunk(chunk),
                     Err(e) => FromCompute::Failed {
-                        row: rows[0].index as i64,
+                        row: Some(rows[0].index),
                         message: e.to_string(),
                     },
                 };
@@ -292,7 +292,7 @@ impl Pending {
             Pending::Half { buf, .. } => match buf.flush(cfg.zstd_level) {
                 Ok((pieces, rows)) => FromCompute::Pieces { pieces, rows },
                 Err(e) => FromCompute::Failed {
-                    row: -1,
+                    row: None,
                     message: e.to_string(),
                 },
             },
@@ -341,7 +341,7 @@ fn compute_thread(
             busy_nanos.fetch_add(t0.elapsed().as_nanos() as u64, Ordering::Relaxed);
             if let Err(message) = done {
                 let _ = out.send(FromCompute::Failed {
-                    row: i as i64,
+                    row: Some(i),
                     message,
                 });
                 return;

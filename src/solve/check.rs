@@ -35,9 +35,9 @@ pub(crate) enum Mode {
 
 pub(crate) struct FinalPass {
     /// Per column max_i |B_i − E_i − ρ_i H_i| (only for [`Mode::Full`]).
-    pub residual_abs: Vec<f64>,
+    pub(crate) residual_abs: Vec<f64>,
     /// Dark emitters whose rows were not available to the scatter: (first, count).
-    pub dark_sources_missing: Option<(u32, usize)>,
+    pub(crate) dark_sources_missing: Option<(u32, usize)>,
 }
 
 /// Run the final pass over `src` for radiosity `b` (`n × m`), writing H into `h`.

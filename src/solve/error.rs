@@ -68,7 +68,7 @@ pub enum SolveError {
 
 impl SolveError {
     /// Wrap an error of the layer below (the row source).
-    pub fn source_error(e: impl std::error::Error + Send + Sync + 'static) -> Self {
+    pub(crate) fn source_error(e: impl std::error::Error + Send + Sync + 'static) -> Self {
         SolveError::Source(Box::new(e))
     }
 

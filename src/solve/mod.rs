@@ -4,7 +4,7 @@
 //! `.ffz` reader, or [`MemoryRows`]); the solver keeps only vectors of n × 3K values
 //! (K emission cases × RGB, all solved together so one pass over the file serves every
 //! case and channel). Radiosity B and irradiance H are per unit area; E is the emitted
-//! exitance (MTL `Ke`), ρ the diffuse reflectance (`Kd`) (DESIGN.md §3).
+//! exitance (MTL `Ke`), ρ the diffuse reflectance (`Kd`) (docs/numerics.md §3).
 //!
 //! # Methods ([`SolveMethod`])
 //! - `jacobi`: full sweeps B ← E + ρ F B, rows in file order (`jacobi.rs`).
@@ -57,7 +57,7 @@ use std::fmt;
 use tracing::info_span;
 
 pub use cases::{parse_emission_cases, read_emission_cases, EmissionCases, CASES_HEADER};
-pub use energy::EnergyReport;
+pub(crate) use energy::EnergyReport;
 pub use error::SolveError;
 pub use output::{
     case_path, format_group_table, group_table, read_radiosity_csv, write_csv, GroupRow, CSV_HEADER,
@@ -90,7 +90,7 @@ impl SolveMethod {
         SolveMethod::Shooting,
     ];
 
-    pub fn name(self) -> &'static str {
+    pub(crate) fn name(self) -> &'static str {
         match self {
             SolveMethod::Shooting => "shooting",
             SolveMethod::Jacobi => "jacobi",
@@ -137,19 +137,17 @@ pub struct Solution {
     /// Irradiance H = F B (what a sensor facing along the normal measures).
     pub h: Vec<Vec<[f64; 3]>>,
     /// The emission solved for (copied from the input, for the outputs).
-    pub e: Vec<Vec<[f64; 3]>>,
+    pub(crate) e: Vec<Vec<[f64; 3]>>,
     /// The reflectance solved with, per patch (copied from the input).
-    pub rho: Vec<[f32; 3]>,
+    pub(crate) rho: Vec<[f32; 3]>,
     /// Sweeps (Jacobi, Gauss–Seidel) or shots (shooting).
     pub iterations: usize,
     /// Sequential scans of the row source, final pass included.
     pub passes: usize,
     /// Rows read by random access (shooting).
-    pub rows_read: u64,
+    pub(crate) rows_read: u64,
     /// Relative residual max ‖B − E − ρ F B‖∞ / ‖B‖∞ over cases and channels.
     pub residual: f64,
-    /// The same per case and channel.
-    pub residual_per_case: Vec<[f64; 3]>,
     /// The stopping criterion was met (not just the iteration limit).
     pub converged: bool,
     /// Patches that reflect nothing, whose rows gathering does not read (per sweep).
@@ -204,13 +202,13 @@ impl Solution {
 
 /// What a method hands back besides B.
 pub(crate) struct Iterate {
-    pub b: Vec<f64>,
-    pub h: Vec<f64>,
-    pub state: HState,
-    pub iterations: usize,
-    pub passes: usize,
-    pub rows_read: u64,
-    pub converged: bool,
+    pub(crate) b: Vec<f64>,
+    pub(crate) h: Vec<f64>,
+    pub(crate) state: HState,
+    pub(crate) iterations: usize,
+    pub(crate) passes: usize,
+    pub(crate) rows_read: u64,
+    pub(crate) converged: bool,
 }
 
 /// How much of H (and the residual) a method already computed for its B.
@@ -321,10 +319,6 @@ pub fn solve(
         passes: it.passes,
         rows_read: it.rows_read,
         residual: max_of(&residual_cols),
-        residual_per_case: residual_cols
-            .chunks_exact(3)
-            .map(|c| [c[0], c[1], c[2]])
-            .collect(),
         converged: it.converged,
         rows_skipped: sys.dark.len(),
         energy,

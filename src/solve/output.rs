@@ -18,7 +18,7 @@ use super::csv::{escape, split_line};
 use super::error::SolveError;
 use super::Solution;
 
-/// Header of the radiosity CSV (DESIGN.md §6 fixes the first six names).
+/// Header of the radiosity CSV (docs/architecture.md §7 fixes the first six names).
 pub const CSV_HEADER: &str =
     "patch,group,area,B_r,B_g,B_b,E_r,E_g,E_b,rho_r,rho_g,rho_b,H_r,H_g,H_b";
 
@@ -165,13 +165,13 @@ pub fn read_radiosity_csv(path: &Path, n: usize) -> Result<Vec<[f32; 3]>, SolveE
 /// Area-weighted averages of one group.
 #[derive(Clone, Debug, PartialEq)]
 pub struct GroupRow {
-    pub group: String,
+    pub(crate) group: String,
     pub patches: usize,
     pub area: f64,
     /// Σ A_i B_i / Σ A_i over the group's patches.
     pub b: [f64; 3],
     /// Σ A_i H_i / Σ A_i.
-    pub h: [f64; 3],
+    pub(crate) h: [f64; 3],
 }
 
 /// Per group (in group order, groups without patches left out), the area-weighted

@@ -51,7 +51,7 @@ pub struct ToneMap {
 impl ToneMap {
     /// White point from the radiosities: area-weighted 97th percentile of each patch's
     /// brightest channel; falls back to the maximum, then to 1, when that is not positive.
-    pub fn robust(patches: &PatchSet, radiosity: &[[f64; 3]]) -> Self {
+    pub(crate) fn robust(patches: &PatchSet, radiosity: &[[f64; 3]]) -> Self {
         let mut v: Vec<(f64, f64)> = patches
             .patches
             .iter()
@@ -79,7 +79,7 @@ impl ToneMap {
     }
 
     /// One channel to 8 bits.
-    pub fn map(&self, x: f64) -> u8 {
+    pub(crate) fn map(&self, x: f64) -> u8 {
         let v = if x.is_finite() {
             (x / self.white).clamp(0.0, 1.0)
         } else {
@@ -101,10 +101,10 @@ pub fn srgb_encode(v: f64) -> f64 {
 /// Welded vertices with their area-weighted radiosity, and faces indexing them.
 #[derive(Clone, Debug, PartialEq)]
 pub struct VertexMesh {
-    pub positions: Vec<DVec3>,
-    pub radiosity: Vec<[f64; 3]>,
+    pub(crate) positions: Vec<DVec3>,
+    pub(crate) radiosity: Vec<[f64; 3]>,
     /// Per patch kept: its vertex indices (3 or 4).
-    pub faces: Vec<Vec<u32>>,
+    pub(crate) faces: Vec<Vec<u32>>,
 }
 
 /// Weld the patch corners and average the radiosity at each vertex (module docs).

@@ -24,10 +24,10 @@ pub(crate) enum Entries<'r> {
 /// A validated, scaled view of one stored row.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct RowView<'r> {
-    pub index: u32,
-    pub entries: Entries<'r>,
+    pub(crate) index: u32,
+    pub(crate) entries: Entries<'r>,
     /// Factor applied to every stored entry (1 unless renormalising a top-k row).
-    pub scale: f64,
+    pub(crate) scale: f64,
 }
 
 impl<'r> RowView<'r> {
@@ -37,7 +37,11 @@ impl<'r> RowView<'r> {
     /// [`SolveError::BadRow`] for a dense row whose length is not n, a sparse row whose
     /// column and value lists differ in length, or a dropped mass that is negative or
     /// not finite. Column indices are checked where they are used.
-    pub fn new(row: &'r Row, n: usize, renormalize: bool) -> Result<Option<Self>, SolveError> {
+    pub(crate) fn new(
+        row: &'r Row,
+        n: usize,
+        renormalize: bool,
+    ) -> Result<Option<Self>, SolveError> {
         let bad = |message: String| SolveError::BadRow {
             row: row.index,
             message,
@@ -100,7 +104,7 @@ impl<'r> RowView<'r> {
     /// # Errors
     /// [`SolveError::OutOfRange`] for a column ≥ n, [`SolveError::BadRow`] when the
     /// result is not finite (the row holds NaN or Inf).
-    pub fn gather(&self, b: &[f64], m: usize, acc: &mut [f64]) -> Result<f64, SolveError> {
+    pub(crate) fn gather(&self, b: &[f64], m: usize, acc: &mut [f64]) -> Result<f64, SolveError> {
         debug_assert_eq!(acc.len(), m);
         debug_assert_eq!(b.len() % m, 0);
         acc.fill(0.0);
@@ -161,7 +165,7 @@ impl<'r> RowView<'r> {
     /// # Errors
     /// [`SolveError::OutOfRange`] for a column ≥ n, [`SolveError::BadRow`] for an entry
     /// that is not finite.
-    pub fn visit(&self, n: usize, mut f: impl FnMut(usize, f64)) -> Result<(), SolveError> {
+    pub(crate) fn visit(&self, n: usize, mut f: impl FnMut(usize, f64)) -> Result<(), SolveError> {
         let bad_value = |x: f32| SolveError::BadRow {
             row: self.index,
             message: format!("value {x} is not finite"),
@@ -196,7 +200,7 @@ impl<'r> RowView<'r> {
 
     /// The value of column `j` (0 when not stored). Dense rows only answer in O(1);
     /// sparse rows by binary search (columns are ascending per the row format).
-    pub fn get(&self, j: usize) -> f64 {
+    pub(crate) fn get(&self, j: usize) -> f64 {
         let x = match self.entries {
             Entries::Dense(v) => v.get(j).copied().unwrap_or(0.0),
             Entries::Sparse(cols, vals) => match cols.binary_search(&(j as u32)) {
@@ -209,7 +213,7 @@ impl<'r> RowView<'r> {
 
     /// True for dense storage (the scatter pass reads dense rows by index instead of
     /// walking every entry).
-    pub fn is_dense(&self) -> bool {
+    pub(crate) fn is_dense(&self) -> bool {
         matches!(self.entries, Entries::Dense(_))
     }
 }

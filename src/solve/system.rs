@@ -13,23 +13,23 @@ use super::error::SolveError;
 /// Validated inputs of one solve.
 #[derive(Clone, Debug)]
 pub(crate) struct System {
-    pub n: usize,
-    pub cases: usize,
+    pub(crate) n: usize,
+    pub(crate) cases: usize,
     /// Columns: 3 × cases.
-    pub m: usize,
-    pub area: Vec<f64>,
+    pub(crate) m: usize,
+    pub(crate) area: Vec<f64>,
     /// Emission, `n × m`.
-    pub e: Vec<f64>,
+    pub(crate) e: Vec<f64>,
     /// Reflectance per patch and channel.
-    pub rho: Vec<[f64; 3]>,
+    pub(crate) rho: Vec<[f64; 3]>,
     /// ρ > 0 in some channel: the patch's row is needed by a gathering solve.
-    pub reflects: Vec<bool>,
+    pub(crate) reflects: Vec<bool>,
     /// E > 0 in some column: the patch emits in some case.
-    pub emits: Vec<bool>,
+    pub(crate) emits: Vec<bool>,
     /// Patches that reflect nothing (`!reflects`), in index order.
-    pub dark: Vec<u32>,
+    pub(crate) dark: Vec<u32>,
     /// Scale top-k rows so that no light is lost (see [`super::rowview`]).
-    pub renormalize: bool,
+    pub(crate) renormalize: bool,
 }
 
 impl System {
@@ -40,7 +40,7 @@ impl System {
     /// reflectance table has the wrong length, an emission is negative or not finite, a
     /// reflectance is outside [0, 1), or an area is not positive and finite (shooting and
     /// the reciprocity relation A_i F_ij = A_j F_ji divide by areas).
-    pub fn new(
+    pub(crate) fn new(
         patches: &PatchSet,
         emission_sets: &[Vec<[f32; 3]>],
         rho: &[[f32; 3]],
@@ -120,12 +120,12 @@ impl System {
 
     /// ρ of patch `i` in column `c`.
     #[inline]
-    pub fn rho_col(&self, i: usize, c: usize) -> f64 {
+    pub(crate) fn rho_col(&self, i: usize, c: usize) -> f64 {
         self.rho[i][c % 3]
     }
 
     /// Emitted power per column, Σ_i A_i E_ic.
-    pub fn emitted_power(&self) -> Vec<f64> {
+    pub(crate) fn emitted_power(&self) -> Vec<f64> {
         let mut p = vec![0.0; self.m];
         for i in 0..self.n {
             for (c, p) in p.iter_mut().enumerate() {
@@ -142,7 +142,7 @@ pub(crate) struct Presence {
 }
 
 impl Presence {
-    pub fn new(n: usize) -> Self {
+    pub(crate) fn new(n: usize) -> Self {
         Presence {
             seen: vec![false; n],
         }
@@ -152,7 +152,7 @@ impl Presence {
     ///
     /// # Errors
     /// [`SolveError::DuplicateRow`] when it was seen before in this scan.
-    pub fn mark(&mut self, i: u32) -> Result<(), SolveError> {
+    pub(crate) fn mark(&mut self, i: u32) -> Result<(), SolveError> {
         let s = &mut self.seen[i as usize];
         if *s {
             return Err(SolveError::DuplicateRow { row: i });
@@ -161,12 +161,12 @@ impl Presence {
         Ok(())
     }
 
-    pub fn seen(&self, i: usize) -> bool {
+    pub(crate) fn seen(&self, i: usize) -> bool {
         self.seen[i]
     }
 
     /// The first row with `needed(i)` that was not seen, and how many such rows.
-    pub fn missing(&self, needed: impl Fn(usize) -> bool) -> Option<(u32, usize)> {
+    pub(crate) fn missing(&self, needed: impl Fn(usize) -> bool) -> Option<(u32, usize)> {
         let mut first = None;
         let mut count = 0;
         for (i, &s) in self.seen.iter().enumerate() {

@@ -7,12 +7,12 @@ use std::process::{Child, Command, ExitStatus, Output, Stdio};
 use std::time::{Duration, Instant};
 
 /// The binary under test (built by cargo for the integration tests).
-pub fn exe() -> PathBuf {
+pub(crate) fn exe() -> PathBuf {
     PathBuf::from(env!("CARGO_BIN_EXE_ffstream"))
 }
 
 /// `ffstream ARGS...` with stdin closed; panics with the output if it cannot start.
-pub fn ffstream(args: &[&str]) -> Output {
+pub(crate) fn ffstream(args: &[&str]) -> Output {
     Command::new(exe())
         .args(args)
         .env_remove("FFSTREAM_FAIL_ROW")
@@ -21,7 +21,7 @@ pub fn ffstream(args: &[&str]) -> Output {
 }
 
 /// Like [`ffstream`] but asserts success and returns stderr.
-pub fn ok(args: &[&str]) -> String {
+pub(crate) fn ok(args: &[&str]) -> String {
     let out = ffstream(args);
     let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
     assert!(
@@ -34,7 +34,7 @@ pub fn ok(args: &[&str]) -> String {
 
 /// An `mpirun -n P ffstream ...` command, with Open MPI's flags for running as root and
 /// for more ranks than cores (CI runs as root on 2 cores).
-pub fn mpirun(ranks: usize, args: &[&str]) -> Command {
+pub(crate) fn mpirun(ranks: usize, args: &[&str]) -> Command {
     let mut c = Command::new("mpirun");
     c.args(["-n", &ranks.to_string(), "--oversubscribe"])
         .env("OMPI_ALLOW_RUN_AS_ROOT", "1")
@@ -48,7 +48,7 @@ pub fn mpirun(ranks: usize, args: &[&str]) -> Command {
 }
 
 /// True when mpirun is on PATH and the binary was built with MPI.
-pub fn mpi_available() -> bool {
+pub(crate) fn mpi_available() -> bool {
     let has_mpirun = Command::new("mpirun")
         .arg("--version")
         .output()
@@ -56,12 +56,12 @@ pub fn mpi_available() -> bool {
     has_mpirun && cfg!(feature = "mpi")
 }
 
-pub fn path_str(p: &Path) -> &str {
+pub(crate) fn path_str(p: &Path) -> &str {
     p.to_str().expect("temporary paths are UTF-8")
 }
 
 /// "rows: X computed, Y skipped (not needed), Z already present" → (X, Z).
-pub fn resumed_counts(stderr: &str) -> (u64, u64) {
+pub(crate) fn resumed_counts(stderr: &str) -> (u64, u64) {
     let line = stderr
         .lines()
         .find(|l| l.starts_with("rows: "))
@@ -76,7 +76,7 @@ pub fn resumed_counts(stderr: &str) -> (u64, u64) {
 
 /// The processes whose parent is `pid`, read from `/proc/*/stat` (a minimal Debian has
 /// no procps, so no `pgrep`).
-pub fn children(pid: u32) -> Vec<u32> {
+pub(crate) fn children(pid: u32) -> Vec<u32> {
     let Ok(dir) = std::fs::read_dir("/proc") else {
         return Vec::new();
     };
@@ -96,7 +96,7 @@ pub fn children(pid: u32) -> Vec<u32> {
 
 /// `pid` and all its descendants (Open MPI may put ranks in process groups of their own,
 /// so a group kill does not reach them).
-pub fn process_tree(pid: u32) -> Vec<u32> {
+pub(crate) fn process_tree(pid: u32) -> Vec<u32> {
     let mut all = vec![pid];
     let mut k = 0;
     while k < all.len() {
@@ -109,7 +109,7 @@ pub fn process_tree(pid: u32) -> Vec<u32> {
 
 /// SIGKILL to `pid` (no `kill` command needed: it is procps' on Debian). A process that
 /// is already gone is not an error.
-pub fn sigkill(pid: u32) {
+pub(crate) fn sigkill(pid: u32) {
     let pid = libc::pid_t::try_from(pid).expect("a pid fits pid_t");
     // SAFETY: kill(2) takes plain integers and touches no memory of ours.
     unsafe {
@@ -119,7 +119,7 @@ pub fn sigkill(pid: u32) {
 
 /// SIGKILL mpirun and every rank, then wait (up to 30 s) until all are gone: only then
 /// may a resume open the file.
-pub fn kill_tree_and_wait(pid: u32) {
+pub(crate) fn kill_tree_and_wait(pid: u32) {
     let pids = process_tree(pid);
     for &p in &pids {
         sigkill(p);
@@ -145,7 +145,7 @@ pub fn kill_tree_and_wait(pid: u32) {
 /// fails the test with a message that names it (`make test` installs every tool the
 /// tests call), unless the variable `skip` is set, which turns the test into a no-op
 /// that says so.
-pub fn need_tool(tool: &str, found: bool, skip: &str) -> bool {
+pub(crate) fn need_tool(tool: &str, found: bool, skip: &str) -> bool {
     if found {
         return true;
     }
@@ -157,7 +157,7 @@ pub fn need_tool(tool: &str, found: bool, skip: &str) -> bool {
 }
 
 /// True when `cmd --version` runs.
-pub fn runs(cmd: &str) -> bool {
+pub(crate) fn runs(cmd: &str) -> bool {
     Command::new(cmd)
         .arg("--version")
         .stdout(Stdio::null())
@@ -168,7 +168,7 @@ pub fn runs(cmd: &str) -> bool {
 
 /// [`need_tool`] for MPI: mpirun on PATH and a binary built with the `mpi` feature
 /// (`FFSTREAM_SKIP_MPI`).
-pub fn need_mpi() -> bool {
+pub(crate) fn need_mpi() -> bool {
     need_tool(
         "mpirun (Open MPI) and a binary built with the mpi feature",
         mpi_available(),
@@ -178,14 +178,14 @@ pub fn need_mpi() -> bool {
 
 /// Longest an mpirun job of these tests may take before it counts as hung (the longest
 /// takes a few seconds).
-pub const MPIRUN_LIMIT: Duration = Duration::from_secs(300);
+pub(crate) const MPIRUN_LIMIT: Duration = Duration::from_secs(300);
 
 /// Waits for an mpirun job for at most [`MPIRUN_LIMIT`]. Open MPI 4.1's mpirun was seen
 /// here to hang for good after every rank of an aborted job had exited (the ranks left
 /// as zombies, mpirun blocked on a futex); without a limit that hangs the whole test run
 /// until CI's own limit. Past it, the job's processes are killed and the test fails,
 /// naming the hang.
-pub trait Within {
+pub(crate) trait Within {
     /// `Command::output` under the limit (stdin closed).
     fn output_within(&mut self, what: &str) -> Output;
 }
@@ -205,7 +205,7 @@ impl Within for Command {
 /// `Child::wait_with_output` for a spawned mpirun job, under [`MPIRUN_LIMIT`]. Once
 /// the job has ended its pipes must close within [`PIPE_LIMIT`]; a process that
 /// outlived mpirun and still holds one fails the test, named, instead of hanging it.
-pub fn output_of_within(child: Child, what: &str) -> Output {
+pub(crate) fn output_of_within(child: Child, what: &str) -> Output {
     output_at_most(child, what, MPIRUN_LIMIT, PIPE_LIMIT)
 }
 
@@ -249,7 +249,7 @@ fn drain(pipe: Option<impl Read + Send + 'static>) -> crossbeam::channel::Receiv
 }
 
 /// Waits for the spawned mpirun `child` for at most [`MPIRUN_LIMIT`] (see [`Within`]).
-pub fn wait_within(child: &mut Child, what: &str) -> ExitStatus {
+pub(crate) fn wait_within(child: &mut Child, what: &str) -> ExitStatus {
     wait_at_most(child, what, MPIRUN_LIMIT)
 }
 

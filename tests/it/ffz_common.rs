@@ -8,23 +8,23 @@ use glam::DVec3;
 use std::path::Path;
 
 /// SplitMix64 (Steele, Lea, Flood 2014): small, seedable, good enough for test data.
-pub struct Rng(pub u64);
+pub(crate) struct Rng(pub u64);
 
 impl Rng {
-    pub fn next_u64(&mut self) -> u64 {
+    pub(crate) fn next_u64(&mut self) -> u64 {
         self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
         let mut z = self.0;
         z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
         z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
         z ^ (z >> 31)
     }
-    pub fn below(&mut self, n: u64) -> u64 {
+    pub(crate) fn below(&mut self, n: u64) -> u64 {
         self.next_u64() % n.max(1)
     }
-    pub fn f32(&mut self) -> f32 {
+    pub(crate) fn f32(&mut self) -> f32 {
         (self.next_u64() >> 40) as f32 / (1u64 << 24) as f32
     }
-    pub fn shuffle<T>(&mut self, v: &mut [T]) {
+    pub(crate) fn shuffle<T>(&mut self, v: &mut [T]) {
         for i in (1..v.len()).rev() {
             let j = self.below(i as u64 + 1) as usize;
             v.swap(i, j);
@@ -33,7 +33,7 @@ impl Rng {
 }
 
 /// n random patches in 3 groups.
-pub fn patches(n: u32, seed: u64) -> PatchSet {
+pub(crate) fn patches(n: u32, seed: u64) -> PatchSet {
     let mut r = Rng(seed);
     let mut ps = Vec::with_capacity(n as usize);
     for i in 0..n {
@@ -66,7 +66,7 @@ pub fn patches(n: u32, seed: u64) -> PatchSet {
     }
 }
 
-pub fn meta(layout: Layout, patches: PatchSet) -> FileMeta {
+pub(crate) fn meta(layout: Layout, patches: PatchSet) -> FileMeta {
     FileMeta {
         layout,
         method: "mc".into(),
@@ -79,7 +79,7 @@ pub fn meta(layout: Layout, patches: PatchSet) -> FileMeta {
 
 /// Row i of a random matrix, deterministic in (seed, i): about 1 row in 11 skipped,
 /// 1 in 13 empty (sparse) or all-zero (dense), the rest with random values.
-pub fn row(seed: u64, i: u32, n: u32, layout: Layout) -> Row {
+pub(crate) fn row(seed: u64, i: u32, n: u32, layout: Layout) -> Row {
     let mut r = Rng(seed ^ (i as u64).wrapping_mul(0x2545_F491_4F6C_DD1D));
     if r.below(11) == 0 {
         return Row::skipped(i);
@@ -122,7 +122,7 @@ pub fn row(seed: u64, i: u32, n: u32, layout: Layout) -> Row {
 }
 
 /// Write rows `ids` (in that order) with `push_row`, then finish.
-pub fn write(path: &Path, meta: &FileMeta, rows: &[Row], chunk_bytes: usize) {
+pub(crate) fn write(path: &Path, meta: &FileMeta, rows: &[Row], chunk_bytes: usize) {
     let opts = WriterOptions {
         chunk_bytes,
         fsync: false,
@@ -136,7 +136,7 @@ pub fn write(path: &Path, meta: &FileMeta, rows: &[Row], chunk_bytes: usize) {
 }
 
 /// Bitwise equality of two rows (NaN-safe, distinguishes -0.0).
-pub fn same(a: &Row, b: &Row) -> bool {
+pub(crate) fn same(a: &Row, b: &Row) -> bool {
     let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
     a.index == b.index
         && a.dropped.to_bits() == b.dropped.to_bits()
@@ -153,7 +153,7 @@ pub fn same(a: &Row, b: &Row) -> bool {
 
 /// Check that every row the reader returns is bitwise the expected one, and that the
 /// rows it lacks are exactly those reported missing. Returns the number of rows held.
-pub fn check_against(rd: &FfzReader, expect: &dyn Fn(u32) -> Row) -> u64 {
+pub(crate) fn check_against(rd: &FfzReader, expect: &dyn Fn(u32) -> Row) -> u64 {
     let mut held = 0;
     // Random access in row order on a shuffled file decodes one chunk per row: sample
     // the rows of a big file (the scan below checks all of them).

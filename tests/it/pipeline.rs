@@ -19,11 +19,7 @@ fn cube_file(path: &std::path::Path) -> ffstream::patch::PatchSet {
     let scene = builtin("cube", None).unwrap();
     let patches = Arc::new(subdivide(&scene, 0.25));
     let occluders = Arc::new(Occluders::new(scene.triangles().collect()));
-    let engine = RowEngine::new(
-        Arc::clone(&patches),
-        occluders,
-        FormFactorConfig::accurate(),
-    );
+    let engine = RowEngine::new(&patches, occluders, FormFactorConfig::accurate());
     let meta = FileMeta {
         layout: Layout::Dense,
         method: "contour".into(),

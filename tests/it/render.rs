@@ -540,7 +540,7 @@ const KD_GREEN: [f32; 3] = [0.14, 0.45, 0.091];
 const KE_LIGHT: [f32; 3] = [53.407_074, 37.699_112, 12.566_371];
 const LIGHT_CENTRE: DVec3 = DVec3::new(278.0, 548.8, 279.5);
 
-/// The Cornell box of `scenes/cornell_box.obj` (mm), walls cut into `n × n` patches,
+/// The Cornell box of `tests/data/scenes/cornell_box.obj` (mm), walls cut into `n × n` patches,
 /// the ceiling into a 3 × 3 arrangement of cells around the light, blocks 2 × 2.
 fn cornell(n: usize) -> PatchSet {
     let mut ps = Vec::new();

@@ -18,7 +18,7 @@ fn data(rel: &str) -> PathBuf {
 }
 
 fn cornell_file() -> Scene {
-    load_obj(&data("scenes/cornell_box.obj")).expect("shared Cornell box loads")
+    load_obj(&data("scenes/cornell_box.obj")).expect("the Cornell box of tests/data loads")
 }
 
 fn group_area(s: &Scene, name: &str) -> f64 {

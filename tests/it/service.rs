@@ -11,7 +11,7 @@ use ffstream::rows::RowValues;
 use crate::common::{ffstream, ok, path_str};
 
 /// Rows of two files, decompressed, must be bitwise identical.
-pub fn assert_same_rows(a: &Path, b: &Path) {
+pub(crate) fn assert_same_rows(a: &Path, b: &Path) {
     let ra = FfzReader::open(a).expect("open a");
     let rb = FfzReader::open(b).expect("open b");
     assert_eq!(ra.n(), rb.n(), "n differs");

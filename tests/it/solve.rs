@@ -16,7 +16,7 @@ use glam::DVec3;
 
 // ---------------------------------------------------------------- scene builders
 
-/// Unit cube, inward faces (REFERENCES.md, Howell C-11 and C-14).
+/// Unit cube, inward faces (docs/known-answers.md §5, Howell C-11 and C-14).
 const CUBE_OPPOSITE: f64 = 0.19982489570;
 const CUBE_ADJACENT: f64 = 0.20004377608;
 
@@ -96,7 +96,7 @@ fn sphere_areas(n: usize, total: u32, rng: &mut Rng) -> Vec<f64> {
     a.into_iter().map(f64::from).collect()
 }
 
-/// The sphere property F_ij = A_j / A for every i (REFERENCES.md, enclosures): a closed
+/// The sphere property F_ij = A_j / A for every i (docs/known-answers.md §5): a closed
 /// enclosure whose rows sum to 1.
 fn sphere_rows(areas: &[f64]) -> Vec<Row> {
     let total: f64 = areas.iter().sum();

@@ -10,14 +10,14 @@ use std::process::Output;
 
 use crate::common::{ffstream, path_str};
 
-pub fn bad(name: &str) -> PathBuf {
+pub(crate) fn bad(name: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("tests/data/bad")
         .join(name)
 }
 
 /// No panic, no abort, no signal: the process ended through `main`.
-pub fn assert_no_panic(out: &Output, what: &str) {
+pub(crate) fn assert_no_panic(out: &Output, what: &str) {
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(
         !stderr.contains("panicked at") && !stderr.contains("RUST_BACKTRACE"),
@@ -33,7 +33,7 @@ pub fn assert_no_panic(out: &Output, what: &str) {
 
 /// Exit code 1 and exactly one error line, which contains every string in `names`.
 /// Returns the error line.
-pub fn assert_one_error(out: &Output, what: &str, names: &[&str]) -> String {
+pub(crate) fn assert_one_error(out: &Output, what: &str, names: &[&str]) -> String {
     assert_no_panic(out, what);
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(1), "{what}: {stderr}");
@@ -263,19 +263,74 @@ fn unreadable_and_unwritable_paths_name_the_path_once() {
 #[test]
 fn every_fixed_choice_is_checked_before_any_work_and_lists_its_values() {
     let cases: &[(&[&str], &[&str])] = &[
-        (&["compute", "no.obj", "-o", "x.ffz", "--method", "bogus"], &["point", "mc", "contour"]),
-        (&["compute", "no.obj", "-o", "x.ffz", "--preset", "bogus"], &["fast", "accurate", "reference"]),
-        (&["compute", "no.obj", "-o", "x.ffz", "--schedule", "bogus"], &["dynamic", "folded"]),
-        (&["compute", "no.obj", "-o", "x.ffz", "--rows", "bogus"], &["all", "needed"]),
-        (&["compute", "no.obj", "-o", "x.ffz", "--symmetric", "bogus"], &["auto", "on", "off"]),
-        (&["compute", "builtin:bogus", "-o", "x.ffz"], &["cornell", "cube", "room"]),
-        (&["compute", "builtin:room:many", "-o", "x.ffz"], &["not a number"]),
-        (&["run", "no.obj", "--method", "bogus"], &["point", "mc", "contour"]),
-        (&["run", "no.obj", "--solver", "bogus"], &["gauss-seidel", "jacobi", "shooting"]),
-        (&["run", "no.obj", "--preset", "bogus"], &["fast", "accurate", "reference"]),
-        (&["solve", "no.ffz", "-o", "r.csv", "--solver", "bogus"], &["gauss-seidel", "jacobi", "shooting"]),
-        (&["render", "no.ffz", "--radiosity", "r.csv", "-o", "i.png", "--camera", "1,2"], &["expected 10"]),
-        (&["scene", "bogus", "-o", "x.obj"], &["cornell", "cube", "plates", "perpendicular", "obstructed", "room"]),
+        (
+            &["compute", "no.obj", "-o", "x.ffz", "--method", "bogus"],
+            &["point", "mc", "contour"],
+        ),
+        (
+            &["compute", "no.obj", "-o", "x.ffz", "--preset", "bogus"],
+            &["fast", "accurate", "reference"],
+        ),
+        (
+            &["compute", "no.obj", "-o", "x.ffz", "--schedule", "bogus"],
+            &["dynamic", "folded"],
+        ),
+        (
+            &["compute", "no.obj", "-o", "x.ffz", "--rows", "bogus"],
+            &["all", "needed"],
+        ),
+        (
+            &["compute", "no.obj", "-o", "x.ffz", "--symmetric", "bogus"],
+            &["auto", "on", "off"],
+        ),
+        (
+            &["compute", "builtin:bogus", "-o", "x.ffz"],
+            &["cornell", "cube", "room"],
+        ),
+        (
+            &["compute", "builtin:room:many", "-o", "x.ffz"],
+            &["not a number"],
+        ),
+        (
+            &["run", "no.obj", "--method", "bogus"],
+            &["point", "mc", "contour"],
+        ),
+        (
+            &["run", "no.obj", "--solver", "bogus"],
+            &["gauss-seidel", "jacobi", "shooting"],
+        ),
+        (
+            &["run", "no.obj", "--preset", "bogus"],
+            &["fast", "accurate", "reference"],
+        ),
+        (
+            &["solve", "no.ffz", "-o", "r.csv", "--solver", "bogus"],
+            &["gauss-seidel", "jacobi", "shooting"],
+        ),
+        (
+            &[
+                "render",
+                "no.ffz",
+                "--radiosity",
+                "r.csv",
+                "-o",
+                "i.png",
+                "--camera",
+                "1,2",
+            ],
+            &["expected 10"],
+        ),
+        (
+            &["scene", "bogus", "-o", "x.obj"],
+            &[
+                "cornell",
+                "cube",
+                "plates",
+                "perpendicular",
+                "obstructed",
+                "room",
+            ],
+        ),
     ];
     for (args, values) in cases {
         let out = ffstream(args);
@@ -298,13 +353,39 @@ fn old_spellings_of_renamed_options_still_work() {
     let dir = tempfile::tempdir().unwrap();
     let ffz = dir.path().join("c.ffz");
     let p = |name: &str| dir.path().join(name).to_str().unwrap().to_string();
-    crate::common::ok(&["compute", "builtin:cube", "--max-edge", "0.5", "-q", "-o", &p("c.ffz")]);
-    crate::common::ok(&["solve", path_str(&ffz), "-o", &p("r.csv"), "--method", "jacobi"]);
+    crate::common::ok(&[
+        "compute",
+        "builtin:cube",
+        "--max-edge",
+        "0.5",
+        "-q",
+        "-o",
+        &p("c.ffz"),
+    ]);
+    crate::common::ok(&[
+        "solve",
+        path_str(&ffz),
+        "-o",
+        &p("r.csv"),
+        "--method",
+        "jacobi",
+    ]);
     crate::common::ok(&["export", path_str(&ffz), "--patches", &p("p.csv")]);
     assert!(dir.path().join("p.csv").is_file());
-    crate::common::ok(&["run", "builtin:cube", "--max-edge", "0.5", "-q", "-o", &p("run")]);
+    crate::common::ok(&[
+        "run",
+        "builtin:cube",
+        "--max-edge",
+        "0.5",
+        "-q",
+        "-o",
+        &p("run"),
+    ]);
     assert!(dir.path().join("run/image.png").is_file());
     let help = ffstream(&["solve", "--help"]);
     let help = String::from_utf8_lossy(&help.stdout);
-    assert!(help.contains("--solver") && !help.contains("--method <"), "{help}");
+    assert!(
+        help.contains("--solver") && !help.contains("--method <"),
+        "{help}"
+    );
 }

@@ -139,8 +139,15 @@ fn truncated_files_are_detected_and_resume_completes_them() {
                 "{stderr}"
             );
         }
-        // And resume completes it to exactly the intact rows.
-        compute(&p, &["--resume"]);
+        // And resume completes it to exactly the intact rows, saying what it cut off
+        // (every cut past the header lands inside a chunk, the index or the footer).
+        let resumed = compute(&p, &["--resume"]);
+        if cut > meta_len {
+            assert!(
+                resumed.contains("ffstream: warning: ") && resumed.contains("dropped"),
+                "{what}: resume did not say what it dropped:\n{resumed}"
+            );
+        }
         let v = verify(&p, Some(&good_path));
         assert_eq!(
             v.status.code(),

@@ -101,7 +101,6 @@ fn assert_same(a: &Path, b: &Path, what: &str) {
     );
 }
 
-
 fn output_text(o: &Output) -> String {
     format!(
         "{}\n{}",
@@ -193,7 +192,11 @@ fn with_file_limit(limit: u64, cmd: &Command) -> Output {
 
 #[test]
 fn full_disk_gives_one_clear_error_and_resume_completes_the_file() {
-    if !need_tool("prlimit (util-linux)", runs("prlimit"), "FFSTREAM_SKIP_PRLIMIT") {
+    if !need_tool(
+        "prlimit (util-linux)",
+        runs("prlimit"),
+        "FFSTREAM_SKIP_PRLIMIT",
+    ) {
         return;
     }
     let dir = tempfile::tempdir().unwrap();

@@ -171,7 +171,7 @@ fn mutate_ffz(base: &[u8], rng: &mut Rng) -> (Vec<u8>, bool) {
 /// Exercise the reader on one file: must return, whatever the bytes. Rows that come
 /// out must equal `expect(i)` when given (it is given when the CRCs were not forged:
 /// a wrong row would then be undetected damage).
-pub fn exercise_reader(path: &Path, expect: Option<&dyn Fn(u32) -> Option<Row>>) {
+pub(crate) fn exercise_reader(path: &Path, expect: Option<&dyn Fn(u32) -> Option<Row>>) {
     let Ok(rd) = FfzReader::open(path) else {
         return;
     };
@@ -342,7 +342,7 @@ fn mutate_obj(text: &str, rng: &mut Rng) -> String {
     lines.join("\n") + "\n"
 }
 
-pub fn exercise_loader(path: &Path) {
+pub(crate) fn exercise_loader(path: &Path) {
     if let Ok(s) = load_obj(path) {
         assert_eq!(s.validate(), Ok(()), "a loaded scene must be valid");
         assert!(!s.faces.is_empty());

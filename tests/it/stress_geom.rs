@@ -1,5 +1,5 @@
 //! Shared by the numerical stress tests: patch sets built directly (independent of the
-//! scene loader), Howell's formulas (REFERENCES.md) written out once more and checked
+//! scene loader), Howell's formulas (docs/known-answers.md §2, §3) written out once more and checked
 //! against the tables, and small matrix helpers.
 
 use std::f64::consts::PI;
@@ -9,18 +9,25 @@ use glam::{DQuat, DVec3};
 
 /// Patches plus the occluder triangles of their faces: the builder of the form-factor
 /// tests, with what the stress tests add to it.
-pub use crate::formfactor::scenes::Built as Geo;
+pub(crate) use crate::formfactor::scenes::Built as Geo;
 
 impl Geo {
     /// The parallelogram origin + [0,1]·u + [0,1]·v (front normal u × v), one scene face
     /// in a new group, cut into mu × mv quads.
-    pub fn para(&mut self, origin: DVec3, u: DVec3, v: DVec3, mu: usize, mv: usize) -> &mut Self {
+    pub(crate) fn para(
+        &mut self,
+        origin: DVec3,
+        u: DVec3,
+        v: DVec3,
+        mu: usize,
+        mv: usize,
+    ) -> &mut Self {
         let name = format!("g{}", self.patches.groups.len());
         self.cells(&name, origin, u, v, (mu, mv), false)
     }
 
     /// Closed box [0,a]×[0,b]×[0,c] with inward faces, each cut m × m.
-    pub fn closed_box(a: f64, b: f64, c: f64, m: usize) -> Geo {
+    pub(crate) fn closed_box(a: f64, b: f64, c: f64, m: usize) -> Geo {
         let (x, y, z) = (DVec3::X * a, DVec3::Y * b, DVec3::Z * c);
         let mut g = Geo::default();
         g.para(DVec3::ZERO, x, y, m, m)
@@ -33,7 +40,7 @@ impl Geo {
     }
 
     /// The same geometry moved by p ↦ s·R·p + t (areas scale by s²).
-    pub fn transformed(&self, s: f64, r: DQuat, t: DVec3) -> Geo {
+    pub(crate) fn transformed(&self, s: f64, r: DQuat, t: DVec3) -> Geo {
         let f = |p: DVec3| r * (p * s) + t;
         let mut g = self.clone();
         for p in &mut g.patches.patches {
@@ -51,13 +58,13 @@ impl Geo {
         g
     }
 
-    pub fn area(&self, i: usize) -> f64 {
+    pub(crate) fn area(&self, i: usize) -> f64 {
         self.patches.patches[i].area
     }
 }
 
 /// The full matrix in f64, row-major.
-pub fn matrix(e: &RowEngine) -> Vec<f64> {
+pub(crate) fn matrix(e: &RowEngine) -> Vec<f64> {
     let (mut s, mut row, mut out) = (Scratch::new(), Vec::new(), Vec::new());
     for i in 0..e.n() as u32 {
         e.row_values(i, &mut s, &mut row);
@@ -67,7 +74,7 @@ pub fn matrix(e: &RowEngine) -> Vec<f64> {
 }
 
 /// Group-to-group factor F_IJ = Σ_{i∈I} (A_i/A_I) Σ_{j∈J} F_ij.
-pub fn group_ff(g: &Geo, f: &[f64], gi: u32, gj: u32) -> f64 {
+pub(crate) fn group_ff(g: &Geo, f: &[f64], gi: u32, gj: u32) -> f64 {
     let n = g.n();
     let p = &g.patches.patches;
     let (mut num, mut den) = (0.0, 0.0);
@@ -80,14 +87,14 @@ pub fn group_ff(g: &Geo, f: &[f64], gi: u32, gj: u32) -> f64 {
     num / den
 }
 
-/// Howell C-11 (the formula the formfactor tests check against REFERENCES.md's tables).
-pub use crate::formfactor::analytic::parallel_rectangles as howell_c11;
+/// Howell C-11 (the formula the formfactor tests check against the tables of docs/known-answers.md §2).
+pub(crate) use crate::formfactor::analytic::parallel_rectangles as howell_c11;
 /// Howell C-14 (likewise).
-pub use crate::formfactor::analytic::perpendicular_rectangles as howell_c14;
+pub(crate) use crate::formfactor::analytic::perpendicular_rectangles as howell_c14;
 
 /// Differential area to a parallel rectangle a × b whose corner is straight above
 /// (below) it at distance c (Howell B-3 form): X = a/c, Y = b/c.
-pub fn howell_point_to_corner_rectangle(x: f64, y: f64) -> f64 {
+pub(crate) fn howell_point_to_corner_rectangle(x: f64, y: f64) -> f64 {
     let (sx, sy) = ((1.0 + x * x).sqrt(), (1.0 + y * y).sqrt());
     (x / sx * (y / sx).atan() + y / sy * (x / sy).atan()) / (2.0 * PI)
 }

@@ -31,7 +31,7 @@ fn cornell_engine(scale: f64, target: usize) -> RowEngine {
     let scene = scene.scaled(scale);
     let patches = subdivide(&scene, max_edge * scale);
     RowEngine::new(
-        Arc::new(patches),
+        &patches,
         Arc::new(Occluders::new(scene.triangles().collect())),
         FormFactorConfig::accurate(),
     )
@@ -322,7 +322,7 @@ fn closed_scene_with_rho_near_one_converges_and_conserves_energy() {
         let (g, rows) = closed_system(rho);
         let n = g.n();
         // What the stored rows allow: δ = max |row sum − 1| + max relative reciprocity
-        // error; then Σ A B lies in Φ / (1 − ρ(1 ± δ)) (REFERENCES.md enclosure law,
+        // error; then Σ A B lies in Φ / (1 − ρ(1 ± δ)) (docs/known-answers.md §6 enclosure law,
         // with A_i F_ij = A_j F_ji (1 ± δ_r) and Σ_j F_ij = 1 ± δ_s).
         let f: Vec<f64> = rows
             .iter()

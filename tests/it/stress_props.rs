@@ -147,8 +147,8 @@ proptest! {
         } else {
             // Visibility is a sampled ratio estimate (16 rays per pair at most in
             // `accurate`): rows sum to 1 only within the sampling error, and may exceed
-            // 1 by it (measured up to ~6e-2 with one patch per wall: DESIGN.md's
-            // "row sums ≤ 1" holds for occluded pairs only up to sampling error).
+            // 1 by it (measured up to ~6e-2 with one patch per wall: the
+            // "row sums ≤ 1" of docs/numerics.md §6 holds for occluded pairs only up to sampling error).
             // Pairs the occluder does not touch keep exact reciprocity; occluded pairs
             // only up to the sampling (the early stop after 4 agreeing rays can give 0
             // one way and > 0 the other: relative error 1, printed, not asserted).

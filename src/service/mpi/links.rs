@@ -19,8 +19,8 @@ use crate::ffz::EncodedChunk;
 use crate::service::link::{MasterLink, ToMaster, WorkerLink};
 use crate::service::{ServiceError, WorkerStats};
 
-pub struct MpiMasterLink<'a> {
-    pub world: &'a SimpleCommunicator,
+pub(crate) struct MpiMasterLink<'a> {
+    pub(crate) world: &'a SimpleCommunicator,
 }
 
 impl MpiMasterLink<'_> {
@@ -42,11 +42,9 @@ impl MpiMasterLink<'_> {
         Ok(Some(match tag {
             p::REQUEST => ToMaster::Request { worker },
             p::CHUNK => ToMaster::Chunk {
-                worker,
                 chunk: p::decode_chunk_message(buf, rank)?,
             },
             p::PIECE => ToMaster::Piece {
-                worker,
                 chunk: p::decode_chunk_message(buf, rank)?,
             },
             p::HALF_DONE => ToMaster::HalfRowsDone {
@@ -55,21 +53,14 @@ impl MpiMasterLink<'_> {
             },
             p::FAILED => {
                 let (row, message) = p::decode_failed(&buf, rank)?;
-                ToMaster::Failed {
-                    worker,
-                    rank,
-                    row,
-                    message,
-                }
+                ToMaster::Failed { rank, row, message }
             }
             p::DONE => ToMaster::Done {
-                worker,
                 stats: p::decode_done(&buf, rank)?,
             },
             p::SETUP => ToMaster::Failed {
-                worker,
                 rank,
-                row: -1,
+                row: None,
                 message: String::from_utf8_lossy(&buf).into_owned(),
             },
             _ => {
@@ -110,8 +101,8 @@ impl MasterLink for MpiMasterLink<'_> {
     }
 }
 
-pub struct MpiWorkerLink<'a> {
-    pub world: &'a SimpleCommunicator,
+pub(crate) struct MpiWorkerLink<'a> {
+    pub(crate) world: &'a SimpleCommunicator,
 }
 
 impl WorkerLink for MpiWorkerLink<'_> {
@@ -161,7 +152,7 @@ impl WorkerLink for MpiWorkerLink<'_> {
         Ok(())
     }
 
-    fn failed(&mut self, row: i64, message: &str) -> Result<(), ServiceError> {
+    fn failed(&mut self, row: Option<u32>, message: &str) -> Result<(), ServiceError> {
         let msg = p::encode_failed(row, message);
         self.world
             .process_at_rank(0)

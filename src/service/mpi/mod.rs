@@ -1,5 +1,5 @@
 //! The MPI service: rank 0 is the I/O master and computes nothing; ranks 1..P-1 are
-//! workers with `--threads` compute threads each (DESIGN.md §4).
+//! workers with `--threads` compute threads each (docs/architecture.md §3).
 //!
 //! Start-up is collective and explicit, so a bad rank is named before any work starts:
 //!
@@ -18,8 +18,8 @@
 //! rather than finalising ([`MpiContext::await_abort`] says why).
 
 mod gather;
-pub mod links;
-pub mod protocol;
+pub(crate) mod links;
+pub(crate) mod protocol;
 
 use mpi::collective::Root;
 use mpi::environment::Universe;
@@ -52,7 +52,7 @@ pub fn launched_by_mpi() -> bool {
 /// An initialised MPI environment (finalised on drop).
 pub struct MpiContext {
     _universe: Universe,
-    pub world: SimpleCommunicator,
+    pub(crate) world: SimpleCommunicator,
 }
 
 impl MpiContext {

@@ -24,28 +24,28 @@ use mpi::Tag;
 use crate::ffz::EncodedChunk;
 use crate::service::{ServiceError, WorkerStats};
 
-pub const REQUEST: Tag = 1;
-pub const ASSIGN: Tag = 2;
-pub const CHUNK: Tag = 3;
-pub const FAILED: Tag = 4;
-pub const DONE: Tag = 5;
-pub const SETUP: Tag = 6;
-pub const GATHER_ROW: Tag = 7;
-pub const PIECE: Tag = 8;
-pub const HALF_DONE: Tag = 9;
+pub(crate) const REQUEST: Tag = 1;
+pub(crate) const ASSIGN: Tag = 2;
+pub(crate) const CHUNK: Tag = 3;
+pub(crate) const FAILED: Tag = 4;
+pub(crate) const DONE: Tag = 5;
+pub(crate) const SETUP: Tag = 6;
+pub(crate) const GATHER_ROW: Tag = 7;
+pub(crate) const PIECE: Tag = 8;
+pub(crate) const HALF_DONE: Tag = 9;
 
 fn malformed(what: &str, rank: i32) -> ServiceError {
     ServiceError::Transport(format!("malformed {what} message from rank {rank}"))
 }
 
-pub fn encode_assign(rows: &[u32]) -> Vec<u32> {
+pub(crate) fn encode_assign(rows: &[u32]) -> Vec<u32> {
     let mut v = Vec::with_capacity(rows.len() + 1);
     v.push(rows.len() as u32);
     v.extend_from_slice(rows);
     v
 }
 
-pub fn decode_assign(v: &[u32]) -> Result<Vec<u32>, ServiceError> {
+pub(crate) fn decode_assign(v: &[u32]) -> Result<Vec<u32>, ServiceError> {
     match v.split_first() {
         Some((&count, rows)) if rows.len() == count as usize => Ok(rows.to_vec()),
         _ => Err(malformed("ASSIGN", 0)),
@@ -53,7 +53,7 @@ pub fn decode_assign(v: &[u32]) -> Result<Vec<u32>, ServiceError> {
 }
 
 /// Chunk bytes followed by the trailer (row ids, skipped ids, raw length, counts).
-pub fn encode_chunk_message(chunk: EncodedChunk) -> Vec<u8> {
+pub(crate) fn encode_chunk_message(chunk: EncodedChunk) -> Vec<u8> {
     let mut v = chunk.bytes;
     v.reserve(4 * (chunk.row_ids.len() + chunk.skipped.len()) + 16);
     for r in chunk.row_ids.iter().chain(&chunk.skipped) {
@@ -66,7 +66,10 @@ pub fn encode_chunk_message(chunk: EncodedChunk) -> Vec<u8> {
 }
 
 /// Inverse of [`encode_chunk_message`]; reuses the buffer for the chunk bytes.
-pub fn decode_chunk_message(mut v: Vec<u8>, rank: i32) -> Result<EncodedChunk, ServiceError> {
+pub(crate) fn decode_chunk_message(
+    mut v: Vec<u8>,
+    rank: i32,
+) -> Result<EncodedChunk, ServiceError> {
     let bad = || malformed("CHUNK", rank);
     let len = v.len();
     if len < 16 {
@@ -93,11 +96,11 @@ pub fn decode_chunk_message(mut v: Vec<u8>, rank: i32) -> Result<EncodedChunk, S
     })
 }
 
-pub fn encode_rows(rows: &[u32]) -> Vec<u8> {
+pub(crate) fn encode_rows(rows: &[u32]) -> Vec<u8> {
     rows.iter().flat_map(|r| r.to_le_bytes()).collect()
 }
 
-pub fn decode_rows(v: &[u8], rank: i32) -> Result<Vec<u32>, ServiceError> {
+pub(crate) fn decode_rows(v: &[u8], rank: i32) -> Result<Vec<u32>, ServiceError> {
     if !v.len().is_multiple_of(4) {
         return Err(malformed("HALF_DONE", rank));
     }
@@ -106,21 +109,27 @@ pub fn decode_rows(v: &[u8], rank: i32) -> Result<Vec<u32>, ServiceError> {
         .collect())
 }
 
-pub fn encode_failed(row: i64, message: &str) -> Vec<u8> {
-    let mut v = row.to_le_bytes().to_vec();
+/// FAILED: the row as an i64, −1 for none (Option<u32> on either side), then the
+/// message's UTF-8 bytes.
+pub(crate) fn encode_failed(row: Option<u32>, message: &str) -> Vec<u8> {
+    let mut v = row.map_or(-1, i64::from).to_le_bytes().to_vec();
     v.extend_from_slice(message.as_bytes());
     v
 }
 
-pub fn decode_failed(v: &[u8], rank: i32) -> Result<(i64, String), ServiceError> {
+pub(crate) fn decode_failed(v: &[u8], rank: i32) -> Result<(Option<u32>, String), ServiceError> {
     if v.len() < 8 {
         return Err(malformed("FAILED", rank));
     }
     let row = i64::from_le_bytes(v[..8].try_into().map_err(|_| malformed("FAILED", rank))?);
+    let row = match row {
+        -1 => None,
+        r => Some(u32::try_from(r).map_err(|_| malformed("FAILED", rank))?),
+    };
     Ok((row, String::from_utf8_lossy(&v[8..]).into_owned()))
 }
 
-pub fn encode_done(s: &WorkerStats) -> Vec<u8> {
+pub(crate) fn encode_done(s: &WorkerStats) -> Vec<u8> {
     let mut v = Vec::with_capacity(28);
     v.extend_from_slice(&s.rows.to_le_bytes());
     v.extend_from_slice(&s.busy_seconds.to_le_bytes());
@@ -129,7 +138,7 @@ pub fn encode_done(s: &WorkerStats) -> Vec<u8> {
     v
 }
 
-pub fn decode_done(v: &[u8], rank: i32) -> Result<WorkerStats, ServiceError> {
+pub(crate) fn decode_done(v: &[u8], rank: i32) -> Result<WorkerStats, ServiceError> {
     if v.len() != 28 {
         return Err(malformed("DONE", rank));
     }

@@ -1,11 +1,11 @@
-//! Analytic form factors from REFERENCES.md (Howell's catalog), written out here and
+//! Analytic form factors from docs/known-answers.md §2, §3, §4 (Howell's catalog), written out here and
 //! checked against the tabulated values before anything else uses them.
 
 use std::f64::consts::PI;
 
 /// Howell C-11: parallel, directly opposed, equal rectangles a × b at distance c,
 /// X = a/c, Y = b/c.
-pub fn parallel_rectangles(x: f64, y: f64) -> f64 {
+pub(crate) fn parallel_rectangles(x: f64, y: f64) -> f64 {
     let (x2, y2) = (x * x, y * y);
     let ln_term = (((1.0 + x2) * (1.0 + y2)) / (1.0 + x2 + y2)).sqrt().ln();
     2.0 / (PI * x * y)
@@ -18,7 +18,7 @@ pub fn parallel_rectangles(x: f64, y: f64) -> f64 {
 
 /// Howell C-14: perpendicular rectangles sharing an edge of length l; emitter width
 /// w, receiver height h, W = w/l, H = h/l. Returns F from the emitter to the receiver.
-pub fn perpendicular_rectangles(w: f64, h: f64) -> f64 {
+pub(crate) fn perpendicular_rectangles(w: f64, h: f64) -> f64 {
     let (w2, h2) = (w * w, h * h);
     let s = w2 + h2;
     let a = (1.0 + w2) * (1.0 + h2) / (1.0 + s);
@@ -31,15 +31,15 @@ pub fn perpendicular_rectangles(w: f64, h: f64) -> f64 {
 
 /// Howell C-41: coaxial parallel disks, emitter radius r1, receiver radius r2,
 /// distance l.
-pub fn coaxial_disks(r1: f64, r2: f64, l: f64) -> f64 {
+pub(crate) fn coaxial_disks(r1: f64, r2: f64, l: f64) -> f64 {
     let (big_r1, big_r2) = (r1 / l, r2 / l);
     let s = 1.0 + (1.0 + big_r2 * big_r2) / (big_r1 * big_r1);
     0.5 * (s - (s * s - 4.0 * (r2 / r1).powi(2)).sqrt())
 }
 
-/// Unit cube, inward faces (REFERENCES.md "Enclosures").
-pub const CUBE_OPPOSITE: f64 = 0.19982489570;
-pub const CUBE_ADJACENT: f64 = 0.20004377608;
+/// Unit cube, inward faces (docs/known-answers.md §5).
+pub(crate) const CUBE_OPPOSITE: f64 = 0.19982489570;
+pub(crate) const CUBE_ADJACENT: f64 = 0.20004377608;
 
 #[test]
 fn formulas_reproduce_the_tables() {

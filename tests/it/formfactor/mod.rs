@@ -1,9 +1,9 @@
-//! Form-factor kernels against known answers (REFERENCES.md): Howell's analytic
+//! Form-factor kernels against known answers (docs/known-answers.md §1-§5): Howell's analytic
 //! values, closed-cube row sums and reciprocity, scale invariance, determinism across
 //! threads, occlusion, and the error of the `point` and `mc` baselines.
 
-pub mod analytic;
-pub mod scenes;
+pub(crate) mod analytic;
+pub(crate) mod scenes;
 
 use std::sync::Arc;
 
@@ -14,7 +14,7 @@ use glam::{dvec3, DVec3};
 use analytic::*;
 use scenes::*;
 
-/// The accuracy target of DESIGN.md §7 for group-to-group form factors and row sums.
+/// The accuracy target of docs/numerics.md §10 for group-to-group form factors and row sums.
 const TARGET: f64 = 1e-5;
 
 #[test]
@@ -205,7 +205,7 @@ fn contour_rotated_cube_row_sums() {
 
 #[test]
 fn contour_closed_icosahedron_row_sums() {
-    // Every row of a closed convex enclosure sums to 1 (REFERENCES.md "Enclosures");
+    // Every row of a closed convex enclosure sums to 1 (docs/known-answers.md §5);
     // here with triangles in many orientations, sharing vertices at general angles.
     for (name, cfg) in FormFactorConfig::presets() {
         let b = icosahedron(3);
@@ -443,7 +443,7 @@ fn blocker_covering_half_the_receiver() {
 
 #[test]
 fn floor_under_a_bottomless_box_stays_dark() {
-    // REFERENCES.md, Cornell box: blocks have no bottom face and stand on the floor,
+    // docs/known-answers.md §7, Cornell box: blocks have no bottom face and stand on the floor,
     // whose cells under them must receive (and send) no light: every face blocks rays
     // from both sides. Floor 4 × 4 at z = 0, box [0.25, 0.75]² × [0, 0.5] with four
     // outward sides and a top, ceiling at z = 1.

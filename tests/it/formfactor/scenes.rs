@@ -11,7 +11,7 @@ use ffstream::rows::Row;
 use glam::{dvec3, DVec3};
 
 #[derive(Clone, Debug, Default)]
-pub struct Built {
+pub(crate) struct Built {
     pub patches: PatchSet,
     pub tris: Vec<(u32, [DVec3; 3])>,
     faces: u32,
@@ -21,7 +21,7 @@ impl Built {
     /// Adds the parallelogram origin + [0,1]·u + [0,1]·v (front normal u × v) as a new
     /// face in a new group, subdivided m × m; `split` cuts each cell into 2 triangles
     /// (alternating diagonals, so edges of every direction occur).
-    pub fn face(
+    pub(crate) fn face(
         &mut self,
         name: &str,
         origin: DVec3,
@@ -34,7 +34,7 @@ impl Built {
     }
 
     /// [`Built::face`] subdivided mu × mv (mu along u).
-    pub fn cells(
+    pub(crate) fn cells(
         &mut self,
         name: &str,
         origin: DVec3,
@@ -74,7 +74,7 @@ impl Built {
 
     /// Adds the triangle v (front = counter-clockwise) as a new face in a new group,
     /// subdivided into k² similar triangles.
-    pub fn triangle(&mut self, name: &str, v: [DVec3; 3], k: usize) -> &mut Self {
+    pub(crate) fn triangle(&mut self, name: &str, v: [DVec3; 3], k: usize) -> &mut Self {
         let face = self.faces;
         self.faces += 1;
         let group = self.patches.groups.len() as u32;
@@ -106,7 +106,7 @@ impl Built {
     }
 
     /// An occluder only (no patches): a parallelogram as two triangles.
-    pub fn blocker(&mut self, origin: DVec3, u: DVec3, v: DVec3) -> &mut Self {
+    pub(crate) fn blocker(&mut self, origin: DVec3, u: DVec3, v: DVec3) -> &mut Self {
         let face = self.faces;
         self.faces += 1;
         self.tris.push((face, [origin, origin + u, origin + u + v]));
@@ -115,7 +115,7 @@ impl Built {
     }
 
     /// Occluders only: the six faces of the cube [lo, lo + s]³ (a closed box).
-    pub fn blocker_box(&mut self, lo: DVec3, s: f64) -> &mut Self {
+    pub(crate) fn blocker_box(&mut self, lo: DVec3, s: f64) -> &mut Self {
         let (x, y, z) = (
             DVec3::new(s, 0.0, 0.0),
             DVec3::new(0.0, s, 0.0),
@@ -134,7 +134,7 @@ impl Built {
         self
     }
 
-    pub fn scaled(&self, s: f64) -> Built {
+    pub(crate) fn scaled(&self, s: f64) -> Built {
         let mut b = self.clone();
         for p in &mut b.patches.patches {
             for c in &mut p.corners {
@@ -150,15 +150,15 @@ impl Built {
         b
     }
 
-    pub fn engine(&self, cfg: FormFactorConfig) -> RowEngine {
+    pub(crate) fn engine(&self, cfg: FormFactorConfig) -> RowEngine {
         RowEngine::new(
-            Arc::new(self.patches.clone()),
+            &self.patches,
             Arc::new(Occluders::new(self.tris.clone())),
             cfg,
         )
     }
 
-    pub fn n(&self) -> usize {
+    pub(crate) fn n(&self) -> usize {
         self.patches.len()
     }
 }
@@ -186,7 +186,7 @@ fn patch(c: &[DVec3], n: DVec3, group: u32, face: u32) -> Patch {
 
 /// Two squares of side 1 at distance 1/x, directly opposed, facing each other
 /// (Howell C-11 with X = Y = x). Groups 0 (lower) and 1 (upper).
-pub fn parallel_squares(x: f64, m: usize, split: bool) -> Built {
+pub(crate) fn parallel_squares(x: f64, m: usize, split: bool) -> Built {
     let c = 1.0 / x;
     let mut b = Built::default();
     b.face(
@@ -211,7 +211,7 @@ pub fn parallel_squares(x: f64, m: usize, split: bool) -> Built {
 /// Perpendicular rectangles sharing the edge x ∈ [0, 1] (Howell C-14): the emitter
 /// (group 0) spans y ∈ [0, w] in z = 0 facing +z, the receiver (group 1) spans
 /// z ∈ [0, h] in y = 0 facing +y.
-pub fn perpendicular(w: f64, h: f64, m: usize, split: bool) -> Built {
+pub(crate) fn perpendicular(w: f64, h: f64, m: usize, split: bool) -> Built {
     let mut b = Built::default();
     b.face(
         "emitter",
@@ -234,7 +234,7 @@ pub fn perpendicular(w: f64, h: f64, m: usize, split: bool) -> Built {
 
 /// Unit cube with inward faces, each subdivided m × m. Groups: 0 z=0, 1 z=1, 2 x=0,
 /// 3 x=1, 4 y=0, 5 y=1 (so 0–1, 2–3, 4–5 are opposite).
-pub fn cube(m: usize, split: bool) -> Built {
+pub(crate) fn cube(m: usize, split: bool) -> Built {
     let (x, y, z) = (
         dvec3(1.0, 0.0, 0.0),
         dvec3(0.0, 1.0, 0.0),
@@ -252,7 +252,7 @@ pub fn cube(m: usize, split: bool) -> Built {
 
 /// Regular icosahedron (circumradius √(1 + φ²)) with inward faces, each cut into k²
 /// triangles: a closed convex enclosure whose edges run in many directions.
-pub fn icosahedron(k: usize) -> Built {
+pub(crate) fn icosahedron(k: usize) -> Built {
     let phi = (1.0 + 5f64.sqrt()) / 2.0;
     let mut v = Vec::new();
     for (a, b) in [(1.0, phi), (-1.0, phi), (1.0, -phi), (-1.0, -phi)] {
@@ -282,15 +282,15 @@ pub fn icosahedron(k: usize) -> Built {
 }
 
 /// Every row of the engine (dense f32 as stored), in order.
-pub fn all_rows(e: &RowEngine) -> Vec<Row> {
+pub(crate) fn all_rows(e: &RowEngine) -> Vec<Row> {
     let mut s = Scratch::new();
     (0..e.n() as u32)
         .map(|i| e.compute_row(i, &mut s))
         .collect()
 }
 
-/// Group-to-group form factor F_IJ = Σ_{i∈I} (A_i / A_I) Σ_{j∈J} F_ij (REFERENCES.md).
-pub fn group_ff(ps: &PatchSet, rows: &[Row], gi: u32, gj: u32) -> f64 {
+/// Group-to-group form factor F_IJ = Σ_{i∈I} (A_i / A_I) Σ_{j∈J} F_ij (docs/known-answers.md §1).
+pub(crate) fn group_ff(ps: &PatchSet, rows: &[Row], gi: u32, gj: u32) -> f64 {
     let mut num = 0.0;
     let mut area = 0.0;
     for (i, p) in ps.patches.iter().enumerate() {
@@ -310,7 +310,7 @@ pub fn group_ff(ps: &PatchSet, rows: &[Row], gi: u32, gj: u32) -> f64 {
 }
 
 /// max |A_i F_ij − A_j F_ji| / max A_i F_ij over all pairs.
-pub fn reciprocity_error(ps: &PatchSet, rows: &[Row]) -> f64 {
+pub(crate) fn reciprocity_error(ps: &PatchSet, rows: &[Row]) -> f64 {
     let n = ps.len();
     let dense: Vec<Vec<f32>> = rows.iter().map(|r| r.to_dense(n)).collect();
     let (mut worst, mut scale) = (0.0f64, 0.0f64);
