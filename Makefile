@@ -48,9 +48,11 @@ demo-mpi: deps build
 test: deps
 	$(CARGO) fmt --check
 	$(CARGO) clippy --all-targets --quiet -- -D warnings
+	RUSTDOCFLAGS="-D warnings" $(CARGO) doc --no-deps --document-private-items --quiet
 	$(CARGO) test
 	$(CARGO) bench --no-run --quiet
 	$(CARGO) check --no-default-features --all-targets --quiet
+	$(CARGO) check --manifest-path fuzz/Cargo.toml --quiet
 	$(CARGO) build --release
 	$(PYTHON) bench/run.py --quick
 	@tmp=$$(mktemp -d) && \

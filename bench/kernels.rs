@@ -15,7 +15,7 @@ use std::time::Duration;
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use ffstream::formfactor::sampling::SplitMix64;
 use ffstream::formfactor::{FormFactorConfig, Method, RowEngine, Scratch, TopKTail};
-use ffstream::geometry::bvh::{Between, Occluders};
+use ffstream::geometry::occluders::{Between, Occluders};
 use ffstream::patch::{Patch, PatchSet};
 use glam::{dvec3, DVec3};
 

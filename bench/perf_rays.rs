@@ -16,7 +16,7 @@
 //!   and as packets of 16 (`rtcOccluded16`).
 //!
 //! Each scene's line `tree:` gives the shape of ffstream's hierarchy
-//! ([`ffstream::geometry::bvh::TreeStats`]): compare Embree's with
+//! ([`ffstream::geometry::occluders::TreeStats`]): compare Embree's with
 //! `EMBREE_VERBOSE=1 target/embree-shadow RAYFILE 1 1` on a file kept by `--keep-rays`.
 //!
 //! ffstream's rays run on one thread through the public API (world coordinates in,
@@ -34,7 +34,7 @@ use std::process::Command;
 use std::time::Instant;
 
 use ffstream::formfactor::sampling::SplitMix64;
-use ffstream::geometry::bvh::{Between, Occluders, PACKET, RAY_EPSILON};
+use ffstream::geometry::occluders::{Between, Occluders, PACKET, RAY_EPSILON};
 use glam::DVec3;
 
 fn point_on(t: &[DVec3; 3], rng: &mut SplitMix64) -> DVec3 {

@@ -27,7 +27,7 @@ use std::time::Instant;
 
 use ffstream::formfactor::sampling::SplitMix64;
 use ffstream::formfactor::{Counters, FormFactorConfig, RowEngine, Scratch};
-use ffstream::geometry::bvh::Occluders;
+use ffstream::geometry::occluders::Occluders;
 use ffstream::geometry::subdivide::{default_max_edge, subdivide};
 use ffstream::patch::PatchSet;
 use ffstream::rows::Row;

@@ -10,7 +10,7 @@ use clap::Args;
 
 use ffstream::ffz::{FileMeta, Layout, WriterOptions};
 use ffstream::formfactor::{FormFactorConfig, Method, RowEngine};
-use ffstream::geometry::bvh::Occluders;
+use ffstream::geometry::occluders::Occluders;
 use ffstream::geometry::subdivide::{default_max_edge, patch_count, subdivide};
 use ffstream::scene::{self, Scene};
 #[cfg(feature = "mpi")]

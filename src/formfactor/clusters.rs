@@ -22,8 +22,8 @@ use std::collections::HashMap;
 
 use glam::DVec3;
 
-use super::engine::PatchGeom;
-use crate::geometry::bvh::{Between, Occluders};
+use super::geom::PatchGeom;
+use crate::geometry::occluders::{Between, Occluders};
 
 /// Patches per cluster the grid aims at (4 × 4 on a quad grid).
 pub(crate) const CLUSTER_PATCHES: f64 = 16.0;

@@ -112,7 +112,7 @@ pub(crate) fn area_form_factor(
     area_form_factor_edges(&ea, &eb, r_ref, gauss, p)
 }
 
-/// As [`area_form_factor`] on precomputed edges, with the reference length `r_ref`
+/// As `area_form_factor` (the test oracle) on precomputed edges, with the reference length `r_ref`
 /// (> 0; any value gives the same exact result, the distance between the polygons
 /// gives the best conditioning).
 pub(crate) fn area_form_factor_edges(

@@ -30,11 +30,13 @@ use glam::DVec3;
 use super::clusters::{ClusterCache, Clusters};
 use super::contour::{area_form_factor_edges, ContourParams};
 use super::farfield::{self, FarOrders, PatchLanes, PatchPoints, MAX_FAR_ORDER};
+use super::geom::PatchGeom;
 use super::polygon::{EdgeSet, Polygon};
 use super::quadrature::{gauss_table, GaussTable};
-use super::sampling::{pair_seed, PatchMap, SplitMix64};
+use super::sampling::{pair_seed, SplitMix64};
+use super::scratch::{Counters, PairScratch};
 use super::{mc, point, topk, visibility, FormFactorConfig, Method, TopKTail};
-use crate::geometry::bvh::{Between, Occluders, MAX_PAIR_CANDIDATES};
+use crate::geometry::occluders::{Between, Occluders, MAX_PAIR_CANDIDATES};
 use crate::patch::PatchSet;
 use crate::rows::{Row, RowValues};
 
@@ -42,57 +44,17 @@ use crate::rows::{Row, RowValues};
 /// patches' bounding box (so it scales with the scene).
 const PLANE_RELATIVE_TOLERANCE: f64 = 1e-10;
 
-/// Work done, for reports and benchmarks. Summed over scratches by the caller.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct Counters {
-    /// Rows computed.
-    pub rows: u64,
-    /// Pairs (i ≠ j) whose kernel was evaluated.
-    pub pairs_evaluated: u64,
-    /// Pairs skipped without kernel work because one faces away from the other
-    /// (including coplanar pairs).
-    pub pairs_facing_away: u64,
-    /// `contour` pairs far enough apart for the tensor Gauss rule
-    /// ([`super::farfield`]) instead of the contour integral.
-    pub pairs_far_field: u64,
-    /// Top-k tail pairs (sampled mode) whose visibility was never needed.
-    pub pairs_topk_tail_skipped: u64,
-    /// Evaluated pairs between which no occluder can come (no rays needed).
-    pub pairs_unoccludable: u64,
-    /// Shadow rays cast.
-    pub rays_cast: u64,
-    /// Rays the per-pair budget allowed but that were not cast: all of them for pairs
-    /// no occluder can come between, the rest of the budget when the adaptive
-    /// estimate stopped after its first batch (`contour`), samples with a
-    /// non-positive kernel (`mc`).
-    pub rays_skipped: u64,
-}
-
-impl Counters {
-    pub fn add(&mut self, o: &Counters) {
-        self.rows += o.rows;
-        self.pairs_evaluated += o.pairs_evaluated;
-        self.pairs_facing_away += o.pairs_facing_away;
-        self.pairs_far_field += o.pairs_far_field;
-        self.pairs_topk_tail_skipped += o.pairs_topk_tail_skipped;
-        self.pairs_unoccludable += o.pairs_unoccludable;
-        self.rays_cast += o.rays_cast;
-        self.rays_skipped += o.rays_skipped;
-    }
-}
-
 /// Per-thread working memory of [`RowEngine::compute_row`].
 #[derive(Debug, Default)]
 pub struct Scratch {
-    pub(crate) values: Vec<f64>,
-    pub(crate) order: Vec<u32>,
-    pub(crate) flags: Vec<bool>,
-    pub(crate) perms: Vec<u32>,
-    pub(crate) samples: Vec<[f64; 4]>,
-    pub(crate) counters: Counters,
+    values: Vec<f64>,
+    order: Vec<u32>,
+    flags: Vec<bool>,
+    /// What the pair kernels write into.
+    pair: PairScratch,
     /// Occluder triangles that may come between the current pair
     /// (`Occluders::collect_between`): its rays test only these.
-    pub(crate) candidates: Vec<u32>,
+    candidates: Vec<u32>,
     /// Occluder lists of cluster pairs ([`super::clusters`]).
     clusters: ClusterCache,
     /// The row being computed (a hint for what the cluster lists keep; no value
@@ -111,18 +73,18 @@ impl Scratch {
 
     /// Counters accumulated since creation or the last [`Scratch::take_counters`].
     pub fn counters(&self) -> Counters {
-        self.counters
+        self.pair.counters
     }
 
     /// Counts row `i` and notes it as the row being computed.
     fn start_row(&mut self, i: u32) {
-        self.counters.rows += 1;
+        self.pair.counters.rows += 1;
         self.row = Some(i);
     }
 
     /// Returns the counters and resets them.
     pub fn take_counters(&mut self) -> Counters {
-        std::mem::take(&mut self.counters)
+        std::mem::take(&mut self.pair.counters)
     }
 
     /// The order-q far-field points of patch i (computed once per row).
@@ -139,87 +101,6 @@ impl Scratch {
             self.far_points = [None; MAX_FAR_ORDER + 1];
         }
         self.far_points[q].get_or_insert_with(|| PatchPoints::on(&g.map, q, gauss))
-    }
-}
-
-/// Everything the kernels need about one patch, computed once.
-///
-/// `repr(C)` keeps the fields in this order: what every evaluated pair reads first
-/// (plane, centre, corners, sampling map), the edges of the contour integral (near
-/// pairs only) last, so a far pair touches a few adjacent cache lines of a record.
-#[derive(Clone, Debug)]
-#[repr(C)]
-pub(crate) struct PatchGeom {
-    pub(crate) normal: DVec3,
-    /// normal · x for x on the patch's plane.
-    pub(crate) offset: f64,
-    pub(crate) centroid: DVec3,
-    pub(crate) area: f64,
-    /// Longest edge.
-    pub(crate) size: f64,
-    /// Largest distance from the centroid to a corner.
-    pub(crate) radius: f64,
-    pub(crate) face: u32,
-    pub(crate) poly: Polygon,
-    pub(crate) map: PatchMap,
-    pub(crate) edges: EdgeSet,
-}
-
-impl PatchGeom {
-    pub(crate) fn new(p: &crate::patch::Patch) -> Self {
-        let poly = Polygon::new(p.corners());
-        let edges = EdgeSet::from_polygon(&poly);
-        let size = edges.edges().iter().map(|e| e.len).fold(0.0, f64::max);
-        let centroid = p.centroid();
-        let radius = p
-            .corners()
-            .iter()
-            .map(|c| (*c - centroid).length())
-            .fold(0.0, f64::max);
-        PatchGeom {
-            poly,
-            edges,
-            normal: p.normal,
-            offset: p.normal.dot(centroid),
-            centroid,
-            area: p.area,
-            size,
-            radius,
-            face: p.face,
-            map: PatchMap::new(p.corners(), p.area),
-        }
-    }
-
-    /// Largest and smallest signed distance of this patch's corners to `other`'s plane.
-    #[inline]
-    fn extent_wrt(&self, other: &PatchGeom) -> (f64, f64) {
-        let mut lo = f64::INFINITY;
-        let mut hi = f64::NEG_INFINITY;
-        for c in self.poly.verts() {
-            let d = other.normal.dot(*c) - other.offset;
-            lo = lo.min(d);
-            hi = hi.max(d);
-        }
-        (lo, hi)
-    }
-
-    /// The occluder question between this patch and `other`, unclipped.
-    pub(crate) fn between<'a>(&'a self, other: &'a PatchGeom) -> Between<'a> {
-        Between::new(
-            self.poly.verts(),
-            self.normal,
-            other.poly.verts(),
-            other.normal,
-            (self.face, other.face),
-        )
-    }
-
-    /// A usable patch: positive finite area and a unit normal.
-    pub(crate) fn is_valid(&self) -> bool {
-        self.area > 0.0
-            && self.area.is_finite()
-            && (self.normal.length() - 1.0).abs() < 1e-6
-            && self.poly.n >= 3
     }
 }
 
@@ -471,13 +352,13 @@ impl RowEngine {
         let gi = &self.geom[iu];
         let gj = &self.geom[ju];
         if self.cfg.method == Method::Point {
-            return point::pair(gi, gj, &self.occluders, &mut scratch.counters);
+            return point::pair(gi, gj, &self.occluders, &mut scratch.pair.counters);
         }
         let Some(extent) = self.facing(iu, ju, scratch) else {
             return 0.0;
         };
         match self.cfg.method {
-            Method::Mc => mc::pair(i, j, gi, gj, &self.occluders, &self.cfg, scratch),
+            Method::Mc => mc::pair(i, j, gi, gj, &self.occluders, &self.cfg, &mut scratch.pair),
             _ => match self.contour_unoccluded((i, j), gi, gj, extent, scratch) {
                 Some(u) => u.f * self.contour_visibility(i, j, &u, scratch),
                 None => 0.0,
@@ -505,21 +386,21 @@ impl RowEngine {
         if dj + bj.radius < self.tol - self.bound_slack
             || di + bi.radius < self.tol - self.bound_slack
         {
-            scratch.counters.pairs_facing_away += 1;
+            scratch.pair.counters.pairs_facing_away += 1;
             return None;
         }
         if dj - bj.radius > margin && di - bi.radius > margin {
-            scratch.counters.pairs_evaluated += 1;
+            scratch.pair.counters.pairs_evaluated += 1;
             return Some((di - bi.radius, dj - bj.radius));
         }
         let (gi, gj) = (&self.geom[i], &self.geom[j]);
         let (j_lo, j_hi) = gj.extent_wrt(gi);
         let (i_lo, i_hi) = gi.extent_wrt(gj);
         if j_hi <= self.tol || i_hi <= self.tol {
-            scratch.counters.pairs_facing_away += 1;
+            scratch.pair.counters.pairs_facing_away += 1;
             return None;
         }
-        scratch.counters.pairs_evaluated += 1;
+        scratch.pair.counters.pairs_evaluated += 1;
         Some((i_lo, j_lo))
     }
 
@@ -579,7 +460,7 @@ impl RowEngine {
             self.far_orders.order(gap, gi.radius.max(gj.radius))
         };
         let af = if let Some(q) = far {
-            scratch.counters.pairs_far_field += 1;
+            scratch.pair.counters.pairs_far_field += 1;
             let pts_i = scratch.far_points_of(self.id, i, q, gi, self.gauss);
             {
                 let pts_j = PatchPoints::on(&gj.map, q, self.gauss);
@@ -674,8 +555,8 @@ impl RowEngine {
     /// between the polygons).
     fn contour_visibility(&self, i: u32, j: u32, u: &Unoccluded, scratch: &mut Scratch) -> f64 {
         if !u.needs_rays {
-            scratch.counters.pairs_unoccludable += 1;
-            scratch.counters.rays_skipped += self.cfg.samples as u64;
+            scratch.pair.counters.pairs_unoccludable += 1;
+            scratch.pair.counters.rays_skipped += self.cfg.samples as u64;
             return 1.0;
         }
         if !u.listed {
@@ -723,8 +604,8 @@ impl RowEngine {
                     f0[j] = u.f;
                     rays[j] = u.needs_rays;
                     if !u.needs_rays {
-                        scratch.counters.pairs_unoccludable += 1;
-                        scratch.counters.rays_skipped += self.cfg.samples as u64;
+                        scratch.pair.counters.pairs_unoccludable += 1;
+                        scratch.pair.counters.rays_skipped += self.cfg.samples as u64;
                     }
                     order.push(j as u32);
                 }
@@ -801,8 +682,8 @@ impl RowEngine {
                 if hits > 0 {
                     estimate += hits as f64 * self.visibility_of(i, j, scratch);
                 } else {
-                    scratch.counters.pairs_topk_tail_skipped += 1;
-                    scratch.counters.rays_skipped += self.cfg.samples as u64;
+                    scratch.pair.counters.pairs_topk_tail_skipped += 1;
+                    scratch.pair.counters.rays_skipped += self.cfg.samples as u64;
                 }
             }
             dropped += estimate * step;
@@ -851,7 +732,7 @@ impl RowEngine {
             last: std::cell::Cell::new(0),
             packets: self.packets,
         };
-        visibility::fraction(i, j, gi, gj, &pi, &pj, &occ, &self.cfg, scratch)
+        visibility::fraction(i, j, gi, gj, &pi, &pj, &occ, &self.cfg, &mut scratch.pair)
     }
 }
 

@@ -109,7 +109,7 @@ impl PatchPoints {
         Self::on(&PatchMap::new(corners, area), q, gauss)
     }
 
-    /// As [`PatchPoints::new`] on the patch whose map is `map` (built once per patch,
+    /// As `PatchPoints::new` (tests) on the patch whose map is `map` (built once per patch,
     /// not once per pair): triangles through the collapsed square, quads through the
     /// bilinear map of sampling (affine with a constant Jacobian for parallelograms).
     pub(crate) fn on(map: &PatchMap, q: usize, gauss: &GaussTable) -> Self {
@@ -234,7 +234,7 @@ pub(crate) fn area_form_factor(pi: &PatchPoints, ni: DVec3, pj: &PatchPoints, nj
     sum / std::f64::consts::PI
 }
 
-/// As [`area_form_factor`] with the j side from a [`FarSlice`] (a slice of the
+/// As `area_form_factor` (the test oracle) with the j side from a [`FarSlice`] (a slice of the
 /// far-field table): the inner loop runs over j's points in [`LANES`] independent
 /// partial sums (a fixed order, so the result is the same on every machine), which
 /// the compiler turns into SIMD.

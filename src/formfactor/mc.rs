@@ -10,10 +10,11 @@
 //! an edge), which is what the method comparison is meant to show. An entry is
 //! clamped to 1.
 
-use super::engine::PatchGeom;
+use super::geom::PatchGeom;
 use super::sampling::{latin_pairs, pair_seed, SplitMix64};
-use super::{FormFactorConfig, Scratch};
-use crate::geometry::bvh::Occluders;
+use super::scratch::PairScratch;
+use super::FormFactorConfig;
+use crate::geometry::occluders::Occluders;
 
 /// Stream tag of the `mc` samples (see [`pair_seed`]).
 const STREAM_MC: u64 = 2;
@@ -27,7 +28,7 @@ pub(crate) fn pair(
     gj: &PatchGeom,
     occ: &Occluders,
     cfg: &FormFactorConfig,
-    scratch: &mut Scratch,
+    scratch: &mut PairScratch,
 ) -> f64 {
     let s = cfg.samples.max(1) as usize;
     let need_rays = occ.any_between(&gi.between(gj));

@@ -11,7 +11,7 @@
 //! | `contour` | exact to `quad_tol`: double contour integral (Stokes), tensor Gauss rule for well-separated pairs | kernel-weighted ratio estimator, adaptive, ≤ S rays | [`contour`], [`farfield`], [`visibility`] |
 //!
 //! [`RowEngine`] computes whole rows: it precomputes per-patch data once, skips pairs
-//! facing away, asks the [`Occluders`](crate::geometry::bvh::Occluders) whether
+//! facing away, asks the [`Occluders`](crate::geometry::occluders::Occluders) whether
 //! anything can come between a pair before casting rays, accumulates in f64 and
 //! emits f32 (dense, or top-k with the dropped mass recorded). Every random number is
 //! drawn from a stream seeded by (i, j, seed), so a row is bitwise the same on any
@@ -21,17 +21,20 @@ pub(crate) mod clusters;
 pub(crate) mod contour;
 pub(crate) mod engine;
 pub(crate) mod farfield;
+pub(crate) mod geom;
 pub(crate) mod mc;
 pub(crate) mod point;
 pub(crate) mod polygon;
 pub(crate) mod quadrature;
 pub mod sampling;
+pub(crate) mod scratch;
 pub(crate) mod topk;
 pub(crate) mod visibility;
 
 use std::fmt;
 
-pub use engine::{Counters, RowEngine, Scratch};
+pub use engine::{RowEngine, Scratch};
+pub use scratch::Counters;
 
 /// Errors of the form-factor layer (configuration only: the kernels themselves do
 /// not fail).
@@ -276,7 +279,7 @@ impl FormFactorConfig {
             self.top_k_tail,
             self.quad_order,
             self.quad_tol,
-            crate::geometry::bvh::RAY_EPSILON
+            crate::geometry::occluders::RAY_EPSILON
         )
     }
 

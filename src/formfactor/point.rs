@@ -7,9 +7,9 @@
 //! entry is clamped to 1 (a form factor cannot exceed 1). Rows are not renormalized:
 //! their sums show the method's error, which is the point of having a baseline.
 
-use super::engine::PatchGeom;
-use super::Counters;
-use crate::geometry::bvh::Occluders;
+use super::geom::PatchGeom;
+use super::scratch::Counters;
+use crate::geometry::occluders::Occluders;
 
 /// F_ij by the centroid kernel (0 when either patch faces away from the other's
 /// centroid).

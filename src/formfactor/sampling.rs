@@ -46,7 +46,7 @@ impl SplitMix64 {
 }
 
 /// A draw below `n` from 32 random bits r: ⌊r · n / 2³²⌋ (multiply-shift, bias
-/// < n / 2³²); [`SplitMix64::below`] and the permutations use it.
+/// < n / 2³²); `SplitMix64::below` and the permutations use it.
 #[inline]
 fn below_from(r: u64, n: u32) -> u32 {
     ((r * n as u64) >> 32) as u32

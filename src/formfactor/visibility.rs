@@ -27,11 +27,12 @@
 //! by up to 2e-2. The `accurate` (default) and `reference` presets therefore cast all
 //! their rays; only an explicit `--first-batch` below `--samples` enables the stop.
 
-use super::engine::PatchGeom;
+use super::geom::PatchGeom;
 use super::polygon::Polygon;
 use super::sampling::{latin_pairs, pair_seed, SplitMix64};
-use super::{FormFactorConfig, Scratch};
-use crate::geometry::bvh::{Occluders, PACKET};
+use super::scratch::PairScratch;
+use super::FormFactorConfig;
+use crate::geometry::occluders::{Occluders, PACKET};
 use glam::DVec3;
 
 /// Stream tags of the two batches (see [`pair_seed`]).
@@ -124,7 +125,7 @@ fn run_batch(
     cfg: &FormFactorConfig,
     n: usize,
     stream: u64,
-    scratch: &mut Scratch,
+    scratch: &mut PairScratch,
     out: &mut Batch,
 ) {
     let planes = occ
@@ -178,7 +179,7 @@ pub(crate) fn fraction(
     pj: &Polygon,
     occ: &Blockers<'_>,
     cfg: &FormFactorConfig,
-    scratch: &mut Scratch,
+    scratch: &mut PairScratch,
 ) -> f64 {
     let total = cfg.samples.max(1) as usize;
     let first = (cfg.first_batch.max(1) as usize).min(total);

@@ -1,6 +1,8 @@
-//! Geometry: subdivision of scene faces into patches ([`subdivide`]) and the bounding
-//! volume hierarchy used for visibility ([`bvh`]).
+//! Geometry: subdivision of scene faces into patches ([`subdivide`]), the occluders
+//! that answer the visibility questions ([`occluders`]) and the eight-wide tree they
+//! walk (`bvh8`).
 
-pub mod bvh;
 mod bvh8;
+pub mod occluders;
 pub mod subdivide;
+mod triangle;

@@ -3,7 +3,7 @@
 //! | name | what | param |
 //! |---|---|---|
 //! | `cornell` | the Cornell box of `tests/data/scenes/cornell_box.obj` (docs/known-answers.md §7), mm | none |
-//! | `cube` | closed cube [0,s]³, faces inward, groups `x0 x1 y0 y1 z0 z1`, ρ = 0.5, `y1` emits 1 | side s (1) |
+//! | `cube` | closed cube `[0,s]³`, faces inward, groups `x0 x1 y0 y1 z0 z1`, ρ = 0.5, `y1` emits 1 | side s (1) |
 //! | `plates` | unit squares facing each other, `bottom` (emits 1) and `top` | distance (1) |
 //! | `perpendicular` | unit square `bottom` and 1 × h rectangle `side` sharing an edge at 90° | h (1) |
 //! | `obstructed` | `plates` at distance 1 with a two-sided 0.5 × 0.5 `blocker` midway | none |
@@ -12,11 +12,10 @@
 //! The small scenes have analytic form factors (docs/known-answers.md §2, §3), e.g. between the two
 //! `plates` at distance 1: 0.19982; `perpendicular` with h = 1: 0.20004.
 
-use std::collections::HashMap;
-
 use glam::DVec3;
 
-use super::{room, Face, Material, Scene, SceneError};
+use super::builder::Builder;
+use super::{room, Scene, SceneError};
 
 /// Names accepted by [`builtin`].
 pub fn builtin_names() -> &'static [&'static str] {
@@ -76,64 +75,6 @@ pub fn builtin(name: &str, param: Option<f64>) -> Result<Scene, SceneError> {
             name: name.to_owned(),
             known: builtin_names().join(", "),
         }),
-    }
-}
-
-/// Builds a scene face by face, creating groups in order of first use (as loading the
-/// written OBJ back does, so [`super::write_obj`] round-trips).
-pub(super) struct Builder {
-    scene: Scene,
-    group_ids: HashMap<String, u32>,
-}
-
-impl Builder {
-    pub(super) fn new(name: &str) -> Self {
-        Builder {
-            scene: Scene {
-                source: format!("builtin:{name}"),
-                ..Scene::default()
-            },
-            group_ids: HashMap::new(),
-        }
-    }
-
-    /// Add a material; returns its index.
-    pub(super) fn material(&mut self, name: &str, rho: [f32; 3], emission: [f32; 3]) -> u32 {
-        self.scene.materials.push(Material {
-            name: name.to_owned(),
-            rho,
-            emission,
-        });
-        (self.scene.materials.len() - 1) as u32
-    }
-
-    /// Add a face (3 or 4 corners, counter-clockwise seen from the front).
-    pub(super) fn face(&mut self, group: &str, material: u32, corners: &[DVec3]) {
-        let g = match self.group_ids.get(group) {
-            Some(&g) => g,
-            None => {
-                let g = self.scene.groups.len() as u32;
-                self.scene.groups.push(group.to_owned());
-                self.group_ids.insert(group.to_owned(), g);
-                g
-            }
-        };
-        self.scene.faces.push(Face {
-            corners: corners.to_vec(),
-            group: g,
-            material,
-            line: 0,
-        });
-    }
-
-    /// Add the parallelogram `o, o+u, o+u+v, o+v`, whose front normal is `u × v`.
-    pub(super) fn quad(&mut self, group: &str, material: u32, o: DVec3, u: DVec3, v: DVec3) {
-        self.face(group, material, &[o, o + u, o + u + v, o + v]);
-    }
-
-    pub(super) fn finish(self) -> Scene {
-        debug_assert_eq!(self.scene.validate(), Ok(()));
-        self.scene
     }
 }
 

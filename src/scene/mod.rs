@@ -7,13 +7,14 @@
 //!
 //! - [`load_obj`]: an OBJ file and its MTL libraries, read with `tobj` and validated
 //!   (errors name the file and line, see [`SceneError`]);
-//! - [`builtin`]: scenes written as Rust tables or generated (`cornell`, `cube`,
+//! - [`builtin`](mod@builtin): scenes written as Rust tables or generated (`cornell`, `cube`,
 //!   `plates`, `perpendicular`, `obstructed`, `room`), used by tests and benchmarks
 //!   because their form factors are known or their size can be dialled.
 //!
 //! [`write_obj`] writes a scene back as OBJ + MTL; loading that file gives the same
 //! scene. [`open_scene`] takes either kind of name from the command line. Subdivision into patches lives in [`crate::geometry::subdivide`].
 
+mod builder;
 mod builtin;
 mod error;
 mod obj;

@@ -11,7 +11,7 @@
 
 use glam::DVec3;
 
-use super::builtin::Builder;
+use super::builder::Builder;
 use super::Scene;
 
 /// Boxes in `builtin("room", None)`.

@@ -10,7 +10,7 @@ use super::{builtin, builtin_names, load_obj, Scene, SceneError};
 /// to an OBJ file. An existing file always wins over a built-in of the same name.
 ///
 /// # Errors
-/// As [`load_obj`] and [`builtin`]; a parameter that is not a number is a
+/// As [`load_obj`] and [`builtin`](fn@builtin); a parameter that is not a number is a
 /// [`SceneError::BadParam`].
 pub fn open_scene(spec: &str) -> Result<Scene, SceneError> {
     let explicit = spec.strip_prefix("builtin:");

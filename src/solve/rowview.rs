@@ -98,7 +98,7 @@ impl<'r> RowView<'r> {
         }
     }
 
-    /// acc[c] = s Σ_j F_ij b[j m + c] for c < m (acc is overwritten); returns the
+    /// `acc[c] = s Σ_j F_ij b[j m + c]` for c < m (acc is overwritten); returns the
     /// scaled row sum of |F_ij| (used by the Gauss–Seidel residual bound).
     ///
     /// # Errors

@@ -7,7 +7,7 @@ use std::sync::Arc;
 
 use ffstream::ffz::{FfzReader, FfzWriter, FileMeta, Layout, WriterOptions};
 use ffstream::formfactor::{FormFactorConfig, RowEngine, Scratch};
-use ffstream::geometry::bvh::Occluders;
+use ffstream::geometry::occluders::Occluders;
 use ffstream::geometry::subdivide::subdivide;
 use ffstream::scene::builtin;
 use ffstream::solve::{self, SolveConfig, SolveMethod};

@@ -15,7 +15,7 @@ use std::path::Path;
 use std::sync::Arc;
 
 use ffstream::formfactor::{FormFactorConfig, RowEngine, Scratch};
-use ffstream::geometry::bvh::Occluders;
+use ffstream::geometry::occluders::Occluders;
 use ffstream::geometry::subdivide::{default_max_edge, subdivide};
 use ffstream::rows::{Row, RowValues};
 use ffstream::scene::load_obj;

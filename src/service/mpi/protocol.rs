@@ -109,7 +109,7 @@ pub(crate) fn decode_rows(v: &[u8], rank: i32) -> Result<Vec<u32>, ServiceError>
         .collect())
 }
 
-/// FAILED: the row as an i64, −1 for none (Option<u32> on either side), then the
+/// FAILED: the row as an i64, −1 for none (`Option<u32>` on either side), then the
 /// message's UTF-8 bytes.
 pub(crate) fn encode_failed(row: Option<u32>, message: &str) -> Vec<u8> {
     let mut v = row.map_or(-1, i64::from).to_le_bytes().to_vec();

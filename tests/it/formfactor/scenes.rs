@@ -5,7 +5,7 @@
 use std::sync::Arc;
 
 use ffstream::formfactor::{FormFactorConfig, RowEngine, Scratch};
-use ffstream::geometry::bvh::Occluders;
+use ffstream::geometry::occluders::Occluders;
 use ffstream::patch::{Patch, PatchSet};
 use ffstream::rows::Row;
 use glam::{dvec3, DVec3};

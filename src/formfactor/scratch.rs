@@ -1,0 +1,51 @@
+//! What the pair kernels write into: the work counters and the sample buffers of one
+//! thread ([`PairScratch`]), part of the row engine's per-thread [`super::Scratch`].
+//! Kernels see only this, not the engine's own buffers and caches.
+
+/// Work done, for reports and benchmarks. Summed over scratches by the caller.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Counters {
+    /// Rows computed.
+    pub rows: u64,
+    /// Pairs (i ≠ j) whose kernel was evaluated.
+    pub pairs_evaluated: u64,
+    /// Pairs skipped without kernel work because one faces away from the other
+    /// (including coplanar pairs).
+    pub pairs_facing_away: u64,
+    /// `contour` pairs far enough apart for the tensor Gauss rule
+    /// ([`super::farfield`]) instead of the contour integral.
+    pub pairs_far_field: u64,
+    /// Top-k tail pairs (sampled mode) whose visibility was never needed.
+    pub pairs_topk_tail_skipped: u64,
+    /// Evaluated pairs between which no occluder can come (no rays needed).
+    pub pairs_unoccludable: u64,
+    /// Shadow rays cast.
+    pub rays_cast: u64,
+    /// Rays the per-pair budget allowed but that were not cast: all of them for pairs
+    /// no occluder can come between, the rest of the budget when the adaptive
+    /// estimate stopped after its first batch (`contour`), samples with a
+    /// non-positive kernel (`mc`).
+    pub rays_skipped: u64,
+}
+
+impl Counters {
+    pub fn add(&mut self, o: &Counters) {
+        self.rows += o.rows;
+        self.pairs_evaluated += o.pairs_evaluated;
+        self.pairs_facing_away += o.pairs_facing_away;
+        self.pairs_far_field += o.pairs_far_field;
+        self.pairs_topk_tail_skipped += o.pairs_topk_tail_skipped;
+        self.pairs_unoccludable += o.pairs_unoccludable;
+        self.rays_cast += o.rays_cast;
+        self.rays_skipped += o.rays_skipped;
+    }
+}
+
+/// A thread's counters and the sample buffers of the stratified samplers
+/// (`sampling::latin_pairs`), reused from pair to pair.
+#[derive(Debug, Default)]
+pub(crate) struct PairScratch {
+    pub(crate) counters: Counters,
+    pub(crate) perms: Vec<u32>,
+    pub(crate) samples: Vec<[f64; 4]>,
+}
