@@ -167,7 +167,7 @@ pub(super) fn solve_file(
         eprintln!("ffstream: wrote {}", path.display());
     }
     if let Some(ply) = &o.ply {
-        solve::write_ply(ply, &patches, &solution.b[0])?;
+        ffstream::render::write_ply(ply, &patches, &solution.radiosity_f32(0))?;
         eprintln!("ffstream: wrote {}", ply.display());
     }
     Ok((solution, patches))

@@ -35,7 +35,8 @@
 //!   line per (case, group) giving that group's exitance in that case; groups a case
 //!   does not list emit nothing in it; cases are numbered in order of first appearance
 //!   and may be named by any string. Blank lines and lines starting with `#` are ignored.
-//! - PLY ([`write_ply`]): per-vertex colours, tone mapping described in `ply.rs`.
+//! - The lit mesh as PLY is written by the render layer (`render::write_ply`), with
+//!   the vertices, colours and tone map of the picture.
 
 mod cases;
 mod check;
@@ -46,7 +47,6 @@ mod ffz_source;
 mod gauss_seidel;
 mod jacobi;
 mod output;
-mod ply;
 mod rowview;
 mod shooting;
 mod source;
@@ -61,10 +61,6 @@ pub(crate) use energy::EnergyReport;
 pub use error::SolveError;
 pub use output::{
     case_path, format_group_table, group_table, read_radiosity_csv, write_csv, GroupRow, CSV_HEADER,
-};
-pub use ply::{
-    srgb_encode, vertex_radiosity, write_ply, write_ply_with, PlyEncoding, PlyOptions, ToneMap,
-    VertexMesh,
 };
 pub use source::{MemoryRows, RowSource};
 

@@ -6,11 +6,11 @@
 use std::path::Path;
 
 use ffstream::patch::{Patch, PatchSet};
+use ffstream::render::{write_ply_with, PlyEncoding, PlyOptions};
 use ffstream::rows::{Row, RowValues};
 use ffstream::solve::{
     case_path, format_group_table, group_table, parse_emission_cases, read_radiosity_csv, solve,
-    write_csv, write_ply_with, MemoryRows, PlyEncoding, PlyOptions, RowSource, Solution,
-    SolveConfig, SolveError, SolveMethod, CSV_HEADER,
+    write_csv, MemoryRows, RowSource, Solution, SolveConfig, SolveError, SolveMethod, CSV_HEADER,
 };
 use glam::DVec3;
 
@@ -1026,8 +1026,9 @@ fn parse_ply(bytes: &[u8]) -> PlyMesh {
     (pos, col, faces)
 }
 
-/// A unit cube cut into 2 × 2 quads per face (24 patches): the mesh has 26 distinct
-/// vertices (8 corners, 12 edge midpoints, 6 face centres).
+/// A unit cube cut into 2 × 2 quads per face (24 patches), one group per face: 26
+/// distinct points (8 corners, 12 edge midpoints, 6 face centres), 9 vertices per face
+/// once faces are not smoothed into each other (groups, and 90° creases).
 fn subdivided_cube() -> PatchSet {
     let mut patches = Vec::new();
     let mut groups = Vec::new();
@@ -1061,50 +1062,76 @@ fn subdivided_cube() -> PatchSet {
     PatchSet { patches, groups }
 }
 
+/// sRGB transfer function (IEC 61966-2-1) and 8-bit code, written out here.
+fn srgb8(linear: f64) -> u8 {
+    let x = linear.clamp(0.0, 1.0);
+    let e = if x <= 0.0031308 {
+        12.92 * x
+    } else {
+        1.055 * x.powf(1.0 / 2.4) - 0.055
+    };
+    (e * 255.0).round() as u8
+}
+
 #[test]
 fn ply_round_trip() {
     let dir = tempfile::tempdir().unwrap();
     let ps = subdivided_cube();
-    let radiosity = vec![[0.2, 0.1, 0.05]; ps.len()];
+    let b = [0.2f32, 0.1, 0.05];
+    let radiosity = vec![b; ps.len()];
     let mut decoded = Vec::new();
     for encoding in [PlyEncoding::Ascii, PlyEncoding::BinaryLittleEndian] {
         let path = dir.path().join(format!("lit-{encoding:?}.ply"));
         let opts = PlyOptions {
             encoding,
-            white: None,
+            exposure: None,
         };
-        let tone = write_ply_with(&path, &ps, &radiosity, &opts).unwrap();
-        // Uniform scene: the robust white point is the brightest channel.
-        assert_eq!(tone.white, 0.2);
+        let exposure = write_ply_with(&path, &ps, &radiosity, &opts).unwrap();
+        // The picture's automatic exposure: 0.8 over the luminance (BT.709) of the
+        // (uniform) non-emitting patches.
+        let y = 0.2126 * 0.2 + 0.7152 * 0.1 + 0.0722 * 0.05;
+        assert!((f64::from(exposure) - 0.8 / y).abs() < 1e-5 * exposure as f64);
         let (pos, col, faces) = parse_ply(&std::fs::read(&path).unwrap());
-        assert_eq!(pos.len(), 26);
+        assert_eq!(pos.len(), 6 * 9, "9 vertices per face");
         assert_eq!(faces.len(), 24);
         for f in &faces {
             assert_eq!(f.len(), 4);
             assert!(f.iter().all(|&i| i >= 0 && (i as usize) < pos.len()));
         }
-        // Every vertex lies on the half-unit lattice and no two coincide.
-        for (k, p) in pos.iter().enumerate() {
+        // Every vertex lies on the half-unit lattice; 26 distinct points.
+        let mut points: Vec<[f32; 3]> = Vec::new();
+        for p in &pos {
             assert!(p.iter().all(|x| [0.0, 0.5, 1.0].contains(x)), "{p:?}");
-            assert!(!pos[..k].contains(p));
+            if !points.contains(p) {
+                points.push(*p);
+            }
         }
-        // Linear 1, 0.5, 0.25 of white → sRGB 255, 188, 137.
-        assert!(col.iter().all(|c| *c == [255, 188, 137]), "{:?}", col[0]);
+        assert_eq!(points.len(), 26);
+        // No two vertices of one face's quads coincide: each face's 4 quads use 9.
+        for face in faces.chunks(4) {
+            let mut ids: Vec<i32> = face.iter().flatten().copied().collect();
+            ids.sort_unstable();
+            ids.dedup();
+            assert_eq!(ids.len(), 9);
+        }
+        let want = b.map(|x| srgb8(f64::from(x) * 0.8 / y));
+        assert!(col.iter().all(|c| *c == want), "{:?} vs {want:?}", col[0]);
         decoded.push((pos, col, faces));
     }
     assert_eq!(
         decoded[0], decoded[1],
         "ASCII and binary hold the same mesh"
     );
-    // Explicit white point 0.4: linear 0.5, 0.25, 0.125 → 188, 137, 99.
-    let path = dir.path().join("white.ply");
+    // Explicit exposure 2.5: linear 0.5, 0.25, 0.125 → 188, 137, 99.
+    let path = dir.path().join("exposed.ply");
     let opts = PlyOptions {
         encoding: PlyEncoding::Ascii,
-        white: Some(0.4),
+        exposure: Some(2.5),
     };
     write_ply_with(&path, &ps, &radiosity, &opts).unwrap();
     let (_, col, _) = parse_ply(&std::fs::read(&path).unwrap());
     assert!(col.iter().all(|c| *c == [188, 137, 99]), "{:?}", col[0]);
+    assert!(write_ply_with(&path, &ps, &radiosity[1..], &opts).is_err());
 }
 
 /// The summary names the method, the counts and every case's power balance.
