@@ -14,6 +14,7 @@
 //! irregular mesh) with ±10 % multiplicative noise (a Monte Carlo estimator with few
 //! samples); the study also shows the smooth and the grid cases.
 
+use ffstream::formfactor::sampling::SplitMix64;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
@@ -65,7 +66,7 @@ fn cube_room(g: u32) -> PatchSet {
 /// Row i of the point kernel (optionally with multiplicative noise).
 fn kernel_row(ps: &PatchSet, cent: &[DVec3], i: usize, noise: bool) -> Vec<f32> {
     let pi = &ps.patches[i];
-    let mut state = (i as u64 + 1).wrapping_mul(0x9E37_79B9_7F4A_7C15);
+    let mut rng = SplitMix64::new(i as u64 + 1);
     (0..cent.len())
         .map(|j| {
             let pj = &ps.patches[j];
@@ -81,10 +82,7 @@ fn kernel_row(ps: &PatchSet, cent: &[DVec3], i: usize, noise: bool) -> Vec<f32> 
             }
             let mut f = ci * cj * pj.area / (std::f64::consts::PI * r2);
             if noise {
-                state ^= state << 13;
-                state ^= state >> 7;
-                state ^= state << 17;
-                f *= 0.9 + 0.2 * (state >> 11) as f64 / (1u64 << 53) as f64;
+                f *= 0.9 + 0.2 * rng.next_f64();
             }
             f as f32
         })

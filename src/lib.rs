@@ -25,3 +25,4 @@ pub mod rows;
 pub mod scene;
 pub mod service;
 pub mod solve;
+mod table;

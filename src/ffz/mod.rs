@@ -36,6 +36,6 @@ pub use error::FfzError;
 pub use meta::{FileMeta, Layout};
 pub use presence::{RowPresence, RowState};
 pub use reader::FfzReader;
-pub use recover::BadRegion;
+pub use recover::{torn_header, BadRegion};
 pub use verify::{compare, BadChunk, CompareReport, VerifyOptions, VerifyReport};
 pub use writer::{FfzWriter, WriterOptions, WriterStats};

@@ -117,3 +117,34 @@ fn find_magic(hay: &[u8]) -> Option<usize> {
     hay.windows(spec::CHUNK_MAGIC.len())
         .position(|w| w == spec::CHUNK_MAGIC)
 }
+
+/// `Some(length)` when the file at `path` ends inside its own meta block (spec §1, §3):
+/// the run that made it was killed while writing its header, so no chunk, hence no
+/// row, can be in it. That is: its bytes are a prefix of the file magic, or the magic
+/// is complete and the file is shorter than the `meta_len` its header declares (or
+/// than the bytes that declare it). `None` for anything else, including a file that
+/// is not an `.ffz` at all (which `resume` then names).
+///
+/// # Errors
+/// `Io` naming the path when it cannot be read.
+pub fn torn_header(path: &std::path::Path) -> Result<Option<u64>, super::FfzError> {
+    use std::io::Read;
+    let io = |e| super::FfzError::io(path, "read for resume", e);
+    let end = spec::META_LEN_AT + 8;
+    let mut head = Vec::with_capacity(end);
+    std::fs::File::open(path)
+        .map_err(io)?
+        .take(end as u64)
+        .read_to_end(&mut head)
+        .map_err(io)?;
+    let len = std::fs::metadata(path).map_err(io)?.len();
+    let magic_len = head.len().min(spec::FILE_MAGIC.len());
+    if head[..magic_len] != spec::FILE_MAGIC[..magic_len] {
+        return Ok(None);
+    }
+    let torn = match head.get(spec::META_LEN_AT..end) {
+        None => true,
+        Some(b) => len < u64::from_le_bytes(b.try_into().unwrap_or([0xff; 8])),
+    };
+    Ok(torn.then_some(len))
+}

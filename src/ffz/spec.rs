@@ -20,6 +20,9 @@ pub(crate) const FOOTER_MAGIC: [u8; 8] = *b"FFZ-END\n";
 
 /// Size of [`HeaderV1`] (spec §3.1).
 pub(crate) const HEADER_LEN: usize = 64;
+
+/// Offset of `meta_len` in the fixed header (§3.1).
+pub(crate) const META_LEN_AT: usize = 40;
 /// Size of one [`PatchRecordV1`] (spec §4.1).
 pub(crate) const PATCH_RECORD_LEN: usize = 168;
 /// Size of [`ChunkHeaderV1`] (spec §5.1).
@@ -142,7 +145,7 @@ impl HeaderV1 {
         b[24..28].copy_from_slice(&self.k.to_le_bytes());
         b[28..32].copy_from_slice(&self.zstd_level.to_le_bytes());
         b[32..40].copy_from_slice(&self.scene_hash.to_le_bytes());
-        b[40..48].copy_from_slice(&self.meta_len.to_le_bytes());
+        b[META_LEN_AT..META_LEN_AT + 8].copy_from_slice(&self.meta_len.to_le_bytes());
         b[48..52].copy_from_slice(&self.method_len.to_le_bytes());
         b[52..56].copy_from_slice(&self.params_len.to_le_bytes());
         b[56..60].copy_from_slice(&self.created_len.to_le_bytes());

@@ -8,6 +8,7 @@ use super::error::{FfzError, Result};
 use super::reader::FfzReader;
 use super::spec;
 use super::verify::{compare, VerifyOptions};
+use crate::table::TableWriter;
 
 fn out_err(path: &Path) -> impl Fn(std::io::Error) -> FfzError + '_ {
     move |e| FfzError::io(path, "write report", e)
@@ -214,14 +215,9 @@ pub fn verify(path: &Path, against: Option<&Path>, out: &mut dyn Write) -> Resul
     Ok(ok)
 }
 
-/// Quote a CSV field when it needs it (RFC 4180).
-fn csv_field(s: &str) -> String {
-    if s.contains([',', '"', '\n', '\r']) {
-        format!("\"{}\"", s.replace('"', "\"\""))
-    } else {
-        s.to_string()
-    }
-}
+/// Header of the patch table of `export --patches-csv` (docs/architecture.md §7).
+pub const PATCHES_CSV_HEADER: &str =
+    "patch,group,area,cx,cy,cz,nx,ny,nz,rho_r,rho_g,rho_b,e_r,e_g,e_b";
 
 /// Export the matrix as Matrix Market (`coordinate real general`, 1-based `i j F_ij`,
 /// rows in file order; dense rows give their non-zero entries, top-k rows every stored
@@ -279,38 +275,21 @@ pub fn export(path: &Path, matrix: Option<&Path>, patches_csv: Option<&Path>) ->
         w.flush().map_err(e)?;
     }
     if let Some(csv) = patches_csv {
-        let f = std::fs::File::create(csv).map_err(|e| FfzError::io(csv, "create", e))?;
-        let mut w = BufWriter::new(f);
         let e = |err| FfzError::io(csv, "write", err);
-        writeln!(
-            w,
-            "patch,group,area,cx,cy,cz,nx,ny,nz,rho_r,rho_g,rho_b,e_r,e_g,e_b"
-        )
-        .map_err(e)?;
+        let mut w = TableWriter::create(csv).map_err(|err| FfzError::io(csv, "create", err))?;
+        w.record(PATCHES_CSV_HEADER.split(',')).map_err(e)?;
         let ps = &r.meta().patches;
         for (i, p) in ps.patches.iter().enumerate() {
             let c = p.centroid();
-            writeln!(
-                w,
-                "{i},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
-                csv_field(ps.groups.get(p.group as usize).map_or("", |s| s.as_str())),
-                p.area,
-                c.x,
-                c.y,
-                c.z,
-                p.normal.x,
-                p.normal.y,
-                p.normal.z,
-                p.rho[0],
-                p.rho[1],
-                p.rho[2],
-                p.emission[0],
-                p.emission[1],
-                p.emission[2]
-            )
-            .map_err(e)?;
+            let group = ps.groups.get(p.group as usize).map_or("", |s| s.as_str());
+            let mut fields = vec![i.to_string(), group.to_string()];
+            fields.extend(
+                [p.area, c.x, c.y, c.z, p.normal.x, p.normal.y, p.normal.z].map(|x| x.to_string()),
+            );
+            fields.extend(p.rho.iter().chain(&p.emission).map(|x| x.to_string()));
+            w.record(&fields).map_err(e)?;
         }
-        w.flush().map_err(e)?;
+        w.finish().map_err(e)?;
     }
     Ok(())
 }

@@ -493,9 +493,9 @@ mod tests {
         let mut rng = SplitMix64::new(11);
         let (mut narrowed, mut reference) = (Vec::new(), Vec::new());
         let (mut pairs, mut empty, mut some, mut tighter, mut blocked) = (0, 0, 0, 0, 0);
-        let n = geom.len() as u32;
+        let n = geom.len();
         while pairs < 3000 {
-            let (i, j) = (rng.below(n), rng.below(n));
+            let (i, j) = (rng.below(n) as u32, rng.below(n) as u32);
             let (gi, gj) = (&geom[i as usize], &geom[j as usize]);
             // Pairs fully in front of each other (the engine clips the others first).
             let front = |a: &PatchGeom, b: &PatchGeom| {

@@ -33,7 +33,7 @@ use super::farfield::{self, FarOrders, PatchLanes, PatchPoints, MAX_FAR_ORDER};
 use super::geom::PatchGeom;
 use super::polygon::{EdgeSet, Polygon};
 use super::quadrature::{gauss_table, GaussTable};
-use super::sampling::{pair_seed, SplitMix64};
+use super::sampling::{pair_seed, SplitMix64, Stream};
 use super::scratch::{Counters, PairScratch};
 use super::{mc, point, topk, visibility, FormFactorConfig, Method, TopKTail};
 use crate::geometry::occluders::{Between, Occluders, MAX_PAIR_CANDIDATES};
@@ -664,7 +664,7 @@ impl RowEngine {
             // Systematic sampling with probability ∝ F⁰: points u0 + s·step on the
             // cumulative F⁰ axis, step = mass / t; the estimate step · Σ V is unbiased.
             let step = with_rays_mass / t as f64;
-            let mut rng = SplitMix64::new(pair_seed(self.cfg.seed, i, u32::MAX, STREAM_TAIL));
+            let mut rng = SplitMix64::new(pair_seed(self.cfg.seed, i, u32::MAX, Stream::TopKTail));
             let mut point = rng.next_f64() * step;
             let mut cumulative = 0.0;
             let mut estimate = 0.0;
@@ -743,9 +743,6 @@ struct Unoccluded {
     /// `Scratch::candidates` lists every triangle that may block the pair.
     listed: bool,
 }
-
-/// Stream tag of the top-k tail sampling (see [`pair_seed`]).
-const STREAM_TAIL: u64 = 3;
 
 #[cfg(test)]
 mod tests {
@@ -834,7 +831,7 @@ mod tests {
             let mut order: Vec<u32> = (0..n as u32).step_by(step).collect();
             let mut rng = crate::formfactor::sampling::SplitMix64::new(n as u64);
             for k in (1..order.len()).rev() {
-                order.swap(k, rng.below(k as u32 + 1) as usize);
+                order.swap(k, rng.below(k + 1));
             }
             let (mut s1, mut s2) = (Scratch::new(), Scratch::new());
             let (mut own1, mut own2, mut m1, mut m2) = (vec![], vec![], vec![], vec![]);

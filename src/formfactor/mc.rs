@@ -11,13 +11,10 @@
 //! clamped to 1.
 
 use super::geom::PatchGeom;
-use super::sampling::{latin_pairs, pair_seed, SplitMix64};
+use super::sampling::{latin_pairs, pair_seed, SplitMix64, Stream};
 use super::scratch::PairScratch;
 use super::FormFactorConfig;
 use crate::geometry::occluders::Occluders;
-
-/// Stream tag of the `mc` samples (see [`pair_seed`]).
-const STREAM_MC: u64 = 2;
 
 /// F_ij by Monte Carlo with `cfg.samples` point pairs. The caller has checked that the
 /// pair is not facing away.
@@ -36,7 +33,7 @@ pub(crate) fn pair(
         scratch.counters.pairs_unoccludable += 1;
         scratch.counters.rays_skipped += s as u64;
     }
-    let mut rng = SplitMix64::new(pair_seed(cfg.seed, i, j, STREAM_MC));
+    let mut rng = SplitMix64::new(pair_seed(cfg.seed, i, j, Stream::Mc));
     latin_pairs(&mut rng, s, &mut scratch.perms, &mut scratch.samples);
     let mut sum = 0.0;
     let mut cast = 0u64;

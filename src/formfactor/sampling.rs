@@ -13,7 +13,8 @@ use glam::DVec3;
 
 /// SplitMix64 (Steele, Lea & Flood 2014): tiny, fast, and good enough to drive
 /// stratified jitter. The state is a plain counter, so a stream is fully determined
-/// by its seed.
+/// by its seed. The one seeded generator of the project: the kernels draw from it
+/// (seeded by [`pair_seed`]), and so do the tests and benchmarks for their data.
 #[derive(Clone, Copy, Debug)]
 pub struct SplitMix64 {
     state: u64,
@@ -25,7 +26,7 @@ impl SplitMix64 {
     }
 
     #[inline]
-    pub(crate) fn next_u64(&mut self) -> u64 {
+    pub fn next_u64(&mut self) -> u64 {
         self.state = self.state.wrapping_add(0x9E37_79B9_7F4A_7C15);
         mix64(self.state)
     }
@@ -36,17 +37,43 @@ impl SplitMix64 {
         (self.next_u64() >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
     }
 
-    /// Uniform integer in [0, n) (multiply-shift; the bias is below 2⁻³² for the
-    /// small n used here and the result is deterministic either way).
-    #[cfg(test)]
+    /// Uniform in [0, 1) with 24 random bits (every value exact in f32).
     #[inline]
-    pub(crate) fn below(&mut self, n: u32) -> u32 {
-        below_from(self.next_u64() >> 32, n)
+    pub fn next_f32(&mut self) -> f32 {
+        (self.next_u64() >> 40) as f32 * (1.0 / (1u32 << 24) as f32)
+    }
+
+    /// Uniform integer in [0, n), 0 for n = 0 (the high word of a 64 × 64-bit
+    /// product: bias below n / 2⁶⁴).
+    #[inline]
+    pub fn below(&mut self, n: usize) -> usize {
+        ((u128::from(self.next_u64()) * n as u128) >> 64) as usize
+    }
+
+    /// Shuffles `v` in place (Fisher–Yates).
+    pub fn shuffle<T>(&mut self, v: &mut [T]) {
+        for k in (1..v.len()).rev() {
+            v.swap(k, self.below(k + 1));
+        }
     }
 }
 
+/// The uses of a pair's random numbers, each its own stream (see [`pair_seed`]). The
+/// values are part of the numbers a file holds: changing one changes rows.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Stream {
+    /// `contour` visibility: the first batch of rays.
+    FirstBatch = 0,
+    /// `contour` visibility: the rest of the rays.
+    SecondBatch = 1,
+    /// `mc`: the point pairs.
+    Mc = 2,
+    /// Top-k with a sampled tail: the systematic sample of a row's tail (j = u32::MAX).
+    TopKTail = 3,
+}
+
 /// A draw below `n` from 32 random bits r: ⌊r · n / 2³²⌋ (multiply-shift, bias
-/// < n / 2³²); `SplitMix64::below` and the permutations use it.
+/// < n / 2³²); the permutations use it.
 #[inline]
 fn below_from(r: u64, n: u32) -> u32 {
     ((r * n as u64) >> 32) as u32
@@ -72,11 +99,11 @@ pub(crate) fn mix64(mut z: u64) -> u64 {
 /// Seed of the random stream for the ordered pair (i, j), the run seed and a stream
 /// tag (so that different uses of the same pair draw independent numbers).
 #[inline]
-pub(crate) fn pair_seed(seed: u64, i: u32, j: u32, stream: u64) -> u64 {
+pub(crate) fn pair_seed(seed: u64, i: u32, j: u32, stream: Stream) -> u64 {
     let ij = ((i as u64) << 32) | j as u64;
     mix64(
         mix64(mix64(seed ^ 0x5851_F42D_4C95_7F2D) ^ ij)
-            ^ stream.wrapping_mul(0x9E37_79B9_7F4A_7C15),
+            ^ (stream as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15),
     )
 }
 
@@ -211,17 +238,26 @@ mod tests {
     #[test]
     fn streams_are_deterministic_and_distinct() {
         let a: Vec<u64> = {
-            let mut r = SplitMix64::new(pair_seed(7, 3, 4, 0));
+            let mut r = SplitMix64::new(pair_seed(7, 3, 4, Stream::FirstBatch));
             (0..4).map(|_| r.next_u64()).collect()
         };
         let b: Vec<u64> = {
-            let mut r = SplitMix64::new(pair_seed(7, 3, 4, 0));
+            let mut r = SplitMix64::new(pair_seed(7, 3, 4, Stream::FirstBatch));
             (0..4).map(|_| r.next_u64()).collect()
         };
         assert_eq!(a, b);
-        assert_ne!(pair_seed(7, 3, 4, 0), pair_seed(7, 4, 3, 0));
-        assert_ne!(pair_seed(7, 3, 4, 0), pair_seed(8, 3, 4, 0));
-        assert_ne!(pair_seed(7, 3, 4, 0), pair_seed(7, 3, 4, 1));
+        assert_ne!(
+            pair_seed(7, 3, 4, Stream::FirstBatch),
+            pair_seed(7, 4, 3, Stream::FirstBatch)
+        );
+        assert_ne!(
+            pair_seed(7, 3, 4, Stream::FirstBatch),
+            pair_seed(8, 3, 4, Stream::FirstBatch)
+        );
+        assert_ne!(
+            pair_seed(7, 3, 4, Stream::FirstBatch),
+            pair_seed(7, 3, 4, Stream::SecondBatch)
+        );
     }
 
     #[test]

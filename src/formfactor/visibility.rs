@@ -29,15 +29,11 @@
 
 use super::geom::PatchGeom;
 use super::polygon::Polygon;
-use super::sampling::{latin_pairs, pair_seed, SplitMix64};
+use super::sampling::{latin_pairs, pair_seed, SplitMix64, Stream};
 use super::scratch::PairScratch;
 use super::FormFactorConfig;
 use crate::geometry::occluders::{Occluders, PACKET};
 use glam::DVec3;
-
-/// Stream tags of the two batches (see [`pair_seed`]).
-const STREAM_FIRST: u64 = 0;
-const STREAM_SECOND: u64 = 1;
 
 /// What blocks the rays of a pair: the occluders, and when known the only triangles of
 /// them that can come between the two patches (`Occluders::collect_between`).
@@ -124,7 +120,7 @@ fn run_batch(
     occ: &Blockers<'_>,
     cfg: &FormFactorConfig,
     n: usize,
-    stream: u64,
+    stream: Stream,
     scratch: &mut PairScratch,
     out: &mut Batch,
 ) {
@@ -185,7 +181,18 @@ pub(crate) fn fraction(
     let first = (cfg.first_batch.max(1) as usize).min(total);
     let cast_before = scratch.counters.rays_cast;
     let mut b = Batch::default();
-    run_batch(i, j, gi, gj, occ, cfg, first, STREAM_FIRST, scratch, &mut b);
+    run_batch(
+        i,
+        j,
+        gi,
+        gj,
+        occ,
+        cfg,
+        first,
+        Stream::FirstBatch,
+        scratch,
+        &mut b,
+    );
     let agree = !(b.any_free && b.any_blocked);
     if !(agree && b.weight > 0.0) && total > first {
         run_batch(
@@ -196,7 +203,7 @@ pub(crate) fn fraction(
             occ,
             cfg,
             total - first,
-            STREAM_SECOND,
+            Stream::SecondBatch,
             scratch,
             &mut b,
         );

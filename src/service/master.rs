@@ -13,7 +13,7 @@ use std::time::{Duration, Instant};
 
 use crossbeam::channel::{bounded, Sender};
 
-use crate::ffz::{encode_chunk, EncodedChunk, FfzError, FfzWriter, Layout, WriterStats};
+use crate::ffz::{encode_chunk, EncodedChunk, FfzWriter, Layout, WriterStats};
 use crate::rows::Row;
 use crate::service::link::{MasterLink, ToMaster};
 use crate::service::progress::Progress;
@@ -99,7 +99,7 @@ pub(crate) fn run_master(
     let writer_counters = Arc::clone(&counters);
     let writer_thread = std::thread::Builder::new()
         .name("ffz-writer".into())
-        .spawn(move || -> Result<(WriterStats, u64), FfzError> {
+        .spawn(move || -> Result<(WriterStats, u64), ServiceError> {
             let mut writer = writer;
             let mut spill = spill;
             let written = write_jobs(&mut writer, spill.as_mut(), rx, &writer_counters);
@@ -136,14 +136,14 @@ fn write_jobs(
     mut spill: Option<&mut Spill>,
     rx: crossbeam::channel::Receiver<WriterJob>,
     counters: &WriterCounters,
-) -> Result<(), FfzError> {
+) -> Result<(), ServiceError> {
     for job in rx {
         match (job, spill.as_deref_mut()) {
             (WriterJob::Chunk(chunk), _) => writer.append_chunk(chunk)?,
             (WriterJob::Piece(piece), Some(s)) => s.append(&piece)?,
             (WriterJob::Merge(j), Some(s)) => s.merge(j, |row| writer.push_row(row))?,
             (WriterJob::Piece(_) | WriterJob::Merge(_), None) => {
-                return Err(FfzError::InvalidMeta(
+                return Err(ServiceError::Transport(
                     "a half-row piece reached a run without --symmetric".into(),
                 ))
             }
@@ -348,43 +348,17 @@ pub(crate) fn prepare(
     Ok((writer, plan, present))
 }
 
-/// True when the file to resume ends inside its own meta block (spec §1, §3): the run
-/// that made it was killed while writing its header, so no chunk, hence no row, can be
-/// in it and starting afresh loses nothing. That is: the bytes there are a prefix of the
-/// file magic, or the magic is complete and the file is shorter than the `meta_len` its
-/// header declares (or than the 48 bytes that declare it). Any other content goes to
-/// `resume`, which checks it properly.
+/// True when the file to resume ends inside its own header ([`crate::ffz::torn_header`]):
+/// the run that made it was killed while starting, so starting afresh loses nothing.
 fn torn_own_header(job: &crate::service::ComputeJob) -> Result<bool, ServiceError> {
-    use crate::ffz::spec::FILE_MAGIC;
-    let io = |e: std::io::Error| FfzError::Io {
-        path: job.output.clone(),
-        op: "read for resume".into(),
-        cause: e,
-    };
-    let mut head = Vec::with_capacity(48);
-    {
-        use std::io::Read;
-        let file = std::fs::File::open(&job.output).map_err(io)?;
-        file.take(48).read_to_end(&mut head).map_err(io)?;
-    }
-    let len = std::fs::metadata(&job.output).map_err(io)?.len();
-    let magic_len = head.len().min(FILE_MAGIC.len());
-    if head[..magic_len] != FILE_MAGIC[..magic_len] {
-        return Ok(false); // not an .ffz beginning: let resume name the problem
-    }
-    let torn = if head.len() < 48 {
-        true
-    } else {
-        let meta_len = u64::from_le_bytes(head[40..48].try_into().unwrap_or([0xff; 8]));
-        len < meta_len
-    };
-    if torn {
+    let torn = crate::ffz::torn_header(&job.output)?;
+    if let Some(len) = torn {
         eprintln!(
             "ffstream: warning: {} ends inside its header ({len} bytes; killed while starting): no row can be in it, starting afresh",
             job.output.display()
         );
     }
-    Ok(torn)
+    Ok(torn.is_some())
 }
 
 /// Turn what the master saw into the run's report.

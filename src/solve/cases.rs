@@ -22,8 +22,8 @@ use std::path::Path;
 
 use crate::patch::PatchSet;
 
-use super::csv::split_line;
 use super::error::SolveError;
+use crate::table;
 
 /// The header line of an emission-cases file.
 pub const CASES_HEADER: &str = "case,group,e_r,e_g,e_b";
@@ -73,18 +73,19 @@ pub fn parse_emission_cases(
     let mut names: Vec<String> = Vec::new();
     let mut per_group: Vec<HashMap<u32, [f32; 3]>> = Vec::new();
     let mut header_seen = false;
-    for (k, raw) in text.lines().enumerate() {
-        let line_no = k + 1;
-        let line = raw.trim_start_matches('\u{feff}').trim();
-        if line.is_empty() || line.starts_with('#') {
-            continue;
-        }
-        let fields = split_line(line).map_err(|m| err(line_no, m))?;
+    for record in table::records(text) {
+        let table::Record {
+            line: line_no,
+            fields,
+        } = record.map_err(|(line, m)| err(line, m))?;
         if !header_seen {
             if fields.join(",") != CASES_HEADER {
                 return Err(err(
                     line_no,
-                    format!("expected the header `{CASES_HEADER}`, found `{line}`"),
+                    format!(
+                        "expected the header `{CASES_HEADER}`, found `{}`",
+                        fields.join(",")
+                    ),
                 ));
             }
             header_seen = true;

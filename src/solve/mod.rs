@@ -40,7 +40,6 @@
 
 mod cases;
 mod check;
-mod csv;
 mod energy;
 mod error;
 mod ffz_source;

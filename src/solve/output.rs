@@ -9,14 +9,13 @@
 //! `render --radiosity` can take, with no case column to filter on.
 
 use std::fmt::Write as _;
-use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 
 use crate::patch::PatchSet;
 
-use super::csv::{escape, split_line};
 use super::error::SolveError;
 use super::Solution;
+use crate::table::{self, TableWriter};
 
 /// Header of the radiosity CSV (docs/architecture.md §7 fixes the first six names).
 pub const CSV_HEADER: &str =
@@ -52,36 +51,23 @@ pub fn write_csv(
 ) -> Result<(), SolveError> {
     check_case(patches, solution, case)?;
     let io = |e| SolveError::io(path, e);
-    let file = std::fs::File::create(path).map_err(io)?;
-    let mut w = BufWriter::new(file);
-    writeln!(w, "{CSV_HEADER}").map_err(io)?;
+    let mut w = TableWriter::create(path).map_err(io)?;
+    w.record(CSV_HEADER.split(',')).map_err(io)?;
     let (b, h, e) = (&solution.b[case], &solution.h[case], &solution.e[case]);
-    let mut line = String::new();
     for (i, p) in patches.patches.iter().enumerate() {
-        line.clear();
-        // Writing into a String cannot fail.
-        let _ = write!(
-            line,
-            "{i},{},{},{},{},{}",
-            escape(patches.group_name(i)),
-            p.area,
-            b[i][0],
-            b[i][1],
-            b[i][2]
-        );
+        let mut fields = vec![
+            i.to_string(),
+            patches.group_name(i).to_string(),
+            p.area.to_string(),
+        ];
+        fields.extend(b[i].iter().map(f64::to_string));
         // E came from f32 input: print it as f32 so 0.1 reads back as 0.1.
-        for x in e[i] {
-            let _ = write!(line, ",{}", x as f32);
-        }
-        for x in solution.rho[i] {
-            let _ = write!(line, ",{x}");
-        }
-        for x in h[i] {
-            let _ = write!(line, ",{x}");
-        }
-        writeln!(w, "{line}").map_err(io)?;
+        fields.extend(e[i].iter().map(|&x| (x as f32).to_string()));
+        fields.extend(solution.rho[i].iter().map(|x| x.to_string()));
+        fields.extend(h[i].iter().map(f64::to_string));
+        w.record(&fields).map_err(io)?;
     }
-    w.flush().map_err(io)
+    w.finish().map_err(io)
 }
 
 fn check_case(patches: &PatchSet, solution: &Solution, case: usize) -> Result<(), SolveError> {
@@ -115,22 +101,28 @@ pub fn read_radiosity_csv(path: &Path, n: usize) -> Result<Vec<[f32; 3]>, SolveE
         line,
         message,
     };
-    let mut lines = text.lines().enumerate();
-    let header = lines.next().map(|(_, l)| l).unwrap_or("");
-    let header = header.trim_start_matches('\u{feff}');
-    if !header.starts_with("patch,group,area,B_r,B_g,B_b") {
+    let mut records = table::records(&text);
+    let header_ok = match records.next() {
+        Some(Ok(h)) => {
+            h.line == 1
+                && h.fields
+                    .join(",")
+                    .starts_with("patch,group,area,B_r,B_g,B_b")
+        }
+        _ => false,
+    };
+    if !header_ok {
         return Err(err(
             1,
             "expected a header starting `patch,group,area,B_r,B_g,B_b`".into(),
         ));
     }
     let mut out: Vec<Option<[f32; 3]>> = vec![None; n];
-    for (k, line) in lines {
-        let line_no = k + 1;
-        if line.trim().is_empty() {
-            continue;
-        }
-        let f = split_line(line).map_err(|m| err(line_no, m))?;
+    for record in records {
+        let table::Record {
+            line: line_no,
+            fields: f,
+        } = record.map_err(|(line, m)| err(line, m))?;
         if f.len() < 6 {
             return Err(err(
                 line_no,

@@ -7,37 +7,19 @@ use ffstream::rows::{Row, RowValues};
 use glam::DVec3;
 use std::path::Path;
 
-/// SplitMix64 (Steele, Lea, Flood 2014): small, seedable, good enough for test data.
-pub(crate) struct Rng(pub u64);
-
-impl Rng {
-    pub(crate) fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-    pub(crate) fn below(&mut self, n: u64) -> u64 {
-        self.next_u64() % n.max(1)
-    }
-    pub(crate) fn f32(&mut self) -> f32 {
-        (self.next_u64() >> 40) as f32 / (1u64 << 24) as f32
-    }
-    pub(crate) fn shuffle<T>(&mut self, v: &mut [T]) {
-        for i in (1..v.len()).rev() {
-            let j = self.below(i as u64 + 1) as usize;
-            v.swap(i, j);
-        }
-    }
-}
+/// The project's seeded generator, for test data.
+pub(crate) use ffstream::formfactor::sampling::SplitMix64;
 
 /// n random patches in 3 groups.
 pub(crate) fn patches(n: u32, seed: u64) -> PatchSet {
-    let mut r = Rng(seed);
+    let mut r = SplitMix64::new(seed);
     let mut ps = Vec::with_capacity(n as usize);
     for i in 0..n {
-        let o = DVec3::new(r.f32() as f64, r.f32() as f64, r.f32() as f64);
+        let o = DVec3::new(
+            r.next_f32() as f64,
+            r.next_f32() as f64,
+            r.next_f32() as f64,
+        );
         let quad = r.below(2) == 0;
         let corners = [
             o,
@@ -53,10 +35,10 @@ pub(crate) fn patches(n: u32, seed: u64) -> PatchSet {
             corners,
             n_corners: if quad { 4 } else { 3 },
             normal: DVec3::Z,
-            area: if quad { 0.01 } else { 0.005 } + r.f32() as f64 * 1e-3,
+            area: if quad { 0.01 } else { 0.005 } + r.next_f32() as f64 * 1e-3,
             group: i % 3,
             face: i / 2,
-            rho: [r.f32() * 0.9, 0.5, 0.25],
+            rho: [r.next_f32() * 0.9, 0.5, 0.25],
             emission: [if i == 0 { 10.0 } else { 0.0 }, 0.0, 1.5],
         });
     }
@@ -80,7 +62,7 @@ pub(crate) fn meta(layout: Layout, patches: PatchSet) -> FileMeta {
 /// Row i of a random matrix, deterministic in (seed, i): about 1 row in 11 skipped,
 /// 1 in 13 empty (sparse) or all-zero (dense), the rest with random values.
 pub(crate) fn row(seed: u64, i: u32, n: u32, layout: Layout) -> Row {
-    let mut r = Rng(seed ^ (i as u64).wrapping_mul(0x2545_F491_4F6C_DD1D));
+    let mut r = SplitMix64::new(seed ^ (i as u64).wrapping_mul(0x2545_F491_4F6C_DD1D));
     if r.below(11) == 0 {
         return Row::skipped(i);
     }
@@ -92,7 +74,7 @@ pub(crate) fn row(seed: u64, i: u32, n: u32, layout: Layout) -> Row {
                     if empty || j == i || r.below(4) == 0 {
                         0.0
                     } else {
-                        r.f32() * 1e-2
+                        r.next_f32() * 1e-2
                     }
                 })
                 .collect();
@@ -102,20 +84,20 @@ pub(crate) fn row(seed: u64, i: u32, n: u32, layout: Layout) -> Row {
             let want = if empty {
                 0
             } else {
-                r.below(k.min(n) as u64 + 1) as usize
+                r.below(k.min(n) as usize + 1)
             };
             let mut cols: Vec<u32> = Vec::with_capacity(want);
             // Random distinct columns: sample, then sort and dedupe.
             for _ in 0..want {
-                cols.push(r.below(n as u64) as u32);
+                cols.push(r.below(n as usize) as u32);
             }
             cols.sort_unstable();
             cols.dedup();
-            let vals = cols.iter().map(|_| r.f32() * 0.1).collect();
+            let vals = cols.iter().map(|_| r.next_f32() * 0.1).collect();
             Row {
                 index: i,
                 values: RowValues::Sparse { cols, vals },
-                dropped: if empty { 0.0 } else { r.f32() * 1e-3 },
+                dropped: if empty { 0.0 } else { r.next_f32() * 1e-3 },
             }
         }
     }

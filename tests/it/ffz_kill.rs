@@ -29,7 +29,7 @@ fn child_writer() {
         .unwrap_or(0);
     let m = meta(LAYOUT, patches(N, SEED));
     let mut ids: Vec<u32> = (0..N).collect();
-    Rng(SEED).shuffle(&mut ids);
+    SplitMix64::new(SEED).shuffle(&mut ids);
     let opts = WriterOptions {
         fsync: false,
         ..Default::default()

@@ -132,7 +132,7 @@ fn python_reader_agrees_with_rust() {
         let path = dir.path().join(name);
         let m = meta(layout, patches(n, 21));
         let mut ids: Vec<u32> = (0..n).collect();
-        Rng(99).shuffle(&mut ids);
+        SplitMix64::new(99).shuffle(&mut ids);
         ids.truncate(n as usize - 7); // a few rows missing too
         let rows: Vec<Row> = ids.iter().map(|&i| row(13, i, n, layout)).collect();
         write(&path, &m, &rows, 8 << 10);

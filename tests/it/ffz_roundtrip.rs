@@ -12,7 +12,7 @@ fn round_trip(n: u32, layout: Layout, seed: u64, chunk_bytes: usize) -> FfzReade
     let path = dir.path().join("m.ffz");
     let m = meta(layout, patches(n, seed));
     let mut ids: Vec<u32> = (0..n).collect();
-    Rng(seed).shuffle(&mut ids);
+    SplitMix64::new(seed).shuffle(&mut ids);
     let rows: Vec<Row> = ids.iter().map(|&i| row(seed, i, n, layout)).collect();
     write(&path, &m, &rows, chunk_bytes);
     let rd = FfzReader::open(&path).unwrap();

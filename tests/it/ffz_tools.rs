@@ -41,7 +41,7 @@ fn reciprocity_and_row_sums_have_the_known_values() {
     let m = meta(Layout::Dense, patches(n, 5));
     let areas: Vec<f64> = m.patches.patches.iter().map(|p| p.area).collect();
     let mut rows = reciprocal_rows(n, &areas);
-    Rng(3).shuffle(&mut rows);
+    SplitMix64::new(3).shuffle(&mut rows);
     write(&path, &m, &rows, 2000);
     let rd = FfzReader::open(&path).unwrap();
     let want = 0.3 / 1.3;
@@ -142,7 +142,7 @@ fn compare_reports_identity_differences_and_rows_in_one_file() {
     // Same rows, other order and chunking: identical.
     let b = dir.path().join("b.ffz");
     let mut shuffled = rows.clone();
-    Rng(1).shuffle(&mut shuffled);
+    SplitMix64::new(1).shuffle(&mut shuffled);
     write(&b, &m, &shuffled, 1 << 20);
     let (ra, rb) = (FfzReader::open(&a).unwrap(), FfzReader::open(&b).unwrap());
     let opts = VerifyOptions {

@@ -5,6 +5,7 @@
 
 use std::path::Path;
 
+use ffstream::formfactor::sampling::SplitMix64;
 use ffstream::patch::{Patch, PatchSet};
 use ffstream::render::{write_ply_with, PlyEncoding, PlyOptions};
 use ffstream::rows::{Row, RowValues};
@@ -19,23 +20,6 @@ use glam::DVec3;
 /// Unit cube, inward faces (docs/known-answers.md §5, Howell C-11 and C-14).
 const CUBE_OPPOSITE: f64 = 0.19982489570;
 const CUBE_ADJACENT: f64 = 0.20004377608;
-
-/// xorshift64*: a fixed, dependency-free random sequence for test data.
-struct Rng(u64);
-impl Rng {
-    fn next(&mut self) -> u64 {
-        self.0 ^= self.0 >> 12;
-        self.0 ^= self.0 << 25;
-        self.0 ^= self.0 >> 27;
-        self.0.wrapping_mul(0x2545_F491_4F6C_DD1D)
-    }
-    fn below(&mut self, n: u64) -> u64 {
-        self.next() % n
-    }
-    fn uniform(&mut self) -> f64 {
-        (self.next() >> 11) as f64 / (1u64 << 53) as f64
-    }
-}
 
 /// A patch whose geometry is irrelevant to the solver (only `area` counts).
 fn patch(area: f64, group: u32) -> Patch {
@@ -80,11 +64,11 @@ fn cube_rows() -> Vec<Row> {
 
 /// Areas: integers in [1, 4] summing to `total` (a power of two), so that every
 /// F_ij = A_j / A is exact in f32 and reciprocity A_i F_ij = A_j F_ji holds exactly.
-fn sphere_areas(n: usize, total: u32, rng: &mut Rng) -> Vec<f64> {
+fn sphere_areas(n: usize, total: u32, rng: &mut SplitMix64) -> Vec<f64> {
     let mut a: Vec<u32> = (0..n).map(|_| 1 + rng.below(3) as u32).collect();
     let mut sum: u32 = a.iter().sum();
     while sum != total {
-        let i = rng.below(n as u64) as usize;
+        let i = rng.below(n);
         if sum < total && a[i] < 4 {
             a[i] += 1;
             sum += 1;
@@ -356,19 +340,19 @@ fn sphere_closed_form_every_method() {
         (500, 1024, None, 0.9),
     ];
     for (n, total_area, uniform, rho_max) in cases {
-        let mut rng = Rng(0x5eed_0001);
+        let mut rng = SplitMix64::new(0x5eed_0001);
         let areas = sphere_areas(n, total_area, &mut rng);
         let total: f64 = areas.iter().sum();
         let src = source(&areas, sphere_rows(&areas));
         let mut e = vec![[0.0f32; 3]; n];
         for _ in 0..20 {
-            let i = rng.below(n as u64) as usize;
+            let i = rng.below(n);
             e[i] = [1.0, 2.0, 0.5];
         }
         let rho: Vec<[f32; 3]> = match uniform {
             Some(r) => vec![[r; 3]; n],
             None => (0..n)
-                .map(|_| std::array::from_fn(|_| (0.1 + 0.8 * rng.uniform()) as f32))
+                .map(|_| std::array::from_fn(|_| (0.1 + 0.8 * rng.next_f64()) as f32))
                 .collect(),
         };
         let (rho, rho_max) = (&rho, &rho_max);
@@ -461,7 +445,7 @@ fn high_reflectance_stays_finite_and_conserves() {
         );
     }
     // The same on a 64-patch sphere (exact rows).
-    let mut rng = Rng(99);
+    let mut rng = SplitMix64::new(99);
     let areas = sphere_areas(64, 128, &mut rng);
     let src = source(&areas, sphere_rows(&areas));
     let mut e = vec![[0.0f32; 3]; 64];
@@ -496,9 +480,9 @@ fn multi_rhs_equals_single_solves_and_is_linear() {
     let (rows, _) = ring_rows(n, None);
     let areas = vec![1.0; n];
     let src = source(&areas, rows);
-    let mut rng = Rng(7);
+    let mut rng = SplitMix64::new(7);
     let rho: Vec<[f32; 3]> = (0..n)
-        .map(|_| std::array::from_fn(|_| (0.2 + 0.7 * rng.uniform()) as f32))
+        .map(|_| std::array::from_fn(|_| (0.2 + 0.7 * rng.next_f64()) as f32))
         .collect();
     let mut e1 = vec![[0.0f32; 3]; n];
     let mut e2 = vec![[0.0f32; 3]; n];
@@ -584,7 +568,7 @@ impl RowSource for Poisoned {
 /// irradiance (a black sensor) obtained by reciprocity equals the closed form.
 #[test]
 fn non_reflecting_rows_are_skipped_and_never_read() {
-    let mut rng = Rng(0xda4c);
+    let mut rng = SplitMix64::new(0xda4c);
     let n = 200;
     let areas = sphere_areas(n, 512, &mut rng);
     let total: f64 = areas.iter().sum();
@@ -759,7 +743,7 @@ fn top_k_renormalisation_restores_conservation() {
 /// conserves exactly whatever the truncation.
 #[test]
 fn shooting_conserves_power_with_asymmetric_top_k() {
-    let mut rng = Rng(31337);
+    let mut rng = SplitMix64::new(31337);
     let n = 300;
     let areas = sphere_areas(n, 512, &mut rng);
     let total: f64 = areas.iter().sum();
@@ -818,9 +802,9 @@ fn gauss_seidel_is_order_independent() {
     )
     .unwrap();
     rows.reverse();
-    let mut rng = Rng(5);
+    let mut rng = SplitMix64::new(5);
     for i in (1..n).rev() {
-        rows.swap(i, rng.below(i as u64 + 1) as usize);
+        rows.swap(i, rng.below(i + 1));
     }
     let shuffled = solve(
         &source(&areas, rows),

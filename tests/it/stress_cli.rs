@@ -191,15 +191,10 @@ fn every_corpus_file_gives_one_error_line_or_a_warning_through_compute_and_run()
 fn invalid_utf8_and_binary_garbage_are_errors_naming_the_file() {
     let dir = tempfile::tempdir().unwrap();
     let f = dir.path().join("garbage.obj");
-    // A fixed pseudo-random byte string (xorshift), not valid UTF-8.
-    let mut x = 0x9E37_79B9_7F4A_7C15u64;
+    // A fixed pseudo-random byte string, every byte ≥ 0x80: not valid UTF-8.
+    let mut rng = ffstream::formfactor::sampling::SplitMix64::new(1);
     let bytes: Vec<u8> = (0..4096)
-        .map(|_| {
-            x ^= x << 13;
-            x ^= x >> 7;
-            x ^= x << 17;
-            (x >> 24) as u8 | 0x80
-        })
+        .map(|_| (rng.next_u64() >> 24) as u8 | 0x80)
         .collect();
     std::fs::write(&f, &bytes).unwrap();
     let out = ffstream(&["compute", path_str(&f), "-o", "/dev/null", "--quiet"]);

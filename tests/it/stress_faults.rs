@@ -49,14 +49,6 @@ fn seeds() -> u64 {
     }
 }
 
-/// Deterministic pseudo-random numbers from a seed (splitmix64).
-fn mix(seed: u64) -> u64 {
-    let mut z = seed.wrapping_add(0x9E37_79B9_7F4A_7C15);
-    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    z ^ (z >> 31)
-}
-
 /// The ranks mpirun started: (pid, rank), once all `ranks` are up. Gives up after 30 s,
 /// killing the job first (a panic alone would leave it running past the test).
 fn rank_pids(mpirun_pid: u32, ranks: usize) -> Vec<(u32, usize)> {
@@ -116,7 +108,8 @@ fn kill_and_resume(victim_rank: usize, seed: u64, full: &Path, dir: &Path) -> (f
     // meta_len, bytes 40..48 of the header, formats/ffz-v1.md §3.1).
     let bytes = std::fs::read(full).unwrap();
     let meta_len = u64::from_le_bytes(bytes[40..48].try_into().unwrap()) as f64;
-    let r = mix(seed * 31 + victim_rank as u64);
+    let r =
+        ffstream::formfactor::sampling::SplitMix64::new(seed * 31 + victim_rank as u64).next_u64();
     let fraction = 0.1 + 0.6 * (r % 1000) as f64 / 1000.0;
     let target = meta_len + fraction * (full_len - meta_len);
     let mut child = mpirun(3, &compute_args(&part, &[]))

@@ -14,6 +14,7 @@
 //! FFSTREAM_STRESS_LONG=1 for 20 000. A failing mutant is written to
 //! `target/fuzz-failures/` and named in the panic message, with its seed.
 
+use ffstream::formfactor::sampling::SplitMix64;
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::{Path, PathBuf};
 
@@ -35,23 +36,6 @@ fn iterations() -> u64 {
         20_000
     } else {
         400
-    }
-}
-
-/// xorshift64*: deterministic per seed.
-struct Rng(u64);
-impl Rng {
-    fn new(seed: u64) -> Self {
-        Rng(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1)
-    }
-    fn next(&mut self) -> u64 {
-        self.0 ^= self.0 >> 12;
-        self.0 ^= self.0 << 25;
-        self.0 ^= self.0 >> 27;
-        self.0.wrapping_mul(0x2545_F491_4F6C_DD1D)
-    }
-    fn below(&mut self, n: usize) -> usize {
-        (self.next() % n.max(1) as u64) as usize
     }
 }
 
@@ -105,7 +89,7 @@ fn fix_crcs(b: &mut [u8]) {
 }
 
 /// One mutant of `base`; true when the CRCs were recomputed afterwards.
-fn mutate_ffz(base: &[u8], rng: &mut Rng) -> (Vec<u8>, bool) {
+fn mutate_ffz(base: &[u8], rng: &mut SplitMix64) -> (Vec<u8>, bool) {
     let mut b = base.to_vec();
     let rounds = 1 + rng.below(3);
     for _ in 0..rounds {
@@ -120,7 +104,7 @@ fn mutate_ffz(base: &[u8], rng: &mut Rng) -> (Vec<u8>, bool) {
             1 => {
                 let i = rng.below(len);
                 if i < b.len() {
-                    b[i] = rng.next() as u8;
+                    b[i] = rng.next_u64() as u8;
                 }
             }
             2 => b.truncate(rng.below(len)),
@@ -156,7 +140,9 @@ fn mutate_ffz(base: &[u8], rng: &mut Rng) -> (Vec<u8>, bool) {
             }
             _ => {
                 let i = rng.below(len).min(b.len());
-                let ins: Vec<u8> = (0..1 + rng.below(16)).map(|_| rng.next() as u8).collect();
+                let ins: Vec<u8> = (0..1 + rng.below(16))
+                    .map(|_| rng.next_u64() as u8)
+                    .collect();
                 b.splice(i..i, ins);
             }
         }
@@ -229,7 +215,7 @@ fn ffz_reader_survives_mutated_files() {
     let mut opened = 0u64;
     for seed in 0..iters {
         let (name, base, known) = &bases[(seed % bases.len() as u64) as usize];
-        let mut rng = Rng::new(seed);
+        let mut rng = SplitMix64::new(seed);
         let (bytes, forged) = mutate_ffz(base, &mut rng);
         std::fs::write(&target, &bytes).unwrap();
         let expect = |i: u32| -> Option<Row> {
@@ -282,7 +268,7 @@ const NUMBERS: [&str; 14] = [
     "1/2/3",
 ];
 
-fn mutate_obj(text: &str, rng: &mut Rng) -> String {
+fn mutate_obj(text: &str, rng: &mut SplitMix64) -> String {
     let mut lines: Vec<String> = text.lines().map(String::from).collect();
     for _ in 0..1 + rng.below(3) {
         if lines.is_empty() {
@@ -380,7 +366,7 @@ fn obj_loader_survives_mutated_files() {
     let mut loaded = 0u64;
     for seed in 0..iters {
         let (name, base) = &bases[(seed % bases.len() as u64) as usize];
-        let mut rng = Rng::new(seed ^ 0x0B1);
+        let mut rng = SplitMix64::new(seed ^ 0x0B1);
         let text = mutate_obj(base, &mut rng);
         std::fs::write(&target, &text).unwrap();
         if let Some(trace) = std::env::var_os("FFSTREAM_FUZZ_TRACE") {

@@ -58,14 +58,8 @@ fn assert_thread_invariant(e: RowEngine, shuffle_seed: u64) {
     let mut s = Scratch::new();
     let forward: Vec<Row> = (0..n).map(|i| e.compute_row(i, &mut s)).collect();
     let mut order: Vec<u32> = (0..n).collect();
-    // Fisher–Yates with a small xorshift: any order will do, it only has to differ.
-    let mut x = shuffle_seed | 1;
-    for k in (1..order.len()).rev() {
-        x ^= x << 13;
-        x ^= x >> 7;
-        x ^= x << 17;
-        order.swap(k, (x % (k as u64 + 1)) as usize);
-    }
+    // Any order will do, it only has to differ.
+    ffstream::formfactor::sampling::SplitMix64::new(shuffle_seed).shuffle(&mut order);
     let handles: Vec<_> = [order.clone(), order.into_iter().rev().collect::<Vec<_>>()]
         .into_iter()
         .map(|o| {

@@ -574,8 +574,8 @@ fn packets_answer_like_single_segments() {
         // foreign pair, the segments)
         let mut packets = Vec::new();
         for _ in 0..400 {
-            let a = rng.below(tris.len() as u32) as usize;
-            let b = rng.below(tris.len() as u32) as usize;
+            let a = rng.below(tris.len());
+            let b = rng.below(tris.len());
             let rays: Vec<_> = (0..PACKET)
                 .map(|_| {
                     (
@@ -589,8 +589,8 @@ fn packets_answer_like_single_segments() {
         let singles = test_segments(&tris, seed + 30, scale, 3000);
         let mut at = 0;
         while at < singles.len() {
-            let n = (1 + rng.below(PACKET as u32) as usize).min(singles.len() - at);
-            let k = rng.below(tris.len() as u32) as usize;
+            let n = (1 + rng.below(PACKET)).min(singles.len() - at);
+            let k = rng.below(tris.len());
             packets.push(((k, (k * 7) % tris.len()), singles[at..at + n].to_vec()));
             at += n;
         }
@@ -621,7 +621,7 @@ fn packets_answer_like_single_segments() {
                 let ids: Vec<u32> = (0..occ.len() as u32)
                     .filter(|_| rng.below(4) == 0)
                     .collect();
-                let mut first = rng.below(ids.len() as u32 + 2) as usize;
+                let mut first = rng.below(ids.len() + 2);
                 let got = occ.occluded_packet_by(segs, &ids, planes, &mut first);
                 let mut first = 0;
                 let alone_list = segs.iter().enumerate().fold(0u32, |m, (l, &(x, y))| {
