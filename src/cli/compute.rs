@@ -12,6 +12,7 @@ use ffstream::ffz::{FileMeta, Layout, WriterOptions};
 use ffstream::formfactor::{FormFactorConfig, Method, RowEngine};
 use ffstream::geometry::occluders::Occluders;
 use ffstream::geometry::subdivide::{default_max_edge, patch_count, subdivide};
+use ffstream::patch::PatchSet;
 use ffstream::scene::{self, Scene};
 #[cfg(feature = "mpi")]
 use ffstream::service::ServiceError;
@@ -45,11 +46,12 @@ pub(crate) struct ComputeOptions {
     #[arg(long, value_enum, value_name = "METHOD")]
     pub method: Option<MethodArg>,
     /// Visibility samples per pair (mc: point pairs; contour: rays per pair that may be
-    /// occluded, fewer only when --first-batch is below it and the first rays agree).
+    /// occluded, all of them cast unless --first-batch is also given).
     #[arg(long, value_name = "S")]
     pub samples: Option<u32>,
     /// Rays cast for a pair before the adaptive early stop (when they all agree the
-    /// pair is done). Equal to --samples: no early stop. Default: from the preset.
+    /// pair is done; the stop is biased, see README). Equal to --samples: no early
+    /// stop. Default: the preset's, or --samples when that is given.
     #[arg(long, value_name = "B")]
     pub first_batch: Option<u32>,
     /// Keep only the K largest entries of each row (the dropped mass is stored per row).
@@ -140,88 +142,16 @@ pub(super) fn build_job(
     o: &ComputeOptions,
     role: Role,
 ) -> anyhow::Result<ComputeJob> {
-    let announce = role != Role::Worker;
     let setup_start = std::time::Instant::now();
     let scene = tracing::info_span!("load_scene").in_scope(|| load_scene(&input.scene))?;
-    if announce {
+    if role != Role::Worker {
         for w in &scene.warnings {
             eprintln!("ffstream: warning: {w}");
         }
     }
-    let max_edge = match input.max_edge {
-        Some(l) if l.is_finite() && l > 0.0 => l,
-        Some(l) => bail!("--max-edge must be a positive length, got {l}"),
-        None => default_max_edge(&scene, input.patches),
-    };
-    // Refuse before allocating: a tiny --max-edge (or a huge --patches) would otherwise
-    // abort on a failed allocation instead of giving an error.
-    let count = patch_count(&scene, max_edge);
-    if count > MAX_PATCHES {
-        bail!(
-            "{}: max edge {max_edge:e} gives {count} patches, more than the {MAX_PATCHES} \
-             supported (row ids are 32-bit and the patch table is held in memory); \
-             use a larger --max-edge or a smaller --patches",
-            input.scene
-        );
-    }
-    let patches =
-        Arc::new(tracing::info_span!("subdivide").in_scope(|| subdivide(&scene, max_edge)));
-    if announce {
-        let how = if input.max_edge.is_some() {
-            "given"
-        } else {
-            "chosen for about --patches"
-        };
-        eprintln!(
-            "ffstream: {} faces -> {} patches (max edge {max_edge:.6} scene units, {how})",
-            scene.faces.len(),
-            patches.len()
-        );
-    }
-    if patches.is_empty() {
-        bail!("{}: the scene has no patches", input.scene);
-    }
-    let mut cfg = FormFactorConfig::preset(o.preset.into());
-    if let Some(m) = o.method {
-        cfg.method = m.into();
-    }
-    if let Some(s) = o.samples {
-        if s == 0 {
-            bail!("--samples must be at least 1");
-        }
-        cfg.samples = s;
-    }
-    if let Some(b) = o.first_batch {
-        if b == 0 {
-            bail!("--first-batch must be at least 1");
-        }
-        cfg.first_batch = b;
-    }
-    cfg.seed = o.seed;
-    cfg.top_k = match o.top_k {
-        Some(0) => bail!("--top-k must be at least 1"),
-        k => k,
-    };
-    cfg.validate()?;
-    let occluder_triangles = match &o.occluders {
-        Some(path) => scene::load_obj(path)?.triangles().collect(),
-        None => scene.triangles().collect(),
-    };
-    let (engine, description) = if role == Role::Master {
-        let kept = Occluders::count_kept(occluder_triangles);
-        (None, RowEngine::description(&cfg, kept))
-    } else {
-        let occluders = Arc::new(tracing::info_span!("build_bvh").in_scope(
-            || match &o.occluders {
-                Some(_) => Occluders::new_foreign(occluder_triangles),
-                None => Occluders::new(occluder_triangles),
-            },
-        ));
-        let engine = tracing::info_span!("prepare_engine")
-            .in_scope(|| RowEngine::new(&patches, occluders, cfg.clone()));
-        let description = engine.describe();
-        (Some(Arc::new(engine)), description)
-    };
+    let (patches, max_edge) = patches_of(input, &scene, role != Role::Worker)?;
+    let cfg = form_factor_config(o)?;
+    let (engine, description) = engine_for(role, o, &scene, &patches, &cfg)?;
     let took = setup_start.elapsed().as_secs_f64();
     match role {
         // Every process that computes does this set-up itself; this is its cost
@@ -235,29 +165,12 @@ pub(super) fn build_job(
         ),
         Role::Worker => {}
     }
-    let layout = match cfg.top_k {
-        Some(k) => Layout::TopK { k },
-        None => Layout::Dense,
-    };
-    // Half rows mirror F_ij into F_ji = F_ij A_i / A_j. That is the other direction
-    // only for `contour` (exact unoccluded part, symmetric visibility estimate): the
-    // `point` and `mc` baselines clamp each direction to 1 on their own, and a mirrored
-    // clamped value can exceed 1 (row sums of 4.5 seen on the Cornell box with mc).
-    let halves_ok = cfg.method == Method::Contour;
-    let symmetric = match (o.symmetric, o.gather) {
-        (SymmetricArg::On, true) => bail!(
-            "--gather is the paper's full-row baseline: it cannot be combined with --symmetric on"
-        ),
-        (SymmetricArg::On, false) if !halves_ok => bail!(
-            "--symmetric on needs --method contour: the {} kernel clamps each direction to 1, so its mirror is not its other direction",
-            cfg.method
-        ),
-        (SymmetricArg::On, false) => true,
-        (SymmetricArg::Off, _) | (SymmetricArg::Auto, true) => false,
-        (SymmetricArg::Auto, false) => cfg.top_k.is_none() && halves_ok,
-    };
+    let symmetric = symmetric_mode(o, &cfg)?;
     let meta = FileMeta {
-        layout,
+        layout: match cfg.top_k {
+            Some(k) => Layout::TopK { k },
+            None => Layout::Dense,
+        },
         method: cfg.method.to_string(),
         params: format!(
             "{} max_edge={max_edge} scene={}{}{}",
@@ -278,11 +191,17 @@ pub(super) fn build_job(
     let threads = o
         .threads
         .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
-    if threads == 0 {
-        bail!("--threads must be at least 1");
+    if threads == 0 || threads > MAX_THREADS {
+        bail!("--threads must be between 1 and {MAX_THREADS}, got {threads}");
     }
     if o.chunk_kib == 0 {
         bail!("--chunk-kib must be at least 1");
+    }
+    if !(o.flush_seconds.is_finite() && o.flush_seconds >= 0.0) {
+        bail!(
+            "--flush-seconds must be a finite number of seconds ≥ 0, got {}",
+            o.flush_seconds
+        );
     }
     Ok(ComputeJob {
         output,
@@ -302,6 +221,133 @@ pub(super) fn build_job(
         },
         flush_seconds: o.flush_seconds,
         progress: !o.quiet,
+    })
+}
+
+/// Most compute threads per process: far more than any node's cores, and few enough
+/// that every thread can be started (16k threads aborted the process here).
+const MAX_THREADS: usize = 4096;
+
+/// The patches of `scene` by `--max-edge` (or the edge that gives about `--patches`),
+/// refused before they are allocated when there would be too many; and the edge.
+fn patches_of(
+    input: &SceneInput,
+    scene: &Scene,
+    announce: bool,
+) -> anyhow::Result<(Arc<PatchSet>, f64)> {
+    let max_edge = match input.max_edge {
+        Some(l) if l.is_finite() && l > 0.0 => l,
+        Some(l) => bail!("--max-edge must be a positive length, got {l}"),
+        None => default_max_edge(scene, input.patches),
+    };
+    // Refuse before allocating: a tiny --max-edge (or a huge --patches) would otherwise
+    // abort on a failed allocation instead of giving an error.
+    let count = patch_count(scene, max_edge);
+    if count > MAX_PATCHES {
+        bail!(
+            "{}: max edge {max_edge:e} gives {count} patches, more than the {MAX_PATCHES} \
+             supported (row ids are 32-bit and the patch table is held in memory); \
+             use a larger --max-edge or a smaller --patches",
+            input.scene
+        );
+    }
+    let patches =
+        Arc::new(tracing::info_span!("subdivide").in_scope(|| subdivide(scene, max_edge)));
+    if announce {
+        let how = if input.max_edge.is_some() {
+            "given"
+        } else {
+            "chosen for about --patches"
+        };
+        eprintln!(
+            "ffstream: {} faces -> {} patches (max edge {max_edge:.6} scene units, {how})",
+            scene.faces.len(),
+            patches.len()
+        );
+    }
+    if patches.is_empty() {
+        bail!("{}: the scene has no patches", input.scene);
+    }
+    Ok((patches, max_edge))
+}
+
+/// The preset with the options given explicitly on top, validated. An explicit
+/// `--samples` without `--first-batch` casts all its rays: the early stop is only ever
+/// asked for, never inherited from a preset's first batch.
+fn form_factor_config(o: &ComputeOptions) -> anyhow::Result<FormFactorConfig> {
+    let mut cfg = FormFactorConfig::preset(o.preset.into());
+    if let Some(m) = o.method {
+        cfg.method = m.into();
+    }
+    if let Some(s) = o.samples {
+        if s == 0 {
+            bail!("--samples must be at least 1");
+        }
+        cfg.samples = s;
+        cfg.first_batch = s;
+    }
+    if let Some(b) = o.first_batch {
+        if b == 0 {
+            bail!("--first-batch must be at least 1");
+        }
+        cfg.first_batch = b;
+    }
+    cfg.seed = o.seed;
+    cfg.top_k = match o.top_k {
+        Some(0) => bail!("--top-k must be at least 1"),
+        k => k,
+    };
+    cfg.validate()?;
+    Ok(cfg)
+}
+
+/// The row engine of a process that computes (none for the I/O master, which only
+/// needs the header's description), and that description.
+fn engine_for(
+    role: Role,
+    o: &ComputeOptions,
+    scene: &Scene,
+    patches: &PatchSet,
+    cfg: &FormFactorConfig,
+) -> anyhow::Result<(Option<Arc<RowEngine>>, String)> {
+    let occluder_triangles = match &o.occluders {
+        Some(path) => scene::load_obj(path)?.triangles().collect(),
+        None => scene.triangles().collect(),
+    };
+    if role == Role::Master {
+        let kept = Occluders::count_kept(occluder_triangles);
+        return Ok((None, RowEngine::description(cfg, kept)));
+    }
+    let occluders = Arc::new(
+        tracing::info_span!("build_bvh").in_scope(|| match &o.occluders {
+            Some(_) => Occluders::new_foreign(occluder_triangles),
+            None => Occluders::new(occluder_triangles),
+        }),
+    );
+    let engine = tracing::info_span!("prepare_engine")
+        .in_scope(|| RowEngine::new(patches, occluders, cfg.clone()));
+    let description = engine.describe();
+    Ok((Some(Arc::new(engine)), description))
+}
+
+/// Whether the run computes half rows (`--symmetric`, see its help).
+fn symmetric_mode(o: &ComputeOptions, cfg: &FormFactorConfig) -> anyhow::Result<bool> {
+    // Half rows mirror F_ij into F_ji = F_ij A_i / A_j. That is the other direction
+    // only for `contour` (exact unoccluded part, symmetric visibility estimate): the
+    // `point` and `mc` baselines clamp each direction to 1 on their own, and a mirrored
+    // clamped value can exceed 1 (row sums of 4.5 seen on the Cornell box with mc).
+    let halves_ok = cfg.method == Method::Contour;
+    Ok(match (o.symmetric, o.gather) {
+        (SymmetricArg::On, true) => bail!(
+            "--gather is the paper's full-row baseline: it cannot be combined with --symmetric on"
+        ),
+        (SymmetricArg::On, false) if !halves_ok => bail!(
+            "--symmetric on needs --method contour: the {} kernel clamps each direction to 1, so its mirror is not its other direction",
+            cfg.method
+        ),
+        (SymmetricArg::On, false) => true,
+        (SymmetricArg::Off, _) | (SymmetricArg::Auto, true) => false,
+        (SymmetricArg::Auto, false) => cfg.top_k.is_none() && halves_ok,
     })
 }
 

@@ -384,3 +384,35 @@ fn old_spellings_of_renamed_options_still_work() {
         "{help}"
     );
 }
+
+/// An explicit `--samples` casts all its rays: with the default preset (whose first
+/// batch is 16) `--samples 64` used to keep a first batch of 16, so a pair whose first
+/// 16 rays agreed stopped there (issue 23). The early stop only when asked for.
+#[test]
+fn explicit_samples_never_inherit_an_early_stop() {
+    let dir = tempfile::tempdir().unwrap();
+    for (extra, want) in [
+        (&["--samples", "64"][..], "samples=64 first_batch=64"),
+        (
+            &["--samples", "64", "--first-batch", "8"][..],
+            "samples=64 first_batch=8",
+        ),
+        (&[][..], "samples=16 first_batch=16"),
+    ] {
+        let out = dir.path().join("s.ffz");
+        let mut args = vec![
+            "compute",
+            "builtin:cube",
+            "--max-edge",
+            "0.5",
+            "-q",
+            "--force",
+        ];
+        args.extend_from_slice(&["-o", path_str(&out)]);
+        args.extend_from_slice(extra);
+        crate::common::ok(&args);
+        let info = ffstream(&["info", path_str(&out)]);
+        let text = String::from_utf8_lossy(&info.stdout);
+        assert!(text.contains(want), "{extra:?}: {text}");
+    }
+}

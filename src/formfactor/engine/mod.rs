@@ -20,8 +20,7 @@
 //! Counters live in the [`Scratch`] (no atomics in the hot loop); a caller that uses
 //! several scratches sums them with [`Counters::add`].
 
-use std::cmp::Reverse;
-use std::collections::BinaryHeap;
+use std::borrow::Cow;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
 
@@ -33,12 +32,11 @@ use super::farfield::{self, FarOrders, PatchLanes, PatchPoints, MAX_FAR_ORDER};
 use super::geom::PatchGeom;
 use super::polygon::{EdgeSet, Polygon};
 use super::quadrature::{gauss_table, GaussTable};
-use super::sampling::{pair_seed, SplitMix64, Stream};
 use super::scratch::{Counters, PairScratch};
 use super::{mc, point, topk, visibility, FormFactorConfig, Method, TopKTail};
 use crate::geometry::occluders::{Between, Occluders, MAX_PAIR_CANDIDATES};
 use crate::patch::PatchSet;
-use crate::rows::{Row, RowValues};
+use crate::rows::Row;
 
 /// Plane tolerance of the facing and clipping tests, relative to the diagonal of the
 /// patches' bounding box (so it scales with the scene).
@@ -404,54 +402,38 @@ impl RowEngine {
         Some((i_lo, j_lo))
     }
 
-    /// The polygons clipped to each other's front half-space (only when part of one
-    /// lies behind the other's plane).
-    fn clipped(
+    /// The polygons clipped to each other's front half-space; borrowed when nothing
+    /// of one lies behind the other's plane (copying two polygons per pair showed up
+    /// in profiles at 8.5k patches). `(i_lo, j_lo)` as [`RowEngine::facing`] gives.
+    fn clipped<'a>(
         &self,
-        gi: &PatchGeom,
-        gj: &PatchGeom,
+        gi: &'a PatchGeom,
+        gj: &'a PatchGeom,
         (i_lo, j_lo): (f64, f64),
-    ) -> (Polygon, Polygon) {
-        let pi = if i_lo < -self.tol {
-            gi.poly.clip_front(gj.normal, gj.offset, self.tol)
-        } else {
-            gi.poly
+    ) -> (Cow<'a, Polygon>, Cow<'a, Polygon>) {
+        let clip = |lo: f64, g: &'a PatchGeom, other: &PatchGeom| {
+            if lo < -self.tol {
+                Cow::Owned(g.poly.clip_front(other.normal, other.offset, self.tol))
+            } else {
+                Cow::Borrowed(&g.poly)
+            }
         };
-        let pj = if j_lo < -self.tol {
-            gj.poly.clip_front(gi.normal, gi.offset, self.tol)
-        } else {
-            gj.poly
-        };
-        (pi, pj)
+        (clip(i_lo, gi, gj), clip(j_lo, gj, gi))
     }
 
     /// `contour`, unoccluded part: F⁰_ij on the mutually clipped polygons, by the
     /// tensor Gauss rule when the pair is far apart and needs no clipping
     /// ([`super::farfield`]), else by the double contour integral. None when ≤ 0.
-    fn contour_unoccluded(
+    fn contour_unoccluded<'a>(
         &self,
         (i, j): (u32, u32),
-        gi: &PatchGeom,
-        gj: &PatchGeom,
+        gi: &'a PatchGeom,
+        gj: &'a PatchGeom,
         extent: (f64, f64),
         scratch: &mut Scratch,
     ) -> Option<Unoccluded> {
         let clip = extent.0 < -self.tol || extent.1 < -self.tol;
-        // Clipped copies only when needed (copying two polygons per pair showed up in
-        // profiles at 8.5k patches).
-        let (ci, cj);
-        let pi = if extent.0 < -self.tol {
-            ci = gi.poly.clip_front(gj.normal, gj.offset, self.tol);
-            &ci
-        } else {
-            &gi.poly
-        };
-        let pj = if extent.1 < -self.tol {
-            cj = gj.poly.clip_front(gi.normal, gi.offset, self.tol);
-            &cj
-        } else {
-            &gj.poly
-        };
+        let (pi, pj) = self.clipped(gi, gj, extent);
         let distance = (gi.centroid - gj.centroid).length();
         let gap = distance - gi.radius - gj.radius;
         let far = if clip {
@@ -468,27 +450,20 @@ impl RowEngine {
                 farfield::area_form_factor_soa(pts_i, gi.normal, lanes.slice(), gj.normal)
             }
         } else {
-            let (ei, ej);
-            let ei = if extent.0 < -self.tol {
-                ei = EdgeSet::from_polygon(pi);
-                &ei
-            } else {
-                &gi.edges
+            // The edges too are recomputed only for a clipped polygon.
+            let edges = |p: &Cow<'_, Polygon>, g: &'a PatchGeom| match p {
+                Cow::Borrowed(_) => Cow::Borrowed(&g.edges),
+                Cow::Owned(p) => Cow::Owned(EdgeSet::from_polygon(p)),
             };
-            let ej = if extent.1 < -self.tol {
-                ej = EdgeSet::from_polygon(pj);
-                &ej
-            } else {
-                &gj.edges
-            };
+            let (ei, ej) = (edges(&pi, gi), edges(&pj, gj));
             let r_ref = distance.max(gi.size).max(gj.size);
-            area_form_factor_edges(ei, ej, r_ref, self.gauss, self.params)
+            area_form_factor_edges(&ei, &ej, r_ref, self.gauss, self.params)
         };
         let f = af / gi.area;
         if f.is_nan() || f <= 0.0 {
             return None;
         }
-        let (listed, needs_rays) = self.blockers_between(i, j, gi, gj, pi, pj, scratch);
+        let (listed, needs_rays) = self.blockers_between(i, j, gi, gj, &pi, &pj, scratch);
         Some(Unoccluded {
             f,
             needs_rays,
@@ -568,146 +543,6 @@ impl RowEngine {
         v
     }
 
-    /// Top-k row of the `contour` method with a sampled tail ([`TopKTail::Sampled`]).
-    ///
-    /// 1. F⁰_ij for every j, and whether the pair needs rays;
-    /// 2. candidates in decreasing F⁰ (ties: smaller column first); each gets its
-    ///    visibility and enters a min-heap of the k best final values, until F⁰ falls
-    ///    below the heap's worst value: F ≤ F⁰, so no later candidate can enter;
-    /// 3. dropped = entries pushed out of the heap (exact) + tail pairs that need no
-    ///    rays (exact, F = F⁰) + the estimate of Σ F⁰_j V_j over the tail pairs that
-    ///    need rays, from `t` of them drawn by systematic sampling ∝ F⁰_j (all of them
-    ///    when there are at most `t`).
-    fn top_k_row_bounded(&self, i: u32, k: usize, t: usize, scratch: &mut Scratch) -> Row {
-        let n = self.n();
-        scratch.start_row(i);
-        let mut f0 = std::mem::take(&mut scratch.values);
-        let mut order = std::mem::take(&mut scratch.order);
-        let mut rays = std::mem::take(&mut scratch.flags);
-        f0.clear();
-        f0.resize(n, 0.0);
-        rays.clear();
-        rays.resize(n, false);
-        order.clear();
-        let iu = i as usize;
-        if self.valid[iu] {
-            let gi = &self.geom[iu];
-            for j in 0..n {
-                let gj = &self.geom[j];
-                if j == iu || !self.valid[j] {
-                    continue;
-                }
-                let Some(extent) = self.facing(iu, j, scratch) else {
-                    continue;
-                };
-                if let Some(u) = self.contour_unoccluded((i, j as u32), gi, gj, extent, scratch) {
-                    f0[j] = u.f;
-                    rays[j] = u.needs_rays;
-                    if !u.needs_rays {
-                        scratch.pair.counters.pairs_unoccludable += 1;
-                        scratch.pair.counters.rays_skipped += self.cfg.samples as u64;
-                    }
-                    order.push(j as u32);
-                }
-            }
-        }
-        order.sort_unstable_by(|a, b| f0[*b as usize].total_cmp(&f0[*a as usize]).then(a.cmp(b)));
-
-        // Min-heap of (final value bits, Reverse(column)): the top is the worst kept
-        // entry (smallest value; among equal values the larger column). Bit patterns of
-        // non-negative f64 order like the values.
-        let mut heap: BinaryHeap<Reverse<(u64, Reverse<u32>)>> = BinaryHeap::with_capacity(k + 1);
-        let mut dropped = 0.0f64;
-        let mut next = order.len();
-        for (pos, &j) in order.iter().enumerate() {
-            let ju = j as usize;
-            if heap.len() == k {
-                if let Some(Reverse((worst, _))) = heap.peek() {
-                    if f0[ju] < f64::from_bits(*worst) {
-                        next = pos;
-                        break;
-                    }
-                }
-            }
-            let value = if rays[ju] {
-                f0[ju] * self.visibility_of(i, j, scratch)
-            } else {
-                f0[ju]
-            };
-            heap.push(Reverse((value.to_bits(), Reverse(j))));
-            if heap.len() > k {
-                if let Some(Reverse((bits, _))) = heap.pop() {
-                    dropped += f64::from_bits(bits);
-                }
-            }
-        }
-        // The tail, in column order.
-        let tail = &mut order[next..];
-        tail.sort_unstable();
-        let mut with_rays_mass = 0.0;
-        let mut with_rays = 0usize;
-        for &j in tail.iter() {
-            if rays[j as usize] {
-                with_rays_mass += f0[j as usize];
-                with_rays += 1;
-            } else {
-                dropped += f0[j as usize];
-            }
-        }
-        if with_rays <= t {
-            for &j in tail.iter() {
-                if rays[j as usize] {
-                    dropped += f0[j as usize] * self.visibility_of(i, j, scratch);
-                }
-            }
-        } else {
-            // Systematic sampling with probability ∝ F⁰: points u0 + s·step on the
-            // cumulative F⁰ axis, step = mass / t; the estimate step · Σ V is unbiased.
-            let step = with_rays_mass / t as f64;
-            let mut rng = SplitMix64::new(pair_seed(self.cfg.seed, i, u32::MAX, Stream::TopKTail));
-            let mut point = rng.next_f64() * step;
-            let mut cumulative = 0.0;
-            let mut estimate = 0.0;
-            for &j in tail.iter() {
-                let ju = j as usize;
-                if !rays[ju] {
-                    continue;
-                }
-                cumulative += f0[ju];
-                let mut hits = 0u32;
-                while point < cumulative && hits < t as u32 {
-                    hits += 1;
-                    point += step;
-                }
-                if hits > 0 {
-                    estimate += hits as f64 * self.visibility_of(i, j, scratch);
-                } else {
-                    scratch.pair.counters.pairs_topk_tail_skipped += 1;
-                    scratch.pair.counters.rays_skipped += self.cfg.samples as u64;
-                }
-            }
-            dropped += estimate * step;
-        }
-        let mut kept: Vec<(u32, f32)> = heap
-            .into_iter()
-            .map(|Reverse((bits, Reverse(j)))| (j, f64::from_bits(bits) as f32))
-            .filter(|&(_, v)| v > 0.0)
-            .collect();
-        kept.sort_unstable_by_key(|&(j, _)| j);
-        // Entries whose visibility came out 0 carry no mass; they stay out of the row.
-        scratch.values = f0;
-        scratch.order = order;
-        scratch.flags = rays;
-        Row {
-            index: i,
-            values: RowValues::Sparse {
-                cols: kept.iter().map(|&(j, _)| j).collect(),
-                vals: kept.iter().map(|&(_, v)| v).collect(),
-            },
-            dropped: dropped as f32,
-        }
-    }
-
     /// Visibility fraction of pair (i, j) from scratch (re-clipping the polygons).
     fn visibility_of(&self, i: u32, j: u32, scratch: &mut Scratch) -> f64 {
         self.visibility_with(i, j, None, scratch)
@@ -745,187 +580,5 @@ struct Unoccluded {
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::patch::Patch;
-    use glam::dvec3;
-
-    fn square(origin: DVec3, u: DVec3, v: DVec3, face: u32) -> Patch {
-        let n = u.cross(v);
-        Patch {
-            corners: [origin, origin + u, origin + u + v, origin + v],
-            n_corners: 4,
-            normal: n.normalize(),
-            area: n.length(),
-            group: 0,
-            face,
-            rho: [0.5; 3],
-            emission: [0.0; 3],
-        }
-    }
-
-    /// Two unit squares facing each other at distance 1 (Howell C-11, X = Y = 1).
-    fn facing_pair() -> PatchSet {
-        PatchSet {
-            patches: vec![
-                square(
-                    dvec3(0.0, 0.0, 0.0),
-                    dvec3(1.0, 0.0, 0.0),
-                    dvec3(0.0, 1.0, 0.0),
-                    0,
-                ),
-                square(
-                    dvec3(0.0, 0.0, 1.0),
-                    dvec3(0.0, 1.0, 0.0),
-                    dvec3(1.0, 0.0, 0.0),
-                    1,
-                ),
-            ],
-            groups: vec!["g".into()],
-        }
-    }
-
-    #[test]
-    fn contour_single_pair_matches_howell() {
-        let e = RowEngine::new(
-            &facing_pair(),
-            Arc::new(Occluders::empty()),
-            FormFactorConfig::accurate(),
-        );
-        let mut s = Scratch::new();
-        let f = e.pair_value(0, 1, &mut s);
-        assert!((f - 0.19982489570).abs() < 1e-10, "{f}");
-        assert_eq!(e.pair_value(0, 0, &mut s), 0.0);
-        let c = s.counters();
-        assert_eq!(c.pairs_evaluated, 1);
-        assert_eq!(c.rays_cast, 0);
-    }
-
-    /// Rooms of 16 and 64 boxes (188 and 780 occluder triangles: candidate lists for
-    /// rays, and hierarchy rays), and the Cornell box: every row is bitwise the same
-    /// whether pairs take their occluders from cluster lists or query the hierarchy,
-    /// in full rows and in the half rows of a partial run, whatever rows came before
-    /// through the same scratch.
-    #[test]
-    fn cluster_lists_change_no_value() {
-        use crate::geometry::subdivide::{default_max_edge, subdivide};
-        use crate::scene::builtin;
-        let cases = [
-            ("room", None, 1200, 7),
-            ("room", Some(64.0), 3000, 29),
-            ("cornell", None, 700, 7),
-        ];
-        for (name, param, target, step) in cases {
-            let scene = builtin(name, param).unwrap();
-            let patches = Arc::new(subdivide(&scene, default_max_edge(&scene, target)));
-            let occ = Arc::new(Occluders::new(scene.triangles().collect()));
-            let cfg = FormFactorConfig::accurate();
-            let with = RowEngine::new(&patches, occ.clone(), cfg.clone());
-            assert!(with.clusters.is_some(), "{name}: no clusters");
-            let without = RowEngine::new(&patches, occ, cfg).without_clusters();
-            let n = with.n();
-            // A partial run (rows already in the file or skipped), so half rows also
-            // evaluate pairs (j, i) with j < i; the rows in a shuffled order through one
-            // scratch, so its cluster cache holds whatever earlier rows left.
-            let in_run: Vec<bool> = (0..n).map(|k| k % 3 != 1).collect();
-            let mut order: Vec<u32> = (0..n as u32).step_by(step).collect();
-            let mut rng = crate::formfactor::sampling::SplitMix64::new(n as u64);
-            for k in (1..order.len()).rev() {
-                order.swap(k, rng.below(k + 1));
-            }
-            let (mut s1, mut s2) = (Scratch::new(), Scratch::new());
-            let (mut own1, mut own2, mut m1, mut m2) = (vec![], vec![], vec![], vec![]);
-            for &i in &order {
-                assert_eq!(
-                    with.compute_row(i, &mut s1),
-                    without.compute_row(i, &mut s2),
-                    "{name}: row {i}"
-                );
-                if in_run[i as usize] {
-                    with.half_row(i, &in_run, &mut s1, &mut own1, &mut m1);
-                    without.half_row(i, &in_run, &mut s2, &mut own2, &mut m2);
-                    assert!(own1 == own2 && m1 == m2, "{name}: half row {i}");
-                }
-            }
-            let (c1, c2) = (s1.counters(), s2.counters());
-            // The pair's own query gives up on crowded pairs (rays then decide);
-            // cluster lists are complete, so they may spare rays, never add any.
-            assert!(c1.rays_cast <= c2.rays_cast && c1.pairs_unoccludable >= c2.pairs_unoccludable);
-            assert!(
-                c1.pairs_unoccludable > 0 && c1.rays_cast > 0,
-                "{name}: both kinds of pairs: {c1:?}"
-            );
-        }
-    }
-
-    /// Rows of a room of 64 boxes (780 occluder triangles: pairs walk the hierarchy)
-    /// and of the 16-box room (188 triangles: pairs test their candidate lists), each
-    /// with its own occluders and with the same room as foreign (`--occluders`)
-    /// occluders, full rows and top-k rows: bitwise the same whether a pair's rays go
-    /// as packets or one at a time.
-    #[test]
-    fn packets_change_no_value() {
-        use crate::geometry::subdivide::{default_max_edge, subdivide};
-        use crate::scene::builtin;
-        for (boxes, lists) in [(64.0, false), (16.0, true)] {
-            let scene = builtin("room", Some(boxes)).unwrap();
-            let patches = Arc::new(subdivide(&scene, default_max_edge(&scene, 1500)));
-            for foreign in [false, true] {
-                let occ = if foreign {
-                    Occluders::new_foreign(scene.triangles().collect())
-                } else {
-                    Occluders::new(scene.triangles().collect())
-                };
-                let occ = Arc::new(occ);
-                for cfg in [
-                    FormFactorConfig::accurate(),
-                    FormFactorConfig::fast().with_top_k(Some(32)),
-                ] {
-                    let packets = RowEngine::new(&patches, occ.clone(), cfg.clone());
-                    assert_eq!(packets.pair_lists, lists, "{boxes} boxes");
-                    let single = RowEngine::new(&patches, occ.clone(), cfg).one_ray_at_a_time();
-                    let (mut s1, mut s2) = (Scratch::new(), Scratch::new());
-                    for i in (0..packets.n() as u32).step_by(11) {
-                        assert_eq!(
-                            packets.compute_row(i, &mut s1),
-                            single.compute_row(i, &mut s2),
-                            "row {i}, {boxes} boxes, foreign {foreign}"
-                        );
-                    }
-                    let (c1, c2) = (s1.counters(), s2.counters());
-                    assert_eq!(c1.rays_cast, c2.rays_cast);
-                    assert!(c1.rays_cast > 10_000, "{c1:?}");
-                }
-            }
-        }
-    }
-
-    #[test]
-    fn shared_types_are_send_and_sync() {
-        fn check<T: Send + Sync>() {}
-        check::<RowEngine>();
-        check::<Occluders>();
-        check::<Scratch>();
-    }
-
-    #[test]
-    fn facing_away_costs_nothing() {
-        let mut ps = facing_pair();
-        // Turn the upper square around: it now faces up, away from the lower one.
-        ps.patches[1] = square(
-            dvec3(0.0, 0.0, 1.0),
-            dvec3(1.0, 0.0, 0.0),
-            dvec3(0.0, 1.0, 0.0),
-            1,
-        );
-        let e = RowEngine::new(
-            &ps,
-            Arc::new(Occluders::empty()),
-            FormFactorConfig::accurate(),
-        );
-        let mut s = Scratch::new();
-        assert_eq!(e.pair_value(0, 1, &mut s), 0.0);
-        assert_eq!(s.counters().pairs_facing_away, 1);
-        assert_eq!(s.counters().pairs_evaluated, 0);
-    }
-}
+mod tests;
+mod topk_bounded;

@@ -1,0 +1,201 @@
+//! Top-k rows of the `contour` method with a sampled tail ([`crate::formfactor::TopKTail::Sampled`]):
+//! the k largest entries found without the rays of the pairs that cannot enter them.
+//!
+//! 1. F⁰_ij for every j, and whether the pair needs rays ([`RowEngine::candidates`]);
+//! 2. candidates in decreasing F⁰ (ties: smaller column first); each gets its
+//!    visibility and enters a min-heap of the k best final values, until F⁰ falls
+//!    below the heap's worst value: F ≤ F⁰, so no later candidate can enter
+//!    ([`RowEngine::best_k`]);
+//! 3. dropped = entries pushed out of the heap (exact) + tail pairs that need no rays
+//!    (exact, F = F⁰) + the estimate of Σ F⁰_j V_j over the tail pairs that need rays,
+//!    from `t` of them drawn by systematic sampling ∝ F⁰_j, all of them when there are
+//!    at most `t` ([`RowEngine::tail_mass`]).
+
+use std::cmp::Reverse;
+use std::collections::BinaryHeap;
+
+use super::{RowEngine, Scratch};
+use crate::formfactor::sampling::{pair_seed, SplitMix64, Stream};
+use crate::rows::{Row, RowValues};
+
+/// Min-heap of (final value bits, Reverse(column)): the top is the worst kept entry
+/// (smallest value; among equal values the larger column). Bit patterns of
+/// non-negative f64 order like the values.
+type KeptHeap = BinaryHeap<Reverse<(u64, Reverse<u32>)>>;
+
+impl RowEngine {
+    /// Top-k row i with a sampled tail of `t` pairs (module docs).
+    pub(super) fn top_k_row_bounded(
+        &self,
+        i: u32,
+        k: usize,
+        t: usize,
+        scratch: &mut Scratch,
+    ) -> Row {
+        scratch.start_row(i);
+        let mut f0 = std::mem::take(&mut scratch.values);
+        let mut order = std::mem::take(&mut scratch.order);
+        let mut rays = std::mem::take(&mut scratch.flags);
+        self.candidates(i, scratch, &mut f0, &mut rays, &mut order);
+        order.sort_unstable_by(|a, b| f0[*b as usize].total_cmp(&f0[*a as usize]).then(a.cmp(b)));
+        let (heap, mut dropped, next) = self.best_k(i, k, &f0, &rays, &order, scratch);
+        // The tail, in column order.
+        let tail = &mut order[next..];
+        tail.sort_unstable();
+        dropped += self.tail_mass(i, t, &f0, &rays, tail, scratch);
+        let mut kept: Vec<(u32, f32)> = heap
+            .into_iter()
+            .map(|Reverse((bits, Reverse(j)))| (j, f64::from_bits(bits) as f32))
+            .filter(|&(_, v)| v > 0.0)
+            .collect();
+        kept.sort_unstable_by_key(|&(j, _)| j);
+        // Entries whose visibility came out 0 carry no mass; they stay out of the row.
+        scratch.values = f0;
+        scratch.order = order;
+        scratch.flags = rays;
+        Row {
+            index: i,
+            values: RowValues::Sparse {
+                cols: kept.iter().map(|&(j, _)| j).collect(),
+                vals: kept.iter().map(|&(_, v)| v).collect(),
+            },
+            dropped: dropped as f32,
+        }
+    }
+
+    /// Step 1: `f0[j]` = F⁰_ij, `rays[j]` whether the pair needs rays, `order` the
+    /// columns with F⁰ > 0.
+    fn candidates(
+        &self,
+        i: u32,
+        scratch: &mut Scratch,
+        f0: &mut Vec<f64>,
+        rays: &mut Vec<bool>,
+        order: &mut Vec<u32>,
+    ) {
+        let n = self.n();
+        f0.clear();
+        f0.resize(n, 0.0);
+        rays.clear();
+        rays.resize(n, false);
+        order.clear();
+        let iu = i as usize;
+        if !self.valid[iu] {
+            return;
+        }
+        let gi = &self.geom[iu];
+        for j in 0..n {
+            let gj = &self.geom[j];
+            if j == iu || !self.valid[j] {
+                continue;
+            }
+            let Some(extent) = self.facing(iu, j, scratch) else {
+                continue;
+            };
+            if let Some(u) = self.contour_unoccluded((i, j as u32), gi, gj, extent, scratch) {
+                f0[j] = u.f;
+                rays[j] = u.needs_rays;
+                if !u.needs_rays {
+                    scratch.pair.counters.pairs_unoccludable += 1;
+                    scratch.pair.counters.rays_skipped += self.cfg.samples as u64;
+                }
+                order.push(j as u32);
+            }
+        }
+    }
+
+    /// Step 2: the k best final values among the candidates in `order` (decreasing
+    /// F⁰), the mass pushed out of the heap, and where in `order` the tail starts.
+    fn best_k(
+        &self,
+        i: u32,
+        k: usize,
+        f0: &[f64],
+        rays: &[bool],
+        order: &[u32],
+        scratch: &mut Scratch,
+    ) -> (KeptHeap, f64, usize) {
+        let mut heap = KeptHeap::with_capacity(k + 1);
+        let mut dropped = 0.0f64;
+        for (pos, &j) in order.iter().enumerate() {
+            let ju = j as usize;
+            if heap.len() == k {
+                if let Some(Reverse((worst, _))) = heap.peek() {
+                    if f0[ju] < f64::from_bits(*worst) {
+                        return (heap, dropped, pos);
+                    }
+                }
+            }
+            let value = if rays[ju] {
+                f0[ju] * self.visibility_of(i, j, scratch)
+            } else {
+                f0[ju]
+            };
+            heap.push(Reverse((value.to_bits(), Reverse(j))));
+            if heap.len() > k {
+                if let Some(Reverse((bits, _))) = heap.pop() {
+                    dropped += f64::from_bits(bits);
+                }
+            }
+        }
+        (heap, dropped, order.len())
+    }
+
+    /// Step 3: the mass of the tail (columns ascending): exact for pairs without rays,
+    /// and for at most `t` pairs with rays; else estimated from `t` of them by
+    /// systematic sampling with probability ∝ F⁰ (points u0 + s·step on the cumulative
+    /// F⁰ axis, step = mass / t; the estimate step · Σ V is unbiased).
+    fn tail_mass(
+        &self,
+        i: u32,
+        t: usize,
+        f0: &[f64],
+        rays: &[bool],
+        tail: &[u32],
+        scratch: &mut Scratch,
+    ) -> f64 {
+        let mut exact = 0.0;
+        let mut with_rays_mass = 0.0;
+        let mut with_rays = 0usize;
+        for &j in tail {
+            if rays[j as usize] {
+                with_rays_mass += f0[j as usize];
+                with_rays += 1;
+            } else {
+                exact += f0[j as usize];
+            }
+        }
+        if with_rays <= t {
+            for &j in tail {
+                if rays[j as usize] {
+                    exact += f0[j as usize] * self.visibility_of(i, j, scratch);
+                }
+            }
+            return exact;
+        }
+        let step = with_rays_mass / t as f64;
+        let mut rng = SplitMix64::new(pair_seed(self.cfg.seed, i, u32::MAX, Stream::TopKTail));
+        let mut point = rng.next_f64() * step;
+        let mut cumulative = 0.0;
+        let mut estimate = 0.0;
+        for &j in tail {
+            let ju = j as usize;
+            if !rays[ju] {
+                continue;
+            }
+            cumulative += f0[ju];
+            let mut hits = 0u32;
+            while point < cumulative && hits < t as u32 {
+                hits += 1;
+                point += step;
+            }
+            if hits > 0 {
+                estimate += hits as f64 * self.visibility_of(i, j, scratch);
+            } else {
+                scratch.pair.counters.pairs_topk_tail_skipped += 1;
+                scratch.pair.counters.rays_skipped += self.cfg.samples as u64;
+            }
+        }
+        exact + estimate * step
+    }
+}
