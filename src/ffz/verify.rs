@@ -10,6 +10,7 @@
 //! decompresses each file B times. A dense file of 2 GB with the default 256 MiB budget
 //! gives B = 8.
 
+use super::chunk::DecodedChunk;
 use super::error::Result;
 use super::meta::Layout;
 use super::presence::RowState;
@@ -194,80 +195,40 @@ impl FfzReader {
         self.for_each_chunk(|k, res| {
             rep.chunks_checked += 1;
             let offset = offsets[k as usize];
-            let bad = |what: String| BadChunk {
-                chunk: Some(k as u64),
-                offset,
-                what,
-            };
-            let d = match res {
-                Ok(d) => d,
+            let mut faults = Vec::new();
+            let ok = match res {
                 Err(e) => {
-                    rep.bad_chunks.push(bad(e.to_string()));
-                    return;
+                    faults.push(e.to_string());
+                    false
+                }
+                Ok(d) => {
+                    // In an indexed file, chunks tile the area between meta block and
+                    // index.
+                    if self.is_indexed() {
+                        let end = offsets
+                            .get(k as usize + 1)
+                            .copied()
+                            .unwrap_or(self.chunk_area_end());
+                        let len = spec::CHUNK_HEADER_LEN as u64 + d.header.compressed_len;
+                        if offset + len != end {
+                            faults.push(format!(
+                                "chunk ends at byte {} but the next record starts at {end}",
+                                offset + len
+                            ));
+                        }
+                    }
+                    // A chunk that ends where it should not still serves its rows: only
+                    // faults in the rows make it bad.
+                    self.check_rows(k, &d, &mut rep, &mut seen, &mut sum_total, &mut faults)
                 }
             };
-            // In an indexed file, chunks tile the area between meta block and index.
-            if self.is_indexed() {
-                let end = offsets
-                    .get(k as usize + 1)
-                    .copied()
-                    .unwrap_or(self.chunk_area_end());
-                let len = spec::CHUNK_HEADER_LEN as u64 + d.header.compressed_len;
-                if offset + len != end {
-                    rep.bad_chunks.push(bad(format!(
-                        "chunk ends at byte {} but the next record starts at {end}",
-                        offset + len
-                    )));
-                }
-            }
-            let mut chunk_ok = true;
-            for e in d.entries() {
-                if !self.owns(k, e.row) {
-                    if self.is_indexed() {
-                        rep.bad_chunks.push(bad(format!(
-                            "holds row {} which the index places elsewhere",
-                            e.row
-                        )));
-                        chunk_ok = false;
-                    }
-                    continue;
-                }
-                seen[e.row as usize] = true;
-                let skipped = e.flags & spec::ROW_FLAG_SKIPPED != 0;
-                if skipped != (p.get(e.row) == RowState::Skipped) {
-                    rep.bad_chunks.push(bad(format!(
-                        "row {}: skipped flag disagrees with the index",
-                        e.row
-                    )));
-                    chunk_ok = false;
-                }
-                if skipped {
-                    continue;
-                }
-                let row = match d.row(e, n) {
-                    Ok(r) => r,
-                    Err(w) => {
-                        rep.bad_chunks.push(bad(w));
-                        chunk_ok = false;
-                        continue;
-                    }
-                };
-                let mut s = row.dropped as f64;
-                row.for_each_nonzero(|_, x| {
-                    if !x.is_finite() {
-                        rep.non_finite_entries += 1;
-                    } else if x < 0.0 {
-                        rep.negative_entries += 1;
-                    }
-                    s += x as f64;
-                });
-                rep.rows_checked += 1;
-                rep.dropped_max = rep.dropped_max.max(row.dropped as f64);
-                rep.row_sum_min = rep.row_sum_min.min(s);
-                rep.row_sum_max = rep.row_sum_max.max(s);
-                sum_total += s;
-            }
-            good[k as usize] = chunk_ok;
+            rep.bad_chunks
+                .extend(faults.into_iter().map(|what| BadChunk {
+                    chunk: Some(k as u64),
+                    offset,
+                    what,
+                }));
+            good[k as usize] = ok;
         });
         for i in 0..n {
             if let (false, Some(k)) = (seen[i as usize], self.chunk_of(i)) {
@@ -292,6 +253,69 @@ impl FfzReader {
             rep.reciprocity = Some(self.reciprocity(&good, opts.block_bytes));
         }
         rep
+    }
+
+    /// The rows of chunk `k` (decoded `d`) for [`FfzReader::verify_with`]: marks them
+    /// `seen`, adds their sums and entry faults to `rep` and `sum_total`, and pushes a
+    /// line per inconsistency with the index to `faults`. False when the chunk has one.
+    fn check_rows(
+        &self,
+        k: u32,
+        d: &DecodedChunk,
+        rep: &mut VerifyReport,
+        seen: &mut [bool],
+        sum_total: &mut f64,
+        faults: &mut Vec<String>,
+    ) -> bool {
+        let (n, p) = (self.n(), self.presence());
+        let mut chunk_ok = true;
+        for e in d.entries() {
+            if !self.owns(k, e.row) {
+                if self.is_indexed() {
+                    faults.push(format!(
+                        "holds row {} which the index places elsewhere",
+                        e.row
+                    ));
+                    chunk_ok = false;
+                }
+                continue;
+            }
+            seen[e.row as usize] = true;
+            let skipped = e.flags & spec::ROW_FLAG_SKIPPED != 0;
+            if skipped != (p.get(e.row) == RowState::Skipped) {
+                faults.push(format!(
+                    "row {}: skipped flag disagrees with the index",
+                    e.row
+                ));
+                chunk_ok = false;
+            }
+            if skipped {
+                continue;
+            }
+            let row = match d.row(e, n) {
+                Ok(r) => r,
+                Err(w) => {
+                    faults.push(w);
+                    chunk_ok = false;
+                    continue;
+                }
+            };
+            let mut s = row.dropped as f64;
+            row.for_each_nonzero(|_, x| {
+                if !x.is_finite() {
+                    rep.non_finite_entries += 1;
+                } else if x < 0.0 {
+                    rep.negative_entries += 1;
+                }
+                s += x as f64;
+            });
+            rep.rows_checked += 1;
+            rep.dropped_max = rep.dropped_max.max(row.dropped as f64);
+            rep.row_sum_min = rep.row_sum_min.min(s);
+            rep.row_sum_max = rep.row_sum_max.max(s);
+            *sum_total += s;
+        }
+        chunk_ok
     }
 
     /// Visit the rows of good chunks in file order (rows of bad chunks are left out:

@@ -176,58 +176,10 @@ impl FfzWriter {
             .map_err(|e| FfzError::io(path, "open for resume", e))?;
         lock_for_writing(path, &file)?;
         let (map, header, old) = map_and_meta(path, &file)?;
-        let mismatch = |what: String| FfzError::ResumeMismatch {
-            path: path.into(),
-            what,
-        };
-        if old.scene_hash != meta.scene_hash {
-            return Err(mismatch(format!(
-                "file was computed for scene hash {:#018x}, this run has {:#018x}",
-                old.scene_hash, meta.scene_hash
-            )));
-        }
-        if header.n != meta.n() {
-            return Err(mismatch(format!(
-                "file has n = {}, this run has n = {}",
-                header.n,
-                meta.n()
-            )));
-        }
-        if old.layout != meta.layout {
-            return Err(mismatch(format!(
-                "file layout is {}, this run asks for {}",
-                old.layout, meta.layout
-            )));
-        }
-        if old.method != meta.method || old.params != meta.params {
-            return Err(mismatch(format!(
-                "file was computed with method '{}' params '{}', this run has method '{}' params '{}'",
-                old.method, old.params, meta.method, meta.params
-            )));
-        }
+        check_resumable(path, &header, &old, meta)?;
         let n = header.n;
-        let file_len = map.len() as u64;
         let mut w = Self::empty(path, file, opts, meta, header.meta_len);
-        // A finished file whose chunks all pass their cheap checks: trust its index.
-        let indexed = index::read_index(&map, n, header.meta_len)
-            .ok()
-            .and_then(|ix| {
-                let mut raw = 0;
-                for (k, &o) in ix.chunk_offsets.iter().enumerate() {
-                    let end = ix
-                        .chunk_offsets
-                        .get(k + 1)
-                        .copied()
-                        .unwrap_or(ix.index_offset);
-                    let (h, len) = chunk::check_record(&map[o as usize..end as usize]).ok()?;
-                    if o + len != end {
-                        return None;
-                    }
-                    raw += h.raw_len;
-                }
-                Some((ix, raw))
-            });
-        let keep = match indexed {
+        let keep = match trusted_index(&map, n, header.meta_len) {
             Some((ix, raw)) => {
                 w.chunk_offsets = ix.chunk_offsets;
                 w.row_chunk = ix.row_chunk;
@@ -235,45 +187,7 @@ impl FfzWriter {
                 w.raw_bytes = raw;
                 ix.index_offset
             }
-            None => {
-                let scan =
-                    recover::scan_chunks(&map, header.meta_len, file_len, n, meta.layout, true);
-                let mut keep = header.meta_len;
-                'chunks: for c in &scan.chunks[..scan.prefix_chunks] {
-                    for e in c.decoded.entries() {
-                        if w.presence.get(e.row) != RowState::Missing {
-                            w.warnings.push(format!(
-                                "{}: chunk at byte {} repeats row {}; it and what follows are dropped",
-                                path.display(),
-                                c.offset,
-                                e.row
-                            ));
-                            break 'chunks;
-                        }
-                    }
-                    let k = w.chunk_offsets.len() as u32;
-                    for e in c.decoded.entries() {
-                        let s = if e.flags & spec::ROW_FLAG_SKIPPED != 0 {
-                            RowState::Skipped
-                        } else {
-                            RowState::Present
-                        };
-                        w.presence.set(e.row, s);
-                        w.row_chunk[e.row as usize] = k;
-                    }
-                    w.chunk_offsets.push(c.offset);
-                    w.raw_bytes += c.decoded.header.raw_len;
-                    keep = c.offset + c.len;
-                }
-                if keep < file_len {
-                    w.warnings.push(format!(
-                        "{}: dropped {} bytes after byte {keep} (torn last chunk, or an old index that is rewritten at finish)",
-                        path.display(),
-                        file_len - keep
-                    ));
-                }
-                keep
-            }
+            None => w.adopt_scanned_chunks(&map, header.meta_len),
         };
         drop(map);
         w.file
@@ -290,6 +204,50 @@ impl FfzWriter {
         w.pos = keep;
         let presence = w.presence.clone();
         Ok((w, presence))
+    }
+
+    /// Adopts the complete chunks of the unindexed file `map` (a killed run's) in file
+    /// order, up to the first that repeats a row of an earlier one; returns where the
+    /// kept part ends. What is cut off is said in `warnings`.
+    fn adopt_scanned_chunks(&mut self, map: &[u8], meta_len: u64) -> u64 {
+        let n = self.n;
+        let file_len = map.len() as u64;
+        let scan = recover::scan_chunks(map, meta_len, file_len, n, self.layout, true);
+        let mut keep = meta_len;
+        'chunks: for c in &scan.chunks[..scan.prefix_chunks] {
+            for e in c.decoded.entries() {
+                if self.presence.get(e.row) != RowState::Missing {
+                    self.warnings.push(format!(
+                        "{}: chunk at byte {} repeats row {}; it and what follows are dropped",
+                        self.path.display(),
+                        c.offset,
+                        e.row
+                    ));
+                    break 'chunks;
+                }
+            }
+            let k = self.chunk_offsets.len() as u32;
+            for e in c.decoded.entries() {
+                let s = if e.flags & spec::ROW_FLAG_SKIPPED != 0 {
+                    RowState::Skipped
+                } else {
+                    RowState::Present
+                };
+                self.presence.set(e.row, s);
+                self.row_chunk[e.row as usize] = k;
+            }
+            self.chunk_offsets.push(c.offset);
+            self.raw_bytes += c.decoded.header.raw_len;
+            keep = c.offset + c.len;
+        }
+        if keep < file_len {
+            self.warnings.push(format!(
+                "{}: dropped {} bytes after byte {keep} (torn last chunk, or an old index that is rewritten at finish)",
+                self.path.display(),
+                file_len - keep
+            ));
+        }
+        keep
     }
 
     /// Notes from `resume` (bytes dropped, ...).
@@ -510,6 +468,68 @@ impl Drop for FfzWriter {
             let _ = self.flush();
         }
     }
+}
+
+/// Refuses to resume a file made for another scene, size, layout, method or settings.
+fn check_resumable(
+    path: &Path,
+    header: &spec::HeaderV1,
+    old: &FileMeta,
+    meta: &FileMeta,
+) -> Result<()> {
+    let mismatch = |what: String| {
+        Err(FfzError::ResumeMismatch {
+            path: path.into(),
+            what,
+        })
+    };
+    if old.scene_hash != meta.scene_hash {
+        return mismatch(format!(
+            "file was computed for scene hash {:#018x}, this run has {:#018x}",
+            old.scene_hash, meta.scene_hash
+        ));
+    }
+    if header.n != meta.n() {
+        return mismatch(format!(
+            "file has n = {}, this run has n = {}",
+            header.n,
+            meta.n()
+        ));
+    }
+    if old.layout != meta.layout {
+        return mismatch(format!(
+            "file layout is {}, this run asks for {}",
+            old.layout, meta.layout
+        ));
+    }
+    if old.method != meta.method || old.params != meta.params {
+        return mismatch(format!(
+            "file was computed with method '{}' params '{}', this run has method '{}' params '{}'",
+            old.method, old.params, meta.method, meta.params
+        ));
+    }
+    Ok(())
+}
+
+/// The index of a finished file whose chunks all pass their cheap checks (and tile
+/// the space before the index), with the chunks' raw bytes; None when anything is off
+/// (the file is then scanned instead).
+fn trusted_index(map: &[u8], n: u32, meta_len: u64) -> Option<(index::IndexData, u64)> {
+    let ix = index::read_index(map, n, meta_len).ok()?;
+    let mut raw = 0;
+    for (k, &o) in ix.chunk_offsets.iter().enumerate() {
+        let end = ix
+            .chunk_offsets
+            .get(k + 1)
+            .copied()
+            .unwrap_or(ix.index_offset);
+        let (h, len) = chunk::check_record(&map[o as usize..end as usize]).ok()?;
+        if o + len != end {
+            return None;
+        }
+        raw += h.raw_len;
+    }
+    Some((ix, raw))
 }
 
 #[cfg(test)]

@@ -65,32 +65,7 @@ pub fn load_obj(path: &Path) -> Result<Scene, SceneError> {
     let pre = prepass(path, &text)?;
     let mut warnings = Vec::new();
 
-    // Material libraries, in `mtllib` order, which is the order tobj concatenates
-    // them in (its material ids index this concatenation).
-    let dir = path.parent().unwrap_or(Path::new(""));
-    let mut mtl_texts: HashMap<PathBuf, String> = HashMap::new();
-    let mut materials = Vec::new();
-    for (lib, line) in &pre.mtllibs {
-        let full = dir.join(lib);
-        let mtl_text = std::fs::read_to_string(&full).map_err(|e| SceneError::MissingMtl {
-            path: path.to_owned(),
-            line: *line,
-            mtl: full.clone(),
-            reason: e.to_string(),
-        })?;
-        let lines = mtl_prepass(&full, &mtl_text)?;
-        let (mats, _) = tobj::load_mtl_buf(&mut Cursor::new(mtl_text.as_bytes())).map_err(|e| {
-            SceneError::Parser {
-                path: full.clone(),
-                message: e.to_string(),
-            }
-        })?;
-        for m in &mats {
-            let at = lines.get(&m.name).cloned().unwrap_or_default();
-            materials.push(convert_material(&full, m, &at, &mut warnings)?);
-        }
-        mtl_texts.insert(PathBuf::from(lib), mtl_text);
-    }
+    let (materials, mtl_texts) = load_materials(path, &pre, &mut warnings)?;
 
     let options = tobj::LoadOptions {
         triangulate: false,
@@ -117,10 +92,85 @@ pub fn load_obj(path: &Path) -> Result<Scene, SceneError> {
         materials,
         ..Scene::default()
     };
-    let mut group_ids: HashMap<String, u32> = HashMap::new();
     let mut tally = Tally::default();
+    add_faces(path, &models, &pre, &mut scene, &mut tally)?;
+
+    let p = path.display();
+    tally.warn(&mut warnings, &p.to_string());
+    if scene.faces.is_empty() {
+        let d = &tally.degenerate;
+        let dropped = if d.n == 0 {
+            String::new()
+        } else {
+            format!(
+                " (dropped {} degenerate face(s): zero area, collinear corners or an area \
+                 too large for f64; first at line {})",
+                d.n, d.first
+            )
+        };
+        return Err(SceneError::Empty {
+            path: path.to_owned(),
+            dropped,
+        });
+    }
+    if !scene.has_emitter() {
+        warnings.push(format!(
+            "{p}: no face uses an emitting material (Ke > 0): a radiosity solve has no light source"
+        ));
+    }
+    scene.warnings = warnings;
+    debug_assert_eq!(scene.validate(), Ok(()));
+    Ok(scene)
+}
+
+/// The materials of the `mtllib` statements of `pre`, in `mtllib` order, which is the
+/// order tobj concatenates them in (its material ids index this concatenation), and
+/// the text of each library, by the name the OBJ gives it.
+fn load_materials(
+    path: &Path,
+    pre: &PrePass,
+    warnings: &mut Vec<String>,
+) -> Result<(Vec<Material>, HashMap<PathBuf, String>), SceneError> {
+    let dir = path.parent().unwrap_or(Path::new(""));
+    let mut mtl_texts: HashMap<PathBuf, String> = HashMap::new();
+    let mut materials = Vec::new();
+    for (lib, line) in &pre.mtllibs {
+        let full = dir.join(lib);
+        let mtl_text = std::fs::read_to_string(&full).map_err(|e| SceneError::MissingMtl {
+            path: path.to_owned(),
+            line: *line,
+            mtl: full.clone(),
+            reason: e.to_string(),
+        })?;
+        let lines = mtl_prepass(&full, &mtl_text)?;
+        let (mats, _) = tobj::load_mtl_buf(&mut Cursor::new(mtl_text.as_bytes())).map_err(|e| {
+            SceneError::Parser {
+                path: full.clone(),
+                message: e.to_string(),
+            }
+        })?;
+        for m in &mats {
+            let at = lines.get(&m.name).cloned().unwrap_or_default();
+            materials.push(convert_material(&full, m, &at, warnings)?);
+        }
+        mtl_texts.insert(PathBuf::from(lib), mtl_text);
+    }
+    Ok((materials, mtl_texts))
+}
+
+/// The faces of tobj's `models` into `scene`, each named by its line in `pre`:
+/// repaired or split where [`repair`] says so, in one group per model name; line
+/// elements and repairs are noted in `tally`.
+fn add_faces(
+    path: &Path,
+    models: &[tobj::Model],
+    pre: &PrePass,
+    scene: &mut Scene,
+    tally: &mut Tally,
+) -> Result<(), SceneError> {
+    let mut group_ids: HashMap<String, u32> = HashMap::new();
     let mut k = 0usize; // global element counter, matches `pre.elements`
-    for model in &models {
+    for model in models {
         let mesh = &model.mesh;
         // tobj names faces before any `o`/`g` (or after a bare `g`) `unnamed_object`.
         let name = model.name.as_str();
@@ -143,7 +193,7 @@ pub fn load_obj(path: &Path) -> Result<Scene, SceneError> {
             }
             let material = match mesh.material_id {
                 Some(m) if m < scene.materials.len() => m as u32,
-                _ => return Err(material_error(path, &pre, el)),
+                _ => return Err(material_error(path, pre, el)),
             };
             let corners: Vec<DVec3> = idx
                 .iter()
@@ -179,33 +229,7 @@ pub fn load_obj(path: &Path) -> Result<Scene, SceneError> {
     if k != pre.elements.len() {
         return Err(mismatch(path));
     }
-
-    let p = path.display();
-    tally.warn(&mut warnings, &p.to_string());
-    if scene.faces.is_empty() {
-        let d = &tally.degenerate;
-        let dropped = if d.n == 0 {
-            String::new()
-        } else {
-            format!(
-                " (dropped {} degenerate face(s): zero area, collinear corners or an area \
-                 too large for f64; first at line {})",
-                d.n, d.first
-            )
-        };
-        return Err(SceneError::Empty {
-            path: path.to_owned(),
-            dropped,
-        });
-    }
-    if !scene.has_emitter() {
-        warnings.push(format!(
-            "{p}: no face uses an emitting material (Ke > 0): a radiosity solve has no light source"
-        ));
-    }
-    scene.warnings = warnings;
-    debug_assert_eq!(scene.validate(), Ok(()));
-    Ok(scene)
+    Ok(())
 }
 
 fn mismatch(path: &Path) -> SceneError {
@@ -329,38 +353,7 @@ fn prepass(path: &Path, text: &str) -> Result<PrePass, SceneError> {
         };
         match kw {
             "v" => {
-                let toks: Vec<&str> = rest.collect();
-                if !matches!(toks.len(), 3 | 4 | 6) {
-                    return Err(malformed(format!(
-                        "expected 3 coordinates (plus an optional w or r g b), found {} values",
-                        toks.len()
-                    )));
-                }
-                let mut vals = [0.0f64; 6];
-                for (j, t) in toks.iter().enumerate() {
-                    vals[j] = t
-                        .parse::<f64>()
-                        .map_err(|_| malformed(format!("`{t}` is not a number")))?;
-                }
-                for (j, t) in toks.iter().take(3).enumerate() {
-                    let x = if toks.len() == 4 {
-                        vals[j] / vals[3]
-                    } else {
-                        vals[j]
-                    };
-                    // Beyond 1e150 squares overflow: edge lengths and areas of the
-                    // faces would be infinite (and subdivision could not finish).
-                    if !x.is_finite() || x.abs() > MAX_COORDINATE {
-                        return Err(SceneError::NonFinite {
-                            path: path.to_owned(),
-                            line,
-                            value: (*t).to_owned(),
-                        });
-                    }
-                }
-                if toks.len() == 4 && (vals[3] == 0.0 || !vals[3].is_finite()) {
-                    return Err(malformed(format!("weight w = {} is not usable", toks[3])));
-                }
+                check_vertex(&rest.collect::<Vec<_>>(), &malformed, path, line)?;
                 nv += 1;
             }
             "vt" | "vn" => {
@@ -376,47 +369,7 @@ fn prepass(path: &Path, text: &str) -> Result<PrePass, SceneError> {
                 }
             }
             "f" | "l" => {
-                let mut count = 0usize;
-                for tok in rest {
-                    count += 1;
-                    let parts: Vec<&str> = tok.split('/').collect();
-                    if parts.len() > 3 || parts[0].is_empty() {
-                        return Err(malformed(format!("`{tok}` is not a vertex reference")));
-                    }
-                    let kinds = [(nv, "vertex"), (nt, "texture coordinate"), (nn, "normal")];
-                    for (part, (defined, what)) in parts.iter().zip(kinds) {
-                        if part.is_empty() {
-                            continue; // `v//vn`
-                        }
-                        let x: i64 = part.parse().map_err(|_| {
-                            malformed(format!("`{tok}`: `{part}` is not an integer index"))
-                        })?;
-                        let ok = if x > 0 {
-                            (x as u64) <= defined as u64
-                        } else {
-                            x < 0 && x.unsigned_abs() <= defined as u64
-                        };
-                        if !ok {
-                            return Err(SceneError::IndexOutOfRange {
-                                path: path.to_owned(),
-                                line,
-                                what,
-                                index: x,
-                                count: defined,
-                            });
-                        }
-                    }
-                }
-                if kw == "f" && count < 3 {
-                    return Err(malformed(format!(
-                        "a face needs at least 3 vertices, found {count}"
-                    )));
-                }
-                if kw == "l" && count < 2 {
-                    return Err(malformed(format!(
-                        "a line needs at least 2 vertices, found {count}"
-                    )));
-                }
+                check_element(kw, rest, [nv, nt, nn], &malformed, path, line)?;
                 pre.elements.push(Element {
                     line,
                     polygon: kw == "f",
@@ -442,6 +395,99 @@ fn prepass(path: &Path, text: &str) -> Result<PrePass, SceneError> {
         }
     }
     Ok(pre)
+}
+
+/// Checks a `v` statement's values (`toks`): 3 coordinates, plus a weight w or an
+/// r g b colour; every coordinate a number no larger than [`MAX_COORDINATE`].
+fn check_vertex(
+    toks: &[&str],
+    malformed: &dyn Fn(String) -> SceneError,
+    path: &Path,
+    line: u32,
+) -> Result<(), SceneError> {
+    if !matches!(toks.len(), 3 | 4 | 6) {
+        return Err(malformed(format!(
+            "expected 3 coordinates (plus an optional w or r g b), found {} values",
+            toks.len()
+        )));
+    }
+    let mut vals = [0.0f64; 6];
+    for (j, t) in toks.iter().enumerate() {
+        vals[j] = t
+            .parse::<f64>()
+            .map_err(|_| malformed(format!("`{t}` is not a number")))?;
+    }
+    for (j, t) in toks.iter().take(3).enumerate() {
+        let x = if toks.len() == 4 {
+            vals[j] / vals[3]
+        } else {
+            vals[j]
+        };
+        // Beyond 1e150 squares overflow: edge lengths and areas of the faces would be
+        // infinite (and subdivision could not finish).
+        if !x.is_finite() || x.abs() > MAX_COORDINATE {
+            return Err(SceneError::NonFinite {
+                path: path.to_owned(),
+                line,
+                value: (*t).to_owned(),
+            });
+        }
+    }
+    if toks.len() == 4 && (vals[3] == 0.0 || !vals[3].is_finite()) {
+        return Err(malformed(format!("weight w = {} is not usable", toks[3])));
+    }
+    Ok(())
+}
+
+/// Checks an `f` or `l` statement (`kw`): every reference `v[/vt[/vn]]` an integer
+/// index into the vertices, texture coordinates and normals defined so far
+/// (`defined`, negative indices counting back), and enough of them.
+fn check_element<'a>(
+    kw: &str,
+    refs: impl Iterator<Item = &'a str>,
+    [nv, nt, nn]: [usize; 3],
+    malformed: &dyn Fn(String) -> SceneError,
+    path: &Path,
+    line: u32,
+) -> Result<(), SceneError> {
+    let mut count = 0usize;
+    for tok in refs {
+        count += 1;
+        let parts: Vec<&str> = tok.split('/').collect();
+        if parts.len() > 3 || parts[0].is_empty() {
+            return Err(malformed(format!("`{tok}` is not a vertex reference")));
+        }
+        let kinds = [(nv, "vertex"), (nt, "texture coordinate"), (nn, "normal")];
+        for (part, (defined, what)) in parts.iter().zip(kinds) {
+            if part.is_empty() {
+                continue; // `v//vn`
+            }
+            let x: i64 = part
+                .parse()
+                .map_err(|_| malformed(format!("`{tok}`: `{part}` is not an integer index")))?;
+            let ok = if x > 0 {
+                (x as u64) <= defined as u64
+            } else {
+                x < 0 && x.unsigned_abs() <= defined as u64
+            };
+            if !ok {
+                return Err(SceneError::IndexOutOfRange {
+                    path: path.to_owned(),
+                    line,
+                    what,
+                    index: x,
+                    count: defined,
+                });
+            }
+        }
+    }
+    let (least, what) = if kw == "f" { (3, "face") } else { (2, "line") };
+    if count < least {
+        return Err(malformed(format!(
+            "a {what} needs at least {least} vertices, found {count}"
+        )));
+    }
+    Ok(())
 }
 
 /// Check the colour statements of an MTL file (tobj panics on a `Kd` with fewer than 3

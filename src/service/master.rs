@@ -162,115 +162,59 @@ fn master_loop(
     plan: &MasterPlan,
     start: Instant,
 ) -> (MasterOutcome, Option<ServiceError>) {
-    let mut outcome = MasterOutcome::default();
     let workers = link.workers();
-    let mut progress = Progress::new(plan.todo.len() as u64, plan.progress);
-    let mut queue = match plan.schedule {
-        Schedule::Dynamic => DynamicQueue::new(plan.todo.clone(), workers, plan.min_batch, 256),
-        Schedule::Folded => DynamicQueue::new(Vec::new(), workers, 1, 1),
-    };
-    let mut failure: Option<ServiceError> = None;
-    let mut done = 0usize;
-    let mut frontier = plan
+    let frontier = plan
         .spill
         .as_ref()
         .map(|_| Frontier::new(plan.n, &plan.todo));
+    let mut progress = Progress::new(plan.todo.len() as u64, plan.progress);
     if let Some(f) = &frontier {
         progress = progress.with_work(f.total_work());
     }
-
-    // Rows skipped on purpose are recorded by the master itself, in small chunks.
-    for ids in plan.skipped.chunks(4096) {
-        let rows: Vec<Row> = ids.iter().map(|&i| Row::skipped(i)).collect();
-        let sent = encode_chunk(&rows, plan.layout, plan.n, plan.zstd_level)
-            .map_err(ServiceError::from)
-            .and_then(|c| tx.send(WriterJob::Chunk(c)).map_err(|_| writer_gone()));
-        if let Err(e) = sent {
-            return (outcome, Some(e));
-        }
+    let mut state = MasterState {
+        outcome: MasterOutcome::default(),
+        progress,
+        queue: match plan.schedule {
+            Schedule::Dynamic => DynamicQueue::new(plan.todo.clone(), workers, plan.min_batch, 256),
+            Schedule::Folded => DynamicQueue::new(Vec::new(), workers, 1, 1),
+        },
+        failure: None,
+        done: 0,
+        frontier,
+        tx,
+        counters,
+    };
+    if let Err(e) = record_skipped(plan, tx) {
+        return (state.outcome, Some(e));
     }
-
-    while done < workers {
+    while state.done < workers {
         let t0 = Instant::now();
         let msg = match link.poll(Duration::from_millis(100)) {
             Ok(m) => m,
             Err(e) => {
-                failure.get_or_insert(e);
+                state.failure.get_or_insert(e);
                 break;
             }
         };
-        outcome.idle_seconds += t0.elapsed().as_secs_f64();
+        state.outcome.idle_seconds += t0.elapsed().as_secs_f64();
         let Some(msg) = msg else { continue };
-        let handled = match msg {
-            ToMaster::Request { worker } => {
-                // After a failure, answer every request with "no more work".
-                let batch = if failure.is_some() {
-                    Vec::new()
-                } else {
-                    queue.next_batch()
-                };
-                link.assign(worker, batch)
-            }
-            ToMaster::Chunk { chunk, .. } => {
-                let rows = chunk.row_ids.len() as u64;
-                outcome.rows_received += rows;
-                let sent = tx.send(WriterJob::Chunk(chunk)).map_err(|_| writer_gone());
-                progress.advance(
-                    rows,
-                    counters.disk.load(Ordering::Relaxed),
-                    counters.raw.load(Ordering::Relaxed),
-                );
-                sent
-            }
-            ToMaster::Piece { chunk, .. } => {
-                tx.send(WriterJob::Piece(chunk)).map_err(|_| writer_gone())
-            }
-            ToMaster::HalfRowsDone { worker, rows } => {
-                let count = rows.len() as u64;
-                let (ready, work) = match frontier.as_mut() {
-                    Some(f) => {
-                        let work = rows.iter().map(|&i| f.work(i)).sum();
-                        (f.finish(&rows), work)
-                    }
-                    None => (Err("half rows in a run without --symmetric".to_string()), 0),
-                };
-                outcome.rows_received += count;
-                progress.advance_work(
-                    count,
-                    work,
-                    counters.disk.load(Ordering::Relaxed),
-                    counters.raw.load(Ordering::Relaxed),
-                );
-                match ready {
-                    Ok(blocks) => blocks
-                        .into_iter()
-                        .try_for_each(|j| tx.send(WriterJob::Merge(j)).map_err(|_| writer_gone())),
-                    Err(e) => Err(ServiceError::Transport(format!("worker {worker}: {e}"))),
-                }
-            }
-            ToMaster::Failed {
-                rank, row, message, ..
-            } => {
-                tracing::error!(rank, row, "worker failed: {message}");
-                failure.get_or_insert(ServiceError::WorkerFailed { rank, row, message });
-                Ok(())
-            }
-            ToMaster::Done { stats, .. } => {
-                done += 1;
-                outcome.workers.push(stats);
-                Ok(())
-            }
-        };
-        if let Err(e) = handled {
-            failure.get_or_insert(e);
+        if let Err(e) = state.handle(msg, link) {
+            state.failure.get_or_insert(e);
             break;
         }
-        if matches!(failure, Some(ServiceError::WorkerFailed { .. })) {
+        if matches!(state.failure, Some(ServiceError::WorkerFailed { .. })) {
             // Stop now: the remaining workers are stopped by the caller (MPI abort, or
             // the embedded pool seeing its channels close). What was written stays.
             break;
         }
     }
+    let MasterState {
+        mut outcome,
+        mut failure,
+        frontier,
+        mut progress,
+        ..
+    } = state;
     if failure.is_none() && frontier.as_ref().is_some_and(|f| !f.complete()) {
         // Every worker said done but some half rows never reported: their blocks
         // cannot be merged. Say so rather than finish a file with rows missing.
@@ -282,6 +226,95 @@ fn master_loop(
     outcome.wall_seconds = start.elapsed().as_secs_f64();
     outcome.workers.sort_by_key(|w| w.rank);
     (outcome, failure)
+}
+
+/// Rows skipped on purpose are recorded by the master itself, in small chunks.
+fn record_skipped(plan: &MasterPlan, tx: &Sender<WriterJob>) -> Result<(), ServiceError> {
+    for ids in plan.skipped.chunks(4096) {
+        let rows: Vec<Row> = ids.iter().map(|&i| Row::skipped(i)).collect();
+        let chunk = encode_chunk(&rows, plan.layout, plan.n, plan.zstd_level)?;
+        tx.send(WriterJob::Chunk(chunk))
+            .map_err(|_| writer_gone())?;
+    }
+    Ok(())
+}
+
+/// What the master loop keeps between messages.
+struct MasterState<'a> {
+    outcome: MasterOutcome,
+    progress: Progress,
+    queue: DynamicQueue,
+    failure: Option<ServiceError>,
+    /// Workers that said they are done.
+    done: usize,
+    /// `--symmetric`: which half rows have reported, and which blocks are complete.
+    frontier: Option<Frontier>,
+    tx: &'a Sender<WriterJob>,
+    counters: &'a WriterCounters,
+}
+
+impl MasterState<'_> {
+    /// Acts on one message of a worker; an error stops the loop.
+    fn handle(&mut self, msg: ToMaster, link: &mut dyn MasterLink) -> Result<(), ServiceError> {
+        let (disk, raw) = (
+            self.counters.disk.load(Ordering::Relaxed),
+            self.counters.raw.load(Ordering::Relaxed),
+        );
+        match msg {
+            ToMaster::Request { worker } => {
+                // After a failure, answer every request with "no more work".
+                let batch = if self.failure.is_some() {
+                    Vec::new()
+                } else {
+                    self.queue.next_batch()
+                };
+                link.assign(worker, batch)
+            }
+            ToMaster::Chunk { chunk } => {
+                let rows = chunk.row_ids.len() as u64;
+                self.outcome.rows_received += rows;
+                let sent = self
+                    .tx
+                    .send(WriterJob::Chunk(chunk))
+                    .map_err(|_| writer_gone());
+                self.progress.advance(rows, disk, raw);
+                sent
+            }
+            ToMaster::Piece { chunk } => self
+                .tx
+                .send(WriterJob::Piece(chunk))
+                .map_err(|_| writer_gone()),
+            ToMaster::HalfRowsDone { worker, rows } => {
+                let count = rows.len() as u64;
+                let (ready, work) = match self.frontier.as_mut() {
+                    Some(f) => {
+                        let work = rows.iter().map(|&i| f.work(i)).sum();
+                        (f.finish(&rows), work)
+                    }
+                    None => (Err("half rows in a run without --symmetric".to_string()), 0),
+                };
+                self.outcome.rows_received += count;
+                self.progress.advance_work(count, work, disk, raw);
+                match ready {
+                    Ok(blocks) => blocks.into_iter().try_for_each(|j| {
+                        self.tx.send(WriterJob::Merge(j)).map_err(|_| writer_gone())
+                    }),
+                    Err(e) => Err(ServiceError::Transport(format!("worker {worker}: {e}"))),
+                }
+            }
+            ToMaster::Failed { rank, row, message } => {
+                tracing::error!(rank, row, "worker failed: {message}");
+                self.failure
+                    .get_or_insert(ServiceError::WorkerFailed { rank, row, message });
+                Ok(())
+            }
+            ToMaster::Done { stats } => {
+                self.done += 1;
+                self.outcome.workers.push(stats);
+                Ok(())
+            }
+        }
+    }
 }
 
 fn writer_gone() -> ServiceError {
