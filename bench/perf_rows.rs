@@ -11,6 +11,7 @@
 //!   --rows R        rows timed per mode, spread evenly over the matrix (default: all)
 //!   --threads T     threads (default: 2)
 //!   --ref-rows M    random rows compared against the reference preset (default: 0)
+//!   --ref-mode MODE the reference rows from this mode instead (see `config_of`)
 //!   --occluders F   coarse OBJ for the `occluders` mode
 //! ```
 //!
@@ -39,6 +40,7 @@ struct Args {
     rows: Option<usize>,
     threads: usize,
     ref_rows: usize,
+    ref_mode: Option<String>,
     occluders: Option<String>,
 }
 
@@ -50,6 +52,7 @@ fn parse_args() -> Args {
         rows: None,
         threads: 2,
         ref_rows: 0,
+        ref_mode: None,
         occluders: None,
     };
     let mut pos = 0;
@@ -62,6 +65,7 @@ fn parse_args() -> Args {
             "--rows" => a.rows = val().parse().ok(),
             "--threads" => a.threads = val().parse().unwrap_or(2),
             "--ref-rows" => a.ref_rows = val().parse().unwrap_or(0),
+            "--ref-mode" => a.ref_mode = Some(val()),
             "--occluders" => a.occluders = Some(val()),
             _ => {
                 match pos {
@@ -178,7 +182,8 @@ fn sparse(i: u32, entries: &[(u32, f64)]) -> Row {
 /// preset's own sampled tail: exactly `--preset fast --top-k K`, as bench/run.py's
 /// top-k scaling series runs it), `occluders` (the scene's faces as foreign occluders,
 /// i.e. `--occluders` with the scene's own OBJ), `fineocc` (occluders = the patches'
-/// own triangles, as if the OBJ were tessellated as finely as the patches).
+/// own triangles, as if the OBJ were tessellated as finely as the patches), `exact`
+/// or `exactTOL` (the accurate preset with `--visibility exact`, `--shadow-tol TOL`).
 fn config_of(mode: &str) -> FormFactorConfig {
     let base = FormFactorConfig::accurate();
     match mode {
@@ -198,6 +203,15 @@ fn config_of(mode: &str) -> FormFactorConfig {
             }
         }
         "fast" => FormFactorConfig::fast(),
+        m if m.starts_with("exact") => {
+            // `exact` or `exactTOL`: the accurate preset with --visibility exact.
+            let mut c = base;
+            c.visibility = ffstream::formfactor::Visibility::Exact;
+            if let Ok(t) = m["exact".len()..].parse() {
+                c.shadow_tol = t;
+            }
+            c
+        }
         _ => base,
     }
 }
@@ -252,7 +266,11 @@ fn main() {
     let reference = if ref_idx.is_empty() {
         Vec::new()
     } else {
-        let e = RowEngine::new(&patches, Arc::clone(&fine), FormFactorConfig::reference());
+        let cfg = a
+            .ref_mode
+            .as_deref()
+            .map_or_else(FormFactorConfig::reference, config_of);
+        let e = RowEngine::new(&patches, Arc::clone(&fine), cfg);
         let (rows, _, wall) = run_rows(&e, &ref_idx, a.threads, full_row);
         println!("reference: {} rows in {wall:.1} s", rows.len());
         rows.iter().map(|r| r.to_dense(n)).collect::<Vec<_>>()

@@ -3,7 +3,7 @@
 //! loaded, and `--help` lists them with what each means. Each maps onto the library's
 //! own type (the library never sees clap).
 
-use ffstream::formfactor::{Method, Preset};
+use ffstream::formfactor::{Method, Preset, Visibility};
 use ffstream::service::{RowSelection, Schedule};
 use ffstream::solve::SolveMethod;
 
@@ -96,4 +96,15 @@ pub(crate) enum SymmetricArg {
     On,
     /// Full rows: every row on its own.
     Off,
+}
+
+choice! {
+    /// `--visibility`: how `contour` finds what the occluders take from a pair.
+    VisibilityArg => Visibility {
+        /// A kernel-weighted estimate from --samples stratified rays.
+        Rays => Visibility::Rays,
+        /// The shadows clipped from the receiver and integrated (pairs with few
+        /// candidate occluders; the others by rays).
+        Exact => Visibility::Exact,
+    }
 }

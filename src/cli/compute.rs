@@ -18,7 +18,7 @@ use ffstream::scene::{self, Scene};
 use ffstream::service::ServiceError;
 use ffstream::service::{ComputeJob, ComputeReport};
 
-use super::choices::{MethodArg, PresetArg, RowsArg, ScheduleArg, SymmetricArg};
+use super::choices::{MethodArg, PresetArg, RowsArg, ScheduleArg, SymmetricArg, VisibilityArg};
 use super::SceneInput;
 
 /// Most patches a job may have: 2^26 (row ids are u32; the patch table alone is then
@@ -45,6 +45,14 @@ pub(crate) struct ComputeOptions {
     /// Form-factor method (default: the preset's, contour).
     #[arg(long, value_enum, value_name = "METHOD")]
     pub method: Option<MethodArg>,
+    /// How `contour` finds what the occluders take from a pair that may be occluded
+    /// (default: the preset's).
+    #[arg(long, value_enum, value_name = "MODE")]
+    pub visibility: Option<VisibilityArg>,
+    /// Exact visibility: target error of an entry's blocked part, relative to the
+    /// entry's unoccluded value (default: the preset's).
+    #[arg(long, value_name = "TOL")]
+    pub shadow_tol: Option<f64>,
     /// Visibility samples per pair (mc: point pairs; contour: rays per pair that may be
     /// occluded, all of them cast unless --first-batch is also given).
     #[arg(long, value_name = "S")]
@@ -278,6 +286,12 @@ fn form_factor_config(o: &ComputeOptions) -> anyhow::Result<FormFactorConfig> {
     let mut cfg = FormFactorConfig::preset(o.preset.into());
     if let Some(m) = o.method {
         cfg.method = m.into();
+    }
+    if let Some(v) = o.visibility {
+        cfg.visibility = v.into();
+    }
+    if let Some(t) = o.shadow_tol {
+        cfg.shadow_tol = t;
     }
     if let Some(s) = o.samples {
         if s == 0 {

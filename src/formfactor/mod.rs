@@ -28,6 +28,7 @@ pub(crate) mod polygon;
 pub(crate) mod quadrature;
 pub mod sampling;
 pub(crate) mod scratch;
+pub(crate) mod shadow;
 pub(crate) mod topk;
 pub(crate) mod visibility;
 
@@ -121,6 +122,32 @@ pub struct FormFactorConfig {
     /// `contour`: target relative error of the unoccluded form factor per quadrature
     /// panel (double contour integral) or per pair (tensor rule for far pairs).
     pub quad_tol: f64,
+    /// `contour`: how the visibility of a pair that may be occluded is obtained.
+    pub visibility: Visibility,
+    /// `contour` with [`Visibility::Exact`]: target error of an entry's blocked part,
+    /// relative to the entry's unoccluded value.
+    pub shadow_tol: f64,
+}
+
+/// How `contour` finds what the occluders take away from a pair that may be occluded.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum Visibility {
+    /// A kernel-weighted ratio estimate from `samples` stratified rays
+    /// ([`visibility`]).
+    #[default]
+    Rays,
+    /// The shadows clipped from the receiver and integrated ([`shadow`]), for pairs
+    /// with few enough candidate occluders; the others as `Rays`.
+    Exact,
+}
+
+impl Visibility {
+    pub(crate) fn name(self) -> &'static str {
+        match self {
+            Visibility::Rays => "rays",
+            Visibility::Exact => "exact",
+        }
+    }
 }
 
 /// Top-k rows of the `contour` method: candidates are visited in decreasing order of
@@ -160,6 +187,8 @@ impl FormFactorConfig {
             top_k_tail: TopKTail::Sampled(32),
             quad_order: 6,
             quad_tol: 1e-6,
+            visibility: Visibility::Rays,
+            shadow_tol: 1e-4,
         }
     }
 
@@ -179,6 +208,8 @@ impl FormFactorConfig {
             top_k_tail: TopKTail::Exact,
             quad_order: 8,
             quad_tol: 1e-8,
+            visibility: Visibility::Rays,
+            shadow_tol: 1e-6,
         }
     }
 
@@ -195,6 +226,8 @@ impl FormFactorConfig {
             top_k_tail: TopKTail::Exact,
             quad_order: 16,
             quad_tol: 1e-13,
+            visibility: Visibility::Exact,
+            shadow_tol: 1e-9,
         }
     }
 
@@ -217,8 +250,21 @@ impl FormFactorConfig {
         self
     }
 
+    /// `samples` rays for every pair that may be occluded, all of them cast (first
+    /// batch = samples: no early stop). Keeping the preset's first batch would stop a
+    /// pair after its first 16 rays when they agree, which biases partly hidden pairs
+    /// the more the more hidden they are (a pair 1 % visible came out 88 % low with
+    /// 4,096 rays); [`FormFactorConfig::with_first_batch`] asks for the stop.
     pub fn with_samples(mut self, samples: u32) -> Self {
         self.samples = samples;
+        self.first_batch = samples;
+        self
+    }
+
+    /// Stop a pair after a first batch of `first_batch` rays when they all agree (see
+    /// [`visibility`]); biased, cheaper.
+    pub fn with_first_batch(mut self, first_batch: u32) -> Self {
+        self.first_batch = first_batch;
         self
     }
 
@@ -257,6 +303,9 @@ impl FormFactorConfig {
         if self.top_k == Some(0) {
             return bad("top_k must be at least 1".into());
         }
+        if !(self.shadow_tol > 0.0 && self.shadow_tol <= 0.1) {
+            return bad(format!("shadow_tol {} outside (0, 0.1]", self.shadow_tol));
+        }
         if self.top_k_tail == TopKTail::Sampled(0) {
             return bad("top_k_tail sample count must be at least 1".into());
         }
@@ -270,8 +319,10 @@ impl FormFactorConfig {
             None => "none".to_string(),
         };
         format!(
-            "method={} samples={} first_batch={} seed={} top_k={} top_k_tail={} quad_order={} quad_tol={:e} ray_epsilon={:e}",
+            "method={} visibility={} shadow_tol={:e} samples={} first_batch={} seed={} top_k={} top_k_tail={} quad_order={} quad_tol={:e} ray_epsilon={:e}",
             self.method,
+            self.visibility.name(),
+            self.shadow_tol,
             self.samples,
             self.first_batch,
             self.seed,

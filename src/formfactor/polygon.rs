@@ -10,20 +10,31 @@ use glam::DVec3;
 /// Capacity of a [`Polygon`].
 pub(crate) const MAX_VERTS: usize = 8;
 
-/// A closed planar polygon; the first `n` entries of `v` count, in contour order.
+/// A closed planar polygon of at most `N` vertices; the first `n` entries of `v`
+/// count, in contour order.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub(crate) struct Polygon {
-    pub(crate) v: [DVec3; MAX_VERTS],
+pub(crate) struct PolygonN<const N: usize> {
+    pub(crate) v: [DVec3; N],
     pub(crate) n: usize,
 }
 
-impl Polygon {
-    /// A polygon from up to [`MAX_VERTS`] vertices (extra vertices are ignored).
+/// A patch or a patch clipped by a plane.
+pub(crate) type Polygon = PolygonN<MAX_VERTS>;
+
+impl<const N: usize> PolygonN<N> {
+    /// No vertex.
+    pub(crate) const EMPTY: Self = PolygonN {
+        v: [DVec3::ZERO; N],
+        n: 0,
+    };
+
+    /// A polygon from up to `N` vertices (extra vertices are ignored).
     pub(crate) fn new(pts: &[DVec3]) -> Self {
-        let mut v = [DVec3::ZERO; MAX_VERTS];
-        let n = pts.len().min(MAX_VERTS);
-        v[..n].copy_from_slice(&pts[..n]);
-        Polygon { v, n }
+        let mut out = Self::EMPTY;
+        let n = pts.len().min(N);
+        out.v[..n].copy_from_slice(&pts[..n]);
+        out.n = n;
+        out
     }
 
     /// The vertices that count.
@@ -60,13 +71,17 @@ impl Polygon {
     /// plane). Signed distances within `tol` of zero count as on the plane, so a
     /// polygon touching the plane along an edge is kept whole and not split into
     /// slivers.
-    pub(crate) fn clip_front(&self, normal: DVec3, offset: f64, tol: f64) -> Polygon {
-        let mut out = Polygon {
-            v: [DVec3::ZERO; MAX_VERTS],
-            n: 0,
-        };
+    pub(crate) fn clip_front(&self, normal: DVec3, offset: f64, tol: f64) -> Self {
+        let mut out = Self::EMPTY;
+        self.clip_front_into(normal, offset, tol, &mut out);
+        out
+    }
+
+    /// [`PolygonN::clip_front`] into `out` (no copy of a whole polygon).
+    pub(crate) fn clip_front_into(&self, normal: DVec3, offset: f64, tol: f64, out: &mut Self) {
+        out.n = 0;
         if self.n == 0 {
-            return out;
+            return;
         }
         let dist = |p: DVec3| {
             let d = normal.dot(p) - offset;
@@ -92,12 +107,11 @@ impl Polygon {
             prev = cur;
             dprev = dcur;
         }
-        out
     }
 
     #[inline]
     fn push(&mut self, p: DVec3) {
-        if self.n < MAX_VERTS {
+        if self.n < N {
             self.v[self.n] = p;
             self.n += 1;
         } else {

@@ -26,6 +26,20 @@ pub struct Counters {
     /// estimate stopped after its first batch (`contour`), samples with a
     /// non-positive kernel (`mc`).
     pub rays_skipped: u64,
+    /// Pairs that may be occluded whose blocked part was computed exactly
+    /// (`--visibility exact`).
+    pub pairs_exact: u64,
+    /// Points of the outer rule those pairs took.
+    pub exact_points: u64,
+    /// Of the exact pairs, those proven fully visible (no candidate crosses a segment
+    /// between the two patches): no points at all.
+    pub pairs_exact_visible: u64,
+    /// Of the exact pairs, those proven fully hidden (one candidate hides one patch
+    /// from every point of the other): no points.
+    pub pairs_exact_hidden: u64,
+    /// Pairs meant for exact visibility that went to rays (more candidates than the
+    /// exact route takes, or shadows cut into too many pieces).
+    pub pairs_exact_fallback: u64,
 }
 
 impl Counters {
@@ -38,6 +52,11 @@ impl Counters {
         self.pairs_unoccludable += o.pairs_unoccludable;
         self.rays_cast += o.rays_cast;
         self.rays_skipped += o.rays_skipped;
+        self.pairs_exact += o.pairs_exact;
+        self.exact_points += o.exact_points;
+        self.pairs_exact_visible += o.pairs_exact_visible;
+        self.pairs_exact_hidden += o.pairs_exact_hidden;
+        self.pairs_exact_fallback += o.pairs_exact_fallback;
     }
 }
 

@@ -33,10 +33,14 @@ use super::geom::PatchGeom;
 use super::polygon::{EdgeSet, Polygon};
 use super::quadrature::{gauss_table, GaussTable};
 use super::scratch::{Counters, PairScratch};
-use super::{mc, point, topk, visibility, FormFactorConfig, Method, TopKTail};
-use crate::geometry::occluders::{Between, Occluders, MAX_PAIR_CANDIDATES};
+use super::shadow::{Caster, ShadowScratch};
+use super::{mc, point, topk, visibility, FormFactorConfig, Method, TopKTail, Visibility};
+use crate::geometry::occluders::{
+    Between, Occluders, MAX_PAIR_CANDIDATES, MAX_REJECTED_CANDIDATES,
+};
 use crate::patch::PatchSet;
 use crate::rows::Row;
+use exact::EXACT_MAX_CANDIDATES;
 
 /// Plane tolerance of the facing and clipping tests, relative to the diagonal of the
 /// patches' bounding box (so it scales with the scene).
@@ -55,6 +59,10 @@ pub struct Scratch {
     candidates: Vec<u32>,
     /// Occluder lists of cluster pairs ([`super::clusters`]).
     clusters: ClusterCache,
+    /// Exact visibility: the pair's candidates as casters, the shadow clipping's
+    /// pieces.
+    casters: Vec<Caster>,
+    shadow: ShadowScratch,
     /// The row being computed (a hint for what the cluster lists keep; no value
     /// depends on it).
     row: Option<u32>,
@@ -131,9 +139,12 @@ pub struct RowEngine {
     params: ContourParams,
     far_orders: FarOrders,
     tol: f64,
-    /// Rays of a pair test the pair's candidate list instead of the Bvh (see
-    /// [`PAIR_LISTS_MAX_OCCLUDERS`]).
-    pair_lists: bool,
+    /// Most candidate triangles a pair's list holds (0: no lists, rays walk the Bvh;
+    /// see [`PAIR_LISTS_MAX_OCCLUDERS`]; [`EXACT_MAX_CANDIDATES`] with exact
+    /// visibility, which needs them).
+    list_max: usize,
+    /// Candidates examined in detail before a list gives up.
+    list_rejected: usize,
     /// Patch clusters whose pairs share one occluder query (None: every pair queries
     /// the hierarchy).
     clusters: Option<Clusters>,
@@ -176,6 +187,7 @@ impl RowEngine {
         let magnitude = lo.abs().max(hi.abs()).max_element();
         let params = cfg.contour_params();
         let occluders_len = occluders.len();
+        let cfg_visibility = cfg.visibility;
         let bounds = geom
             .iter()
             .map(|g| PatchBound {
@@ -198,7 +210,17 @@ impl RowEngine {
             far_orders: FarOrders::new(params.tol),
             params,
             tol: PLANE_RELATIVE_TOLERANCE * diag,
-            pair_lists: occluders_len <= PAIR_LISTS_MAX_OCCLUDERS,
+            list_max: match cfg_visibility {
+                Visibility::Exact => EXACT_MAX_CANDIDATES,
+                Visibility::Rays if occluders_len <= PAIR_LISTS_MAX_OCCLUDERS => {
+                    MAX_PAIR_CANDIDATES
+                }
+                Visibility::Rays => 0,
+            },
+            list_rejected: match cfg_visibility {
+                Visibility::Exact => 2 * EXACT_MAX_CANDIDATES,
+                Visibility::Rays => MAX_REJECTED_CANDIDATES,
+            },
             clusters,
             packets: true,
         }
@@ -358,7 +380,7 @@ impl RowEngine {
         match self.cfg.method {
             Method::Mc => mc::pair(i, j, gi, gj, &self.occluders, &self.cfg, &mut scratch.pair),
             _ => match self.contour_unoccluded((i, j), gi, gj, extent, scratch) {
-                Some(u) => u.f * self.contour_visibility(i, j, &u, scratch),
+                Some(u) => self.contour_occluded(i, j, &u, scratch),
                 None => 0.0,
             },
         }
@@ -490,13 +512,7 @@ impl RowEngine {
         pj: &Polygon,
         scratch: &mut Scratch,
     ) -> (bool, bool) {
-        let q = Between::new(
-            pi.verts(),
-            gi.normal,
-            pj.verts(),
-            gj.normal,
-            (gi.face, gj.face),
-        );
+        let q = between(gi, gj, pi, pj);
         let occ = &self.occluders;
         let shared = self
             .clusters
@@ -506,41 +522,80 @@ impl RowEngine {
                 let row = scratch.row.and_then(|r| c.of(r));
                 scratch.clusters.list(self.id, c, occ, (i, gi), cj, row)
             });
+        let max = self.list_max;
         if let Some(list) = shared {
-            // Lists for rays only with few occluders (see PAIR_LISTS_MAX_OCCLUDERS);
-            // else only whether there is any.
-            let max = if self.pair_lists {
-                MAX_PAIR_CANDIDATES
-            } else {
-                0
-            };
+            // With max = 0 (no lists for rays), only whether there is any.
             occ.filter_between(&q, list, max, &mut scratch.candidates);
             let found = scratch.candidates.len();
-            return (self.pair_lists && found <= max, found > 0);
+            return (max > 0 && found <= max, found > 0);
         }
-        if self.pair_lists {
-            let listed = occ.collect_between(&q, &mut scratch.candidates);
+        if max > 0 {
+            let listed =
+                occ.collect_between_up_to(&q, max, self.list_rejected, &mut scratch.candidates);
             (listed, !listed || !scratch.candidates.is_empty())
         } else {
             (false, occ.any_between(&q))
         }
     }
 
-    /// `contour`, visibility fraction of a pair (1 without rays when nothing can come
-    /// between the polygons).
-    fn contour_visibility(&self, i: u32, j: u32, u: &Unoccluded, scratch: &mut Scratch) -> f64 {
+    /// `contour`: F_ij of a pair from its unoccluded part `u`: F⁰ when nothing can come
+    /// between the polygons, else F⁰ minus what the occluders take away, exactly
+    /// ([`Visibility::Exact`] with the candidates listed) or by rays.
+    fn contour_occluded(&self, i: u32, j: u32, u: &Unoccluded, scratch: &mut Scratch) -> f64 {
         if !u.needs_rays {
             scratch.pair.counters.pairs_unoccludable += 1;
             scratch.pair.counters.rays_skipped += self.cfg.samples as u64;
-            return 1.0;
+            return u.f;
         }
         if !u.listed {
-            return self.visibility_of(i, j, scratch);
+            return self.occluded_unlisted(i, j, u.f, scratch);
         }
         let candidates = std::mem::take(&mut scratch.candidates);
-        let v = self.visibility_with(i, j, Some(&candidates), scratch);
+        let exact = (self.cfg.visibility == Visibility::Exact)
+            .then(|| self.exact_occluded((i, j), u.f, &candidates, scratch))
+            .flatten();
+        let f =
+            exact.unwrap_or_else(|| u.f * self.visibility_with(i, j, Some(&candidates), scratch));
         scratch.candidates = candidates;
-        v
+        f
+    }
+
+    /// As [`RowEngine::contour_occluded`] for a pair whose candidates are not listed
+    /// (the top-k search, or more candidates than the lists hold): exact visibility
+    /// lists them first.
+    fn occluded_unlisted(&self, i: u32, j: u32, f0: f64, scratch: &mut Scratch) -> f64 {
+        if self.cfg.visibility == Visibility::Exact {
+            let (gi, gj) = (&self.geom[i as usize], &self.geom[j as usize]);
+            let (j_lo, _) = gj.extent_wrt(gi);
+            let (i_lo, _) = gi.extent_wrt(gj);
+            let (pi, pj) = self.clipped(gi, gj, (i_lo, j_lo));
+            let q = between(gi, gj, &pi, &pj);
+            let mut candidates = std::mem::take(&mut scratch.candidates);
+            let listed = self.occluders.collect_between_up_to(
+                &q,
+                EXACT_MAX_CANDIDATES,
+                self.list_rejected,
+                &mut candidates,
+            );
+            let exact = listed
+                .then(|| self.exact_occluded((i, j), f0, &candidates, scratch))
+                .flatten();
+            let f = exact.unwrap_or_else(|| {
+                let listed = listed.then_some(&candidates[..]);
+                f0 * self.visibility_with(i, j, listed, scratch)
+            });
+            scratch.candidates = candidates;
+            return f;
+        }
+        f0 * self.visibility_of(i, j, scratch)
+    }
+
+    /// F_ij / F⁰_ij of a pair that may be occluded (unoccluded value `f0` > 0).
+    fn visibility_fraction(&self, i: u32, j: u32, f0: f64, scratch: &mut Scratch) -> f64 {
+        match self.cfg.visibility {
+            Visibility::Exact => self.occluded_unlisted(i, j, f0, scratch) / f0,
+            Visibility::Rays => self.visibility_of(i, j, scratch),
+        }
     }
 
     /// Visibility fraction of pair (i, j) from scratch (re-clipping the polygons).
@@ -571,6 +626,18 @@ impl RowEngine {
     }
 }
 
+/// The occluders' question for a pair: what may come between the polygons `pi`, `pj`
+/// (clipped to each other) of patches `gi`, `gj`, their own faces not counting.
+fn between<'a>(gi: &PatchGeom, gj: &PatchGeom, pi: &'a Polygon, pj: &'a Polygon) -> Between<'a> {
+    Between::new(
+        pi.verts(),
+        gi.normal,
+        pj.verts(),
+        gj.normal,
+        (gi.face, gj.face),
+    )
+}
+
 /// Unoccluded part of a `contour` pair.
 struct Unoccluded {
     f: f64,
@@ -579,6 +646,7 @@ struct Unoccluded {
     listed: bool,
 }
 
+mod exact;
 #[cfg(test)]
 mod tests;
 mod topk_bounded;

@@ -127,7 +127,7 @@ impl RowEngine {
                 }
             }
             let value = if rays[ju] {
-                f0[ju] * self.visibility_of(i, j, scratch)
+                self.occluded_unlisted(i, j, f0[ju], scratch)
             } else {
                 f0[ju]
             };
@@ -168,7 +168,7 @@ impl RowEngine {
         if with_rays <= t {
             for &j in tail {
                 if rays[j as usize] {
-                    exact += f0[j as usize] * self.visibility_of(i, j, scratch);
+                    exact += self.occluded_unlisted(i, j, f0[j as usize], scratch);
                 }
             }
             return exact;
@@ -190,7 +190,7 @@ impl RowEngine {
                 point += step;
             }
             if hits > 0 {
-                estimate += hits as f64 * self.visibility_of(i, j, scratch);
+                estimate += hits as f64 * self.visibility_fraction(i, j, f0[ju], scratch);
             } else {
                 scratch.pair.counters.pairs_topk_tail_skipped += 1;
                 scratch.pair.counters.rays_skipped += self.cfg.samples as u64;

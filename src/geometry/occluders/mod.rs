@@ -218,6 +218,14 @@ impl Occluders {
         self.tris.is_empty()
     }
 
+    /// Triangle `k` (an index of the candidate lists, [`Occluders::collect_between`])
+    /// in world units.
+    pub(crate) fn world_triangle(&self, k: u32) -> [DVec3; 3] {
+        self.tris[k as usize]
+            .v
+            .map(|p| self.center + p / self.inv_scale)
+    }
+
     /// The shape of the hierarchy (`None` without triangles), for benchmarks.
     pub fn stats(&self) -> Option<TreeStats> {
         self.bvh.as_ref().map(Bvh8::stats)

@@ -116,11 +116,12 @@ impl Built {
 
     /// Occluders only: the six faces of the cube [lo, lo + s]³ (a closed box).
     pub(crate) fn blocker_box(&mut self, lo: DVec3, s: f64) -> &mut Self {
-        let (x, y, z) = (
-            DVec3::new(s, 0.0, 0.0),
-            DVec3::new(0.0, s, 0.0),
-            DVec3::new(0.0, 0.0, s),
-        );
+        self.blocker_cuboid(lo, DVec3::splat(s))
+    }
+
+    /// Occluders only: the six faces of the box [lo, lo + size] (closed).
+    pub(crate) fn blocker_cuboid(&mut self, lo: DVec3, size: DVec3) -> &mut Self {
+        let (x, y, z) = (DVec3::X * size.x, DVec3::Y * size.y, DVec3::Z * size.z);
         for (o, u, v) in [
             (lo, y, x),
             (lo + z, x, y),

@@ -1,0 +1,83 @@
+//! Exact visibility in the row engine ([`Visibility::Exact`]): a pair whose candidate
+//! occluders are listed (at most [`EXACT_MAX_CANDIDATES`] triangles) gets its blocked
+//! part from [`shadow`]; other pairs, and pairs whose shadows cannot be cut into few
+//! enough pieces, get rays.
+
+use super::{RowEngine, Scratch};
+use crate::formfactor::shadow::{self, Blocked, Caster, Pair};
+#[cfg(doc)]
+use crate::formfactor::Visibility;
+
+/// Most candidate triangles of a pair handled exactly (more: rays). Measured: see
+/// bench/PERF.md §14.
+pub(crate) const EXACT_MAX_CANDIDATES: usize = 32;
+
+/// Relative remainder of F⁰ below which an exactly handled pair counts as hidden.
+const SNAP: f64 = 1e-8;
+
+impl RowEngine {
+    /// F_ij of a pair that may be occluded, unoccluded value `f0`, whose candidate
+    /// occluders are `candidates` (triangle ids): F⁰ minus the blocked part, or None
+    /// when the shadows need rays after all.
+    pub(super) fn exact_occluded(
+        &self,
+        (i, j): (u32, u32),
+        f0: f64,
+        candidates: &[u32],
+        scratch: &mut Scratch,
+    ) -> Option<f64> {
+        let (gi, gj) = (&self.geom[i as usize], &self.geom[j as usize]);
+        let (j_lo, _) = gj.extent_wrt(gi);
+        let (i_lo, _) = gi.extent_wrt(gj);
+        let (pi, pj) = self.clipped(gi, gj, (i_lo, j_lo));
+        let mut casters = std::mem::take(&mut scratch.casters);
+        casters.clear();
+        casters.extend(
+            candidates
+                .iter()
+                .filter_map(|&k| Caster::new(self.occluders.world_triangle(k))),
+        );
+        let pair = Pair {
+            pi: &pi,
+            ni: gi.normal,
+            pj: &pj,
+            casters: &casters,
+            tol: self.tol,
+        };
+        let tol_abs = self.cfg.shadow_tol * f0 * gi.area;
+        let result = shadow::blocked_integral(&pair, tol_abs, &mut scratch.shadow);
+        scratch.casters = casters;
+        let c = &mut scratch.pair.counters;
+        let Some(blocked) = result else {
+            c.pairs_exact_fallback += 1;
+            return None;
+        };
+        c.pairs_exact += 1;
+        c.rays_skipped += u64::from(self.cfg.samples);
+        Some(match blocked {
+            Blocked::Nothing => {
+                c.pairs_exact_visible += 1;
+                f0
+            }
+            Blocked::All => {
+                c.pairs_exact_hidden += 1;
+                0.0
+            }
+            Blocked::Part(blocked, points) => {
+                c.exact_points += u64::from(points);
+                // What is left within the method's resolution of nothing is
+                // nothing: a patch hidden behind several occluders (a floor cell
+                // under a box) gets an exact 0, not the quadrature's remainder or the
+                // slivers the clipping tolerance leaves where shadows meet (~1e-10
+                // of F⁰).
+                let f = f0 - blocked / gi.area;
+                let resolution = self.cfg.shadow_tol.max(SNAP) * f0;
+                if f <= resolution {
+                    0.0
+                } else {
+                    f
+                }
+            }
+        })
+    }
+}
