@@ -182,8 +182,10 @@ fn sparse(i: u32, entries: &[(u32, f64)]) -> Row {
 /// preset's own sampled tail: exactly `--preset fast --top-k K`, as bench/run.py's
 /// top-k scaling series runs it), `occluders` (the scene's faces as foreign occluders,
 /// i.e. `--occluders` with the scene's own OBJ), `fineocc` (occluders = the patches'
-/// own triangles, as if the OBJ were tessellated as finely as the patches), `exact`
-/// or `exactTOL` (the accurate preset with `--visibility exact`, `--shadow-tol TOL`).
+/// own triangles, as if the OBJ were tessellated as finely as the patches), `exact`,
+/// `exactTOL` or `exactTOLrN` (the accurate preset with `--visibility exact`,
+/// `--shadow-tol TOL`, `--samples N` for the pairs left to rays), `raysN` (the accurate
+/// preset with `--samples N`).
 fn config_of(mode: &str) -> FormFactorConfig {
     let base = FormFactorConfig::accurate();
     match mode {
@@ -204,13 +206,24 @@ fn config_of(mode: &str) -> FormFactorConfig {
         }
         "fast" => FormFactorConfig::fast(),
         m if m.starts_with("exact") => {
-            // `exact` or `exactTOL`: the accurate preset with --visibility exact.
-            let mut c = base;
+            // `exact`, `exactTOL` or `exactTOLrN`: the accurate preset with
+            // --visibility exact (--shadow-tol TOL), N rays for the pairs left to rays.
+            let (tol, rays) = m["exact".len()..]
+                .split_once('r')
+                .map_or((&m["exact".len()..], None), |(t, r)| (t, Some(r)));
+            let mut c = match rays.and_then(|r| r.parse().ok()) {
+                Some(n) => base.with_samples(n),
+                None => base,
+            };
             c.visibility = ffstream::formfactor::Visibility::Exact;
-            if let Ok(t) = m["exact".len()..].parse() {
+            if let Ok(t) = tol.parse() {
                 c.shadow_tol = t;
             }
             c
+        }
+        m if m.starts_with("rays") => {
+            // `raysN`: the accurate preset with N rays per pair (all cast).
+            base.with_samples(m["rays".len()..].parse().unwrap_or(16))
         }
         _ => base,
     }

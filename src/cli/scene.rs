@@ -13,7 +13,8 @@ pub(crate) struct SceneArgs {
     /// Output OBJ file (the MTL is written beside it).
     #[arg(short, long, value_name = "FILE.obj")]
     pub output: PathBuf,
-    /// Scene parameter: plates = distance (default 1), room = clutter (number of boxes).
+    /// Scene parameter: plates = distance (default 1), cube = side (1), perpendicular =
+    /// height (1), room = clutter (number of boxes, 16), city = blocks per side (4).
     #[arg(long, value_name = "P")]
     pub param: Option<f64>,
 }

@@ -8,6 +8,7 @@
 //! | `perpendicular` | unit square `bottom` and 1 × h rectangle `side` sharing an edge at 90° | h (1) |
 //! | `obstructed` | `plates` at distance 1 with a two-sided 0.5 × 0.5 `blocker` midway | none |
 //! | `room` | closed room, ceiling light, many boxes (see [`super::room`]) | boxes (16) |
+//! | `city` | city blocks open to the sky, one building each, the ground emits 1 (see [`super::city`]) | blocks per side (4) |
 //!
 //! The small scenes have analytic form factors (docs/known-answers.md §2, §3), e.g. between the two
 //! `plates` at distance 1: 0.19982; `perpendicular` with h = 1: 0.20004.
@@ -15,7 +16,7 @@
 use glam::DVec3;
 
 use super::builder::Builder;
-use super::{room, Scene, SceneError};
+use super::{city, room, Scene, SceneError};
 
 /// Names accepted by [`builtin`].
 pub fn builtin_names() -> &'static [&'static str] {
@@ -26,6 +27,7 @@ pub fn builtin_names() -> &'static [&'static str] {
         "perpendicular",
         "obstructed",
         "room",
+        "city",
     ]
 }
 
@@ -70,6 +72,16 @@ pub fn builtin(name: &str, param: Option<f64>) -> Result<Scene, SceneError> {
                 });
             }
             Ok(room::builtin_room(p as usize))
+        }
+        "city" => {
+            let p = param.unwrap_or(city::DEFAULT_BLOCKS as f64);
+            if !(p >= 1.0 && p.fract() == 0.0 && p <= 1000.0) {
+                return Err(SceneError::BadParam {
+                    name: name.to_owned(),
+                    reason: format!("blocks per side must be a whole number in 1..=1000, got {p}"),
+                });
+            }
+            Ok(city::builtin_city(p as usize))
         }
         _ => Err(SceneError::UnknownBuiltin {
             name: name.to_owned(),

@@ -16,6 +16,7 @@
 
 mod builder;
 mod builtin;
+mod city;
 mod error;
 mod obj;
 mod polygon;

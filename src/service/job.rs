@@ -67,6 +67,64 @@ pub struct WorkerStats {
     pub(crate) threads: u32,
     /// Peak resident set size of the worker process in bytes (0 if unknown).
     pub(crate) peak_rss: u64,
+    /// How the visibility of its pairs was found.
+    pub(crate) pairs: PairRoutes,
+}
+
+/// How many evaluated pairs got their visibility which way (from the row engine's
+/// [`Counters`](crate::formfactor::Counters), summed over a worker's threads).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct PairRoutes {
+    /// Pairs whose kernel was evaluated.
+    pub evaluated: u64,
+    /// Of those, pairs no occluder can come between: no visibility work at all.
+    pub unoccludable: u64,
+    /// Pairs whose blocked part was clipped exactly (`--visibility exact`).
+    pub exact: u64,
+    /// Pairs meant for exact visibility that went to rays.
+    pub fallback: u64,
+}
+
+impl PairRoutes {
+    pub(crate) fn of(c: &crate::formfactor::Counters) -> Self {
+        PairRoutes {
+            evaluated: c.pairs_evaluated,
+            unoccludable: c.pairs_unoccludable,
+            exact: c.pairs_exact,
+            fallback: c.pairs_exact_fallback,
+        }
+    }
+
+    pub(crate) fn add(&mut self, o: &PairRoutes) {
+        self.evaluated += o.evaluated;
+        self.unoccludable += o.unoccludable;
+        self.exact += o.exact;
+        self.fallback += o.fallback;
+    }
+
+    /// Pairs that may be occluded and were not handled exactly: rays decided them
+    /// (or, in top-k rows with a sampled tail, nothing: their F⁰ could not make the row).
+    pub(crate) fn by_rays(&self) -> u64 {
+        self.evaluated
+            .saturating_sub(self.unoccludable)
+            .saturating_sub(self.exact)
+    }
+
+    /// One line for the report.
+    pub(crate) fn summary(&self) -> String {
+        let share = |x: u64| 100.0 * x as f64 / self.evaluated.max(1) as f64;
+        format!(
+            "pairs: {} evaluated; visibility: {} ({:.1}%) need none, {} ({:.1}%) exact, {} ({:.1}%) by rays ({} of them fell back from exact)",
+            self.evaluated,
+            self.unoccludable,
+            share(self.unoccludable),
+            self.exact,
+            share(self.exact),
+            self.by_rays(),
+            share(self.by_rays()),
+            self.fallback
+        )
+    }
 }
 
 /// What a finished compute run reports.
@@ -118,6 +176,12 @@ impl ComputeReport {
                 self.spill_bytes as f64 / 1e6
             ));
         }
+        let mut pairs = PairRoutes::default();
+        for w in &self.workers {
+            pairs.add(&w.pairs);
+        }
+        s.push('\n');
+        s.push_str(&pairs.summary());
         for w in &self.workers {
             s.push_str(&format!(
                 "\nworker rank {}: {} rows, {} threads, busy {:.2} s ({:.0}% of wall x threads), peak RSS {:.1} MB",

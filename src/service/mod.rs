@@ -29,5 +29,5 @@ pub mod symmetric;
 pub(crate) mod worker;
 
 pub use error::ServiceError;
-pub use job::{ComputeJob, ComputeReport, RowSelection, WorkerStats};
+pub use job::{ComputeJob, ComputeReport, PairRoutes, RowSelection, WorkerStats};
 pub use schedule::Schedule;

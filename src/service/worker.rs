@@ -11,7 +11,7 @@
 
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use crossbeam::channel::{bounded, unbounded, Receiver, RecvTimeoutError, Sender};
@@ -22,7 +22,7 @@ use crate::rows::Row;
 use crate::service::link::WorkerLink;
 use crate::service::rss::peak_rss_bytes;
 use crate::service::symmetric::{in_run, HalfRowBuffer};
-use crate::service::{ComputeJob, ServiceError, WorkerStats};
+use crate::service::{ComputeJob, PairRoutes, ServiceError, WorkerStats};
 
 /// Environment variable that makes a worker fail on purpose when it reaches this row
 /// (fault-injection for tests of the failure path). Documented in the README.
@@ -97,6 +97,7 @@ pub(crate) fn run_worker(
     let computed = AtomicU64::new(0);
     let busy_nanos = AtomicU64::new(0);
     let stop = AtomicBool::new(false);
+    let pairs = Mutex::new(PairRoutes::default());
 
     let result = std::thread::scope(|s| {
         for t in 0..threads {
@@ -106,6 +107,7 @@ pub(crate) fn run_worker(
                 computed: &computed,
                 busy_nanos: &busy_nanos,
                 stop: &stop,
+                pairs: &pairs,
             };
             std::thread::Builder::new()
                 .name(format!("compute-{t}"))
@@ -130,6 +132,7 @@ pub(crate) fn run_worker(
         busy_seconds: busy_nanos.load(Ordering::Relaxed) as f64 * 1e-9,
         threads: threads as u32,
         peak_rss: peak_rss_bytes(),
+        pairs: *pairs.lock().unwrap_or_else(|e| e.into_inner()),
     };
     result?;
     link.done(stats.clone())?;
@@ -207,6 +210,8 @@ struct Counters<'a> {
     busy_nanos: &'a AtomicU64,
     /// Set when the driver gave up: threads stop taking rows.
     stop: &'a AtomicBool,
+    /// The pair counts of every thread, added when it finishes.
+    pairs: &'a Mutex<PairRoutes>,
 }
 
 /// What a compute thread has computed and not yet handed to the driver.
@@ -309,12 +314,33 @@ fn compute_thread(
     out: &Sender<FromCompute>,
     counters: Counters<'_>,
 ) {
+    let mut scratch = Scratch::default();
+    compute_rows(engine, cfg, fail_row, jobs, out, counters, &mut scratch);
+    let routes = PairRoutes::of(&scratch.counters());
+    counters
+        .pairs
+        .lock()
+        .unwrap_or_else(|e| e.into_inner())
+        .add(&routes);
+}
+
+/// The loop of [`compute_thread`]: returns when the rows run out, the driver stops
+/// or a row fails.
+fn compute_rows(
+    engine: &RowEngine,
+    cfg: &WorkerConfig,
+    fail_row: Option<u32>,
+    jobs: &Receiver<u32>,
+    out: &Sender<FromCompute>,
+    counters: Counters<'_>,
+    scratch: &mut Scratch,
+) {
     let Counters {
         computed,
         busy_nanos,
         stop,
+        ..
     } = counters;
-    let mut scratch = Scratch::default();
     let mut pending = Pending::new(cfg);
     let mut oldest: Option<Instant> = None;
     let flush_after = Duration::from_secs_f64(cfg.flush_seconds.max(0.01));
@@ -333,10 +359,8 @@ fn compute_thread(
             let done = if fail_row == Some(i) {
                 Err(format!("failure injected by {FAIL_ROW_ENV}={i}"))
             } else {
-                catch_unwind(AssertUnwindSafe(|| {
-                    pending.compute(engine, i, &mut scratch)
-                }))
-                .map_err(|p| panic_message(p.as_ref()))
+                catch_unwind(AssertUnwindSafe(|| pending.compute(engine, i, scratch)))
+                    .map_err(|p| panic_message(p.as_ref()))
             };
             busy_nanos.fetch_add(t0.elapsed().as_nanos() as u64, Ordering::Relaxed);
             if let Err(message) = done {

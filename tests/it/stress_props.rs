@@ -176,6 +176,7 @@ proptest! {
             if m <= 2 || std::env::var_os("FFSTREAM_STRESS_LONG").is_some() {
             let mut xcfg = FormFactorConfig::accurate().with_seed(seed % 1000);
             xcfg.visibility = Visibility::Exact;
+            xcfg.shadow_tol = 1e-6;
             let fx = matrix(&g.engine(xcfg.clone()));
             let (xs, xrecip) = check_matrix(&g, &fx, 1e-12 * total);
             let xdev = xs.iter().map(|x| (x - 1.0).abs()).fold(0.0, f64::max);

@@ -22,7 +22,7 @@
 use mpi::Tag;
 
 use crate::ffz::EncodedChunk;
-use crate::service::{ServiceError, WorkerStats};
+use crate::service::{PairRoutes, ServiceError, WorkerStats};
 
 pub(crate) const REQUEST: Tag = 1;
 pub(crate) const ASSIGN: Tag = 2;
@@ -129,17 +129,25 @@ pub(crate) fn decode_failed(v: &[u8], rank: i32) -> Result<(Option<u32>, String)
     Ok((row, String::from_utf8_lossy(&v[8..]).into_owned()))
 }
 
+/// Length of a DONE message: rows, busy seconds, threads, peak RSS, then the four
+/// counts of [`PairRoutes`].
+const DONE_LEN: usize = 28 + 4 * 8;
+
 pub(crate) fn encode_done(s: &WorkerStats) -> Vec<u8> {
-    let mut v = Vec::with_capacity(28);
+    let mut v = Vec::with_capacity(DONE_LEN);
     v.extend_from_slice(&s.rows.to_le_bytes());
     v.extend_from_slice(&s.busy_seconds.to_le_bytes());
     v.extend_from_slice(&s.threads.to_le_bytes());
     v.extend_from_slice(&s.peak_rss.to_le_bytes());
+    let p = &s.pairs;
+    for x in [p.evaluated, p.unoccludable, p.exact, p.fallback] {
+        v.extend_from_slice(&x.to_le_bytes());
+    }
     v
 }
 
 pub(crate) fn decode_done(v: &[u8], rank: i32) -> Result<WorkerStats, ServiceError> {
-    if v.len() != 28 {
+    if v.len() != DONE_LEN {
         return Err(malformed("DONE", rank));
     }
     let u64_at = |o: usize| {
@@ -160,6 +168,12 @@ pub(crate) fn decode_done(v: &[u8], rank: i32) -> Result<WorkerStats, ServiceErr
         busy_seconds: f64::from_bits(u64_at(8)),
         threads: u32::from_le_bytes([v[16], v[17], v[18], v[19]]),
         peak_rss: u64_at(20),
+        pairs: PairRoutes {
+            evaluated: u64_at(28),
+            unoccludable: u64_at(36),
+            exact: u64_at(44),
+            fallback: u64_at(52),
+        },
     })
 }
 
@@ -216,11 +230,18 @@ mod tests {
             busy_seconds: 1.5,
             threads: 2,
             peak_rss: 77,
+            pairs: PairRoutes {
+                evaluated: 100,
+                unoccludable: 60,
+                exact: 30,
+                fallback: 2,
+            },
         };
         let d = decode_done(&encode_done(&s), 4).unwrap();
         assert_eq!(
-            (d.rows, d.busy_seconds, d.threads, d.peak_rss),
-            (9, 1.5, 2, 77)
+            (d.rows, d.busy_seconds, d.threads, d.peak_rss, d.pairs),
+            (9, 1.5, 2, 77, s.pairs)
         );
+        assert!(decode_done(&encode_done(&s)[..28], 4).is_err());
     }
 }

@@ -75,16 +75,19 @@ fn scene(c: &Case, m: usize) -> Built {
     b
 }
 
+/// Exact visibility to 1e-6 of each entry's F⁰ (the `reference` preset's shadow
+/// tolerance, tighter than `--visibility exact` alone gets from `accurate`).
 fn exact_cfg() -> FormFactorConfig {
     let mut cfg = FormFactorConfig::accurate();
     cfg.visibility = Visibility::Exact;
+    cfg.shadow_tol = 1e-6;
     cfg
 }
 
 #[test]
 fn exact_visibility_matches_the_independent_references() {
     // Acceptance of the exact route: group factors within 1e-6 of the reference (the
-    // default shadow tolerance is 1e-6 of each entry; f32 storage adds ~1e-8).
+    // shadow tolerance is 1e-6 of each entry's F⁰; f32 storage adds ~1e-8).
     let mut worst = 0.0f64;
     for c in cases() {
         for m in [1, 3] {
@@ -134,4 +137,65 @@ fn exactly_handled_pairs_use_no_random_numbers() {
         assert_eq!(counters.rays_cast, 0, "{}: {counters:?}", c.name);
         assert_eq!(a, z, "{}: rows depend on the seed", c.name);
     }
+}
+
+/// The counts of the report line `pairs: N evaluated; visibility: A (..%) need none,
+/// B (..%) exact, C (..%) by rays (D of them fell back from exact)`.
+fn pair_routes(stderr: &str) -> [u64; 5] {
+    let line = stderr
+        .lines()
+        .find(|l| l.starts_with("pairs: "))
+        .unwrap_or_else(|| panic!("no pairs line in\n{stderr}"));
+    let numbers: Vec<u64> = line
+        .split(|c: char| !c.is_ascii_digit() && c != '.')
+        .filter(|w| !w.is_empty() && !w.contains('.'))
+        .map(|w| w.parse().expect("a count"))
+        .collect();
+    // N, A, B, C, D (the percentages hold a '.').
+    [numbers[0], numbers[1], numbers[2], numbers[3], numbers[4]]
+}
+
+#[test]
+fn compute_reports_the_pairs_handled_each_way_and_exact_rows_ignore_the_seed() {
+    use crate::common::{ok, path_str};
+    let dir = tempfile::tempdir().expect("tempdir");
+    let file = |name: &str| dir.path().join(name);
+    let run = |out: &str, extra: &[&str]| {
+        let out = file(out);
+        let mut args = vec![
+            "compute",
+            "builtin:obstructed",
+            "--max-edge",
+            "0.25",
+            "--symmetric",
+            "off",
+            "-q",
+            "-o",
+            path_str(&out),
+        ];
+        args.extend_from_slice(extra);
+        pair_routes(&ok(&args))
+    };
+    let [n, none, exact, rays, fallback] = run("x1.ffz", &["--visibility", "exact", "--seed", "1"]);
+    assert!(
+        exact > 0 && rays == 0 && fallback == 0 && none + exact == n,
+        "{n} {none} {exact} {rays}"
+    );
+    run("x2.ffz", &["--visibility", "exact", "--seed", "2"]);
+    let out = crate::common::ffstream(&[
+        "verify",
+        path_str(&file("x1.ffz")),
+        "--against",
+        path_str(&file("x2.ffz")),
+    ]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success() && stdout.contains(" 0 differ"),
+        "rows depend on --seed:\n{stdout}"
+    );
+    let [n2, none2, exact2, rays2, _] = run("r.ffz", &[]);
+    assert!(
+        exact2 == 0 && rays2 == exact && none2 == none && n2 == n,
+        "rays run: {n2} {none2} {exact2} {rays2}"
+    );
 }

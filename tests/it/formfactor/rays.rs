@@ -104,6 +104,7 @@ fn the_ray_estimate_converges_on_large_partly_shadowed_facets() {
     // facets and would fall back to rays).
     let mut exact_cfg = FormFactorConfig::accurate();
     exact_cfg.visibility = Visibility::Exact;
+    exact_cfg.shadow_tol = 1e-6;
     let exact = b.engine(exact_cfg);
     let mut s = Scratch::new();
     let (mut r0, mut r1) = (Vec::new(), Vec::new());
