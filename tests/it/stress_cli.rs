@@ -416,3 +416,55 @@ fn explicit_samples_never_inherit_an_early_stop() {
         assert!(text.contains(want), "{extra:?}: {text}");
     }
 }
+
+/// Options that would change nothing are refused, not dropped: a shadow tolerance
+/// without exact visibility, a visibility mode for a kernel that casts its own rays.
+#[test]
+fn visibility_options_that_would_do_nothing_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("v.ffz");
+    for (extra, says) in [
+        (
+            &["--shadow-tol", "1e-4"][..],
+            "--shadow-tol applies to exact visibility",
+        ),
+        (
+            &["--method", "mc", "--visibility", "exact"][..],
+            "--visibility applies to --method contour",
+        ),
+    ] {
+        let mut args = vec!["compute", "builtin:obstructed", "-q", "-o", path_str(&out)];
+        args.extend_from_slice(extra);
+        let o = ffstream(&args);
+        let stderr = String::from_utf8_lossy(&o.stderr);
+        assert!(
+            !o.status.success() && stderr.contains(says),
+            "{extra:?}: {stderr}"
+        );
+        assert!(!out.exists(), "{extra:?}: a file was written");
+    }
+    // With exact visibility (asked for, or the reference preset's) the tolerance is taken.
+    for extra in [
+        &["--visibility", "exact", "--shadow-tol", "1e-4"][..],
+        &["--preset", "reference", "--shadow-tol", "1e-4"][..],
+    ] {
+        let mut args = vec![
+            "compute",
+            "builtin:obstructed",
+            "-q",
+            "--force",
+            "--max-edge",
+            "0.5",
+            "-o",
+            path_str(&out),
+        ];
+        args.extend_from_slice(extra);
+        crate::common::ok(&args);
+        let info = ffstream(&["info", path_str(&out)]);
+        let text = String::from_utf8_lossy(&info.stdout);
+        assert!(
+            text.contains("visibility=exact shadow_tol=1e-4"),
+            "{extra:?}: {text}"
+        );
+    }
+}
