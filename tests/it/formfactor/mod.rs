@@ -290,7 +290,8 @@ fn scale_invariance() {
                 }
             }
             println!("scale {s:e}: max relative change {worst:.2e}");
-            assert!(worst <= 1e-6, "scale {s}: {worst}");
+            // Measured 8e-13 (README); the bound leaves room for other CPUs' rounding.
+            assert!(worst <= 1e-10, "scale {s}: {worst}");
         }
     }
 }
