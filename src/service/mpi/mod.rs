@@ -93,7 +93,8 @@ impl MpiContext {
     /// ends this process) instead of finalising. With Open MPI 4.1 and PMIx 3, a rank
     /// that finalises and exits non-zero while rank 0 aborts leaves `mpirun` hung for
     /// good in its own shutdown, every rank already gone: 10 of 160 runs of the
-    /// failing-worker job did, none of 210 that waited. Should no abort come within
+    /// failing-worker job did, none of those that waited (210 when this was written,
+    /// 310 by the README's later count). Should no abort come within
     /// `limit` (rank 0 never learnt of this failure), the process exits with code 1
     /// without finalising, and `mpirun` ends the job for that.
     pub fn await_abort(self, limit: std::time::Duration) -> ! {
