@@ -630,7 +630,8 @@ struct Cell {
     value: f64,
     /// Every sample saw no shadow.
     dark_free: bool,
-    /// Largest unoccluded F(x → P_j) over the samples.
+    /// Largest unoccluded F(x → P_j) over the samples (computed only when
+    /// `dark_free`; 0 otherwise).
     lit_max: f64,
 }
 
@@ -639,14 +640,22 @@ impl Run<'_, '_> {
     fn cell(&mut self, t: [DVec3; 3], s: &mut ShadowScratch) -> Option<Cell> {
         let area = 0.5 * (t[1] - t[0]).cross(t[2] - t[0]).length();
         let p = self.pair;
-        let (mut value, mut dark_free, mut lit_max) = (0.0, true, 0.0f64);
+        let at = |b: [f64; 3]| b[0] * t[0] + b[1] * t[1] + b[2] * t[2];
+        let (mut value, mut dark_free) = (0.0, true);
         for (b, w) in RADON {
-            let x = b[0] * t[0] + b[1] * t[1] + b[2] * t[2];
-            let g = blocked_at(x, p.ni, p.pj, p.casters, p.tol, s)?;
+            let g = blocked_at(at(b), p.ni, p.pj, p.casters, p.tol, s)?;
             value += w * g;
             dark_free &= g == 0.0;
-            lit_max = lit_max.max(point_polygon(x, p.ni, p.pj.verts()));
         }
+        // Only a cell that sees no shadow needs what it could hold (see `refine`).
+        let lit_max = if dark_free {
+            RADON
+                .iter()
+                .map(|&(b, _)| point_polygon(at(b), p.ni, p.pj.verts()))
+                .fold(0.0f64, f64::max)
+        } else {
+            0.0
+        };
         self.points += 7;
         if self.points > MAX_POINTS {
             return None;
