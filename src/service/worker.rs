@@ -305,7 +305,9 @@ impl Pending {
     }
 }
 
-/// One compute thread: rows in, compressed chunks (or spill pieces) out.
+/// One compute thread: rows in, compressed chunks (or spill pieces) out. Leaves the
+/// loop when the rows run out, the driver stops or a row fails, then adds its pair
+/// counts to the worker's.
 fn compute_thread(
     engine: &RowEngine,
     cfg: &WorkerConfig,
@@ -314,33 +316,13 @@ fn compute_thread(
     out: &Sender<FromCompute>,
     counters: Counters<'_>,
 ) {
-    let mut scratch = Scratch::default();
-    compute_rows(engine, cfg, fail_row, jobs, out, counters, &mut scratch);
-    let routes = PairRoutes::of(&scratch.counters());
-    counters
-        .pairs
-        .lock()
-        .unwrap_or_else(|e| e.into_inner())
-        .add(&routes);
-}
-
-/// The loop of [`compute_thread`]: returns when the rows run out, the driver stops
-/// or a row fails.
-fn compute_rows(
-    engine: &RowEngine,
-    cfg: &WorkerConfig,
-    fail_row: Option<u32>,
-    jobs: &Receiver<u32>,
-    out: &Sender<FromCompute>,
-    counters: Counters<'_>,
-    scratch: &mut Scratch,
-) {
     let Counters {
         computed,
         busy_nanos,
         stop,
-        ..
+        pairs,
     } = counters;
+    let mut scratch = Scratch::default();
     let mut pending = Pending::new(cfg);
     let mut oldest: Option<Instant> = None;
     let flush_after = Duration::from_secs_f64(cfg.flush_seconds.max(0.01));
@@ -352,15 +334,17 @@ fn compute_rows(
             Err(RecvTimeoutError::Disconnected) => (None, true),
         };
         if stop.load(Ordering::Relaxed) {
-            return;
+            break;
         }
         if let Some(i) = next {
             let t0 = Instant::now();
             let done = if fail_row == Some(i) {
                 Err(format!("failure injected by {FAIL_ROW_ENV}={i}"))
             } else {
-                catch_unwind(AssertUnwindSafe(|| pending.compute(engine, i, scratch)))
-                    .map_err(|p| panic_message(p.as_ref()))
+                catch_unwind(AssertUnwindSafe(|| {
+                    pending.compute(engine, i, &mut scratch)
+                }))
+                .map_err(|p| panic_message(p.as_ref()))
             };
             busy_nanos.fetch_add(t0.elapsed().as_nanos() as u64, Ordering::Relaxed);
             if let Err(message) = done {
@@ -368,7 +352,7 @@ fn compute_rows(
                     row: Some(i),
                     message,
                 });
-                return;
+                break;
             }
             oldest.get_or_insert_with(Instant::now);
             computed.fetch_add(1, Ordering::Relaxed);
@@ -378,13 +362,17 @@ fn compute_rows(
             let msg = pending.flush(cfg);
             oldest = None;
             if out.send(msg).is_err() {
-                return; // the driver stopped (failure elsewhere)
+                break; // the driver stopped (failure elsewhere)
             }
         }
         if finished {
-            return;
+            break;
         }
     }
+    pairs
+        .lock()
+        .unwrap_or_else(|e| e.into_inner())
+        .add(&PairRoutes::of(&scratch.counters()));
 }
 
 fn panic_message(p: &(dyn std::any::Any + Send)) -> String {

@@ -3,7 +3,7 @@
 //! part from [`shadow`]; other pairs, and pairs whose shadows cannot be cut into few
 //! enough pieces, get rays.
 
-use super::{RowEngine, Scratch};
+use super::{ClippedPair, RowEngine, Scratch};
 use crate::formfactor::shadow::{self, Blocked, Caster, Pair};
 #[cfg(doc)]
 use crate::formfactor::Visibility;
@@ -16,20 +16,16 @@ pub(crate) const EXACT_MAX_CANDIDATES: usize = 32;
 const SNAP: f64 = 1e-8;
 
 impl RowEngine {
-    /// F_ij of a pair that may be occluded, unoccluded value `f0`, whose candidate
-    /// occluders are `candidates` (triangle ids): F⁰ minus the blocked part, or None
-    /// when the shadows need rays after all.
+    /// F_ij of a pair that may be occluded (`pair`: its patches and clipped polygons),
+    /// unoccluded value `f0`, whose candidate occluders are `candidates` (triangle
+    /// ids): F⁰ minus the blocked part, or None when the shadows need rays after all.
     pub(super) fn exact_occluded(
         &self,
-        (i, j): (u32, u32),
+        (gi, _, pi, pj): &ClippedPair<'_>,
         f0: f64,
         candidates: &[u32],
         scratch: &mut Scratch,
     ) -> Option<f64> {
-        let (gi, gj) = (&self.geom[i as usize], &self.geom[j as usize]);
-        let (j_lo, _) = gj.extent_wrt(gi);
-        let (i_lo, _) = gi.extent_wrt(gj);
-        let (pi, pj) = self.clipped(gi, gj, (i_lo, j_lo));
         let mut casters = std::mem::take(&mut scratch.casters);
         casters.clear();
         casters.extend(
@@ -38,9 +34,9 @@ impl RowEngine {
                 .filter_map(|&k| Caster::new(self.occluders.world_triangle(k))),
         );
         let pair = Pair {
-            pi: &pi,
+            pi,
             ni: gi.normal,
-            pj: &pj,
+            pj,
             casters: &casters,
             tol: self.tol,
         };

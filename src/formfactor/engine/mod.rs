@@ -443,6 +443,16 @@ impl RowEngine {
         (clip(i_lo, gi, gj), clip(j_lo, gj, gi))
     }
 
+    /// Patches `i`, `j` and their polygons clipped to each other's front half-space, for
+    /// the visibility of a pair whose unoccluded part was computed before.
+    fn clipped_pair(&self, i: u32, j: u32) -> ClippedPair<'_> {
+        let (gi, gj) = (&self.geom[i as usize], &self.geom[j as usize]);
+        let (j_lo, _) = gj.extent_wrt(gi);
+        let (i_lo, _) = gi.extent_wrt(gj);
+        let (pi, pj) = self.clipped(gi, gj, (i_lo, j_lo));
+        (gi, gj, pi, pj)
+    }
+
     /// `contour`, unoccluded part: F⁰_ij on the mutually clipped polygons, by the
     /// tensor Gauss rule when the pair is far apart and needs no clipping
     /// ([`super::farfield`]), else by the double contour integral. None when ≤ 0.
@@ -552,7 +562,7 @@ impl RowEngine {
         }
         let candidates = std::mem::take(&mut scratch.candidates);
         let exact = (self.cfg.visibility == Visibility::Exact)
-            .then(|| self.exact_occluded((i, j), u.f, &candidates, scratch))
+            .then(|| self.exact_occluded(&self.clipped_pair(i, j), u.f, &candidates, scratch))
             .flatten();
         let f =
             exact.unwrap_or_else(|| u.f * self.visibility_with(i, j, Some(&candidates), scratch));
@@ -565,11 +575,9 @@ impl RowEngine {
     /// lists them first.
     fn occluded_unlisted(&self, i: u32, j: u32, f0: f64, scratch: &mut Scratch) -> f64 {
         if self.cfg.visibility == Visibility::Exact {
-            let (gi, gj) = (&self.geom[i as usize], &self.geom[j as usize]);
-            let (j_lo, _) = gj.extent_wrt(gi);
-            let (i_lo, _) = gi.extent_wrt(gj);
-            let (pi, pj) = self.clipped(gi, gj, (i_lo, j_lo));
-            let q = between(gi, gj, &pi, &pj);
+            let pair = self.clipped_pair(i, j);
+            let (gi, gj, pi, pj) = &pair;
+            let q = between(gi, gj, pi, pj);
             let mut candidates = std::mem::take(&mut scratch.candidates);
             let listed = self.occluders.collect_between_up_to(
                 &q,
@@ -578,7 +586,7 @@ impl RowEngine {
                 &mut candidates,
             );
             let exact = listed
-                .then(|| self.exact_occluded((i, j), f0, &candidates, scratch))
+                .then(|| self.exact_occluded(&pair, f0, &candidates, scratch))
                 .flatten();
             let f = exact.unwrap_or_else(|| {
                 let listed = listed.then_some(&candidates[..]);
@@ -612,10 +620,7 @@ impl RowEngine {
         candidates: Option<&[u32]>,
         scratch: &mut Scratch,
     ) -> f64 {
-        let (gi, gj) = (&self.geom[i as usize], &self.geom[j as usize]);
-        let (j_lo, _) = gj.extent_wrt(gi);
-        let (i_lo, _) = gi.extent_wrt(gj);
-        let (pi, pj) = self.clipped(gi, gj, (i_lo, j_lo));
+        let (gi, gj, pi, pj) = self.clipped_pair(i, j);
         let occ = visibility::Blockers {
             occluders: &self.occluders,
             candidates,
@@ -637,6 +642,15 @@ fn between<'a>(gi: &PatchGeom, gj: &PatchGeom, pi: &'a Polygon, pj: &'a Polygon)
         (gi.face, gj.face),
     )
 }
+
+/// A pair's patches and their polygons clipped to each other
+/// ([`RowEngine::clipped_pair`]).
+type ClippedPair<'a> = (
+    &'a PatchGeom,
+    &'a PatchGeom,
+    Cow<'a, Polygon>,
+    Cow<'a, Polygon>,
+);
 
 /// Unoccluded part of a `contour` pair.
 struct Unoccluded {
