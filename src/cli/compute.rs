@@ -151,6 +151,8 @@ pub(super) fn build_job(
     o: &ComputeOptions,
     role: Role,
 ) -> anyhow::Result<ComputeJob> {
+    // The settings first: a refused option costs no scene loading.
+    let cfg = form_factor_config(o)?;
     let setup_start = std::time::Instant::now();
     let scene = tracing::info_span!("load_scene").in_scope(|| load_scene(&input.scene))?;
     if role != Role::Worker {
@@ -159,7 +161,6 @@ pub(super) fn build_job(
         }
     }
     let (patches, max_edge) = patches_of(input, &scene, role != Role::Worker)?;
-    let cfg = form_factor_config(o)?;
     let (engine, description) = engine_for(role, o, &scene, &patches, &cfg)?;
     let took = setup_start.elapsed().as_secs_f64();
     match role {
