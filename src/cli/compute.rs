@@ -183,14 +183,14 @@ pub(super) fn build_job(
         },
         method: cfg.method.to_string(),
         params: format!(
-            "{} max_edge={max_edge} scene={}{}{}",
+            "{} max_edge={max_edge} scene_path={}{}{}",
             description,
-            input.scene,
+            param_value(&input.scene),
             // Half rows give (slightly) different numbers from full rows, so a resume
             // must use the same mode: the header says which one.
             if symmetric { " pairs=half" } else { "" },
             match &o.occluders {
-                Some(p) => format!(" occluders={}", p.display()),
+                Some(p) => format!(" occluders_path={}", param_value(&p.to_string_lossy())),
                 None => String::new(),
             }
         ),
@@ -335,13 +335,22 @@ fn engine_for(
     patches: &PatchSet,
     cfg: &FormFactorConfig,
 ) -> anyhow::Result<(Option<Arc<RowEngine>>, String)> {
-    let occluder_triangles = match &o.occluders {
+    let occluder_triangles: Vec<_> = match &o.occluders {
         Some(path) => scene::load_obj(path)?.triangles().collect(),
         None => scene.triangles().collect(),
     };
+    // A foreign occluder mesh is not in the scene hash: its content goes into the
+    // header (a resume compares it; where it was read from it does not).
+    let foreign = match &o.occluders {
+        Some(_) => format!(
+            " occluders_hash={:#018x}",
+            triangles_hash(&occluder_triangles)
+        ),
+        None => String::new(),
+    };
     if role == Role::Master {
         let kept = Occluders::count_kept(occluder_triangles);
-        return Ok((None, RowEngine::description(cfg, kept)));
+        return Ok((None, RowEngine::description(cfg, kept) + &foreign));
     }
     let occluders = Arc::new(
         tracing::info_span!("build_bvh").in_scope(|| match &o.occluders {
@@ -351,8 +360,39 @@ fn engine_for(
     );
     let engine = tracing::info_span!("prepare_engine")
         .in_scope(|| RowEngine::new(patches, occluders, cfg.clone()));
-    let description = engine.describe();
+    let description = engine.describe() + &foreign;
     Ok((Some(Arc::new(engine)), description))
+}
+
+/// `s` as one token of the header's params (spec §3.2: space-separated `key=value`):
+/// `%`, white space and `=` percent-encoded.
+fn param_value(s: &str) -> String {
+    let mut out = String::with_capacity(s.len());
+    for c in s.chars() {
+        match c {
+            '%' | '=' => out.push_str(&format!("%{:02X}", c as u32)),
+            c if c.is_whitespace() => {
+                let mut b = [0; 4];
+                for byte in c.encode_utf8(&mut b).bytes() {
+                    out.push_str(&format!("%{byte:02X}"));
+                }
+            }
+            c => out.push(c),
+        }
+    }
+    out
+}
+
+/// XXH3-64 of triangles (their ids and the bits of their coordinates, in order).
+fn triangles_hash(triangles: &[(u32, [glam::DVec3; 3])]) -> u64 {
+    let mut h = xxhash_rust::xxh3::Xxh3::new();
+    for (id, t) in triangles {
+        h.update(&id.to_le_bytes());
+        for c in t.iter().flat_map(|v| v.to_array()) {
+            h.update(&c.to_bits().to_le_bytes());
+        }
+    }
+    h.digest()
 }
 
 /// Whether the run computes half rows (`--symmetric`, see its help).

@@ -338,6 +338,11 @@ impl DecodedChunk {
         &self.entries
     }
 
+    /// The header and the row directory, without the row data.
+    pub(crate) fn into_directory(self) -> (ChunkHeaderV1, Vec<RowDirEntryV1>) {
+        (self.header, self.entries)
+    }
+
     /// The directory entry of row `row`, if this chunk holds it.
     pub(crate) fn find(&self, row: u32) -> Option<&RowDirEntryV1> {
         let k = self.by_row.binary_search_by_key(&row, |&(r, _)| r).ok()?;

@@ -18,6 +18,9 @@ pub enum FfzError {
         op: String,
         cause: std::io::Error,
     },
+    /// The path names a directory, a device or another thing that is not a file.
+    #[error("{path}: is {kind}, not an .ffz file")]
+    NotAFile { path: PathBuf, kind: &'static str },
     /// The file does not start with the `.ffz` magic (spec §3).
     #[error("{path}: not an .ffz file (magic at byte 0 is {found:02x?})")]
     NotFfz { path: PathBuf, found: Vec<u8> },

@@ -46,10 +46,19 @@ pub(crate) fn map_and_meta(
     path: &Path,
     file: &std::fs::File,
 ) -> Result<(Mmap, HeaderV1, FileMeta)> {
-    let len = file
-        .metadata()
-        .map_err(|e| FfzError::io(path, "stat", e))?
-        .len();
+    let stat = file.metadata().map_err(|e| FfzError::io(path, "stat", e))?;
+    if !stat.is_file() {
+        let kind = if stat.is_dir() {
+            "a directory"
+        } else {
+            "a special file (device, pipe or socket)"
+        };
+        return Err(FfzError::NotAFile {
+            path: path.into(),
+            kind,
+        });
+    }
+    let len = stat.len();
     if len < spec::HEADER_LEN as u64 {
         return Err(FfzError::Header {
             path: path.into(),
@@ -58,9 +67,10 @@ pub(crate) fn map_and_meta(
         });
     }
     // SAFETY: the map is read-only and lives as long as the reader. ffstream never
-    // rewrites bytes of a file in place (the writer only appends, and `resume` truncates
-    // only after dropping its own map); another process shrinking the file under us
-    // would be outside the file's contract (spec §9).
+    // rewrites or cuts a file in place (the writer only appends; `--force` and a resume
+    // that must drop bytes write a new file and rename it over the old one, which this
+    // map keeps alive); another process shrinking the file under us would be outside
+    // the file's contract (spec §9).
     let map = unsafe { Mmap::map(file) }.map_err(|e| FfzError::io(path, "mmap", e))?;
     if map[0..8] != spec::FILE_MAGIC {
         return Err(FfzError::NotFfz {
@@ -128,19 +138,12 @@ impl FfzReader {
     fn recover(&mut self, offset: u64, why: &str) {
         let n = self.header.n;
         let end = self.map.len() as u64;
-        let scan = recover::scan_chunks(
-            &self.map,
-            self.header.meta_len,
-            end,
-            n,
-            self.meta.layout,
-            false,
-        );
+        let scan = recover::scan_chunks(&self.map, self.header.meta_len, end, n, self.meta.layout);
         self.row_chunk = vec![spec::NO_CHUNK; n as usize];
         let mut duplicates = 0u64;
         for (k, c) in scan.chunks.iter().enumerate() {
             self.chunk_offsets.push(c.offset);
-            for e in c.decoded.entries() {
+            for e in &c.entries {
                 if self.row_chunk[e.row as usize] != spec::NO_CHUNK {
                     // Only a faulty writer repeats a row; keep the first copy.
                     duplicates += 1;

@@ -3,17 +3,19 @@
 //! searching for the next chunk magic. Used when the footer or the index is missing
 //! or bad (a killed writer, a cut file) and by `resume`.
 
-use super::chunk::{self, DecodedChunk};
+use super::chunk;
 use super::meta::Layout;
-use super::spec;
+use super::spec::{self, ChunkHeaderV1, RowDirEntryV1};
 
-/// A chunk the scan accepted.
+/// A chunk the scan accepted: where it is and its row directory (its row data is not
+/// kept, so a scan of a large file holds one chunk's payload at a time).
 #[derive(Debug)]
 pub(crate) struct ScannedChunk {
     pub(crate) offset: u64,
     /// Record length (header + payload).
     pub(crate) len: u64,
-    pub(crate) decoded: DecodedChunk,
+    pub(crate) header: ChunkHeaderV1,
+    pub(crate) entries: Vec<RowDirEntryV1>,
 }
 
 /// A byte range the scan could not use, with the first reason it saw.
@@ -29,59 +31,45 @@ pub struct BadRegion {
 pub(crate) struct ScanOutcome {
     pub(crate) chunks: Vec<ScannedChunk>,
     pub(crate) bad: Vec<BadRegion>,
-    /// End of the run of good chunks that starts at the meta block: what `resume`
-    /// keeps (the rest is truncated).
-    pub(crate) prefix_end: u64,
-    /// Number of chunks in that run.
-    pub(crate) prefix_chunks: usize,
 }
 
 /// Try to read one chunk at `file[pos..]`.
-fn try_chunk(rest: &[u8], n: u32, layout: Layout) -> Result<(DecodedChunk, u64), (u64, String)> {
+fn try_chunk(rest: &[u8], n: u32, layout: Layout) -> Result<ScannedChunk, (u64, String)> {
     let (h, len) = chunk::check_record(rest)?;
-    let d = chunk::decode_record(h, rest, n, layout)?;
-    Ok((d, len))
+    let (header, entries) = chunk::decode_record(h, rest, n, layout)?.into_directory();
+    Ok(ScannedChunk {
+        offset: 0,
+        len,
+        header,
+        entries,
+    })
 }
 
-/// Scan `file[start..end]` for chunks. With `stop_at_first_bad`, stop at the first
-/// position that does not hold a good chunk (what `resume` needs); otherwise search on
-/// for the next chunk magic (what a reader recovering a damaged file needs).
+/// Scan `file[start..end]` for chunks: every good chunk, in file order, stepping over
+/// what is not one by searching for the next chunk magic.
 pub(crate) fn scan_chunks(
     file: &[u8],
     start: u64,
     end: u64,
     n: u32,
     layout: Layout,
-    stop_at_first_bad: bool,
 ) -> ScanOutcome {
     let end = end.min(file.len() as u64);
-    let mut out = ScanOutcome {
-        prefix_end: start,
-        ..Default::default()
-    };
+    let mut out = ScanOutcome::default();
     let mut pos = start;
-    let mut in_prefix = true;
     let mut open_bad: Option<BadRegion> = None;
     while pos < end {
         match try_chunk(&file[pos as usize..end as usize], n, layout) {
-            Ok((decoded, len)) => {
+            Ok(mut c) => {
                 if let Some(mut b) = open_bad.take() {
                     b.end = pos;
                     out.bad.push(b);
                 }
-                out.chunks.push(ScannedChunk {
-                    offset: pos,
-                    len,
-                    decoded,
-                });
-                pos += len;
-                if in_prefix {
-                    out.prefix_end = pos;
-                    out.prefix_chunks = out.chunks.len();
-                }
+                c.offset = pos;
+                pos += c.len;
+                out.chunks.push(c);
             }
             Err((rel, why)) => {
-                in_prefix = false;
                 if open_bad.is_none() {
                     let what = if file[pos as usize..].starts_with(&spec::INDEX_MAGIC) {
                         "an index (ignored by the scan)".to_string()
@@ -93,9 +81,6 @@ pub(crate) fn scan_chunks(
                         end,
                         reason: what,
                     });
-                }
-                if stop_at_first_bad {
-                    break;
                 }
                 match find_magic(&file[(pos + 1) as usize..end as usize]) {
                     Some(k) => pos = pos + 1 + k as u64,

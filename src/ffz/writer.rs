@@ -103,31 +103,130 @@ fn lock_for_writing(path: &Path, file: &File) -> Result<()> {
     }
 }
 
+/// Opens `path` for writing (creating it empty when `create` and it is missing) and
+/// takes the writer's lock on the file that is at `path` once the lock is held: a
+/// writer that renamed a new file over it meanwhile is seen, and its file locked in
+/// turn (which then fails while that writer lives).
+fn open_locked(path: &Path, create: bool, what: &str) -> Result<File> {
+    use std::os::unix::fs::MetadataExt;
+    loop {
+        let file = OpenOptions::new()
+            .read(true)
+            .write(true)
+            .create(create)
+            .truncate(false)
+            .open(path)
+            .map_err(|e| FfzError::io(path, what, e))?;
+        lock_for_writing(path, &file)?;
+        let held = file.metadata().map_err(|e| FfzError::io(path, "stat", e))?;
+        match std::fs::metadata(path) {
+            Ok(now) if (now.dev(), now.ino()) == (held.dev(), held.ino()) => return Ok(file),
+            Ok(_) => continue,
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound && create => continue,
+            Err(e) => return Err(FfzError::io(path, what, e)),
+        }
+    }
+}
+
+/// Where a writer builds the file that replaces `path` (spec §9.1): `OUT.ffz.new`,
+/// beside it, so that the rename that publishes it is atomic.
+fn staging_path(path: &Path) -> PathBuf {
+    let mut s = path.as_os_str().to_owned();
+    s.push(".new");
+    s.into()
+}
+
+/// A new file at [`staging_path`], created empty and locked. Only the holder of the
+/// lock of `path` calls this, so a file already there is a killed writer's leftover.
+fn start_staging(path: &Path) -> Result<(File, PathBuf)> {
+    let staging = staging_path(path);
+    let file = OpenOptions::new()
+        .read(true)
+        .write(true)
+        .create(true)
+        .truncate(true)
+        .open(&staging)
+        .map_err(|e| {
+            FfzError::io(
+                &staging,
+                "create (the new file, renamed over the old one once its start is written)",
+                e,
+            )
+        })?;
+    lock_for_writing(&staging, &file)?;
+    Ok((file, staging))
+}
+
+/// Gives the staged file `file` the name `path`, atomically: a reader that has the
+/// old file open keeps reading it, whole; one that opens `path` afterwards gets the
+/// new one. With `fsync`, the new file's bytes and then the rename are made durable.
+fn publish(file: &File, staging: &Path, path: &Path, fsync: bool) -> Result<()> {
+    if fsync {
+        file.sync_all()
+            .map_err(|e| FfzError::io(staging, "fsync", e))?;
+    }
+    std::fs::rename(staging, path).map_err(|e| {
+        let _ = std::fs::remove_file(staging);
+        FfzError::io(path, format!("rename {} to it", staging.display()), e)
+    })?;
+    if fsync {
+        let dir = match path.parent() {
+            Some(d) if !d.as_os_str().is_empty() => d,
+            _ => Path::new("."),
+        };
+        // A directory that cannot be opened or synced (some network file systems)
+        // leaves the rename to the file system's own schedule: not an error.
+        if let Ok(d) = File::open(dir) {
+            let _ = d.sync_all();
+        }
+    }
+    Ok(())
+}
+
+/// The chunks of an existing file that a resume keeps, in file order.
+struct KeptChunks {
+    /// (offset, record length) of each.
+    chunks: Vec<(u64, u64)>,
+    row_chunk: Vec<u32>,
+    presence: RowPresence,
+    raw_bytes: u64,
+    /// The kept chunks tile the file from the meta block to its end: nothing to drop.
+    whole: bool,
+    warnings: Vec<String>,
+}
+
 impl FfzWriter {
     /// Create (or overwrite) `path` and write the meta block (spec §3, §4).
     ///
+    /// An existing regular file is not cut in place: the new file is written beside it
+    /// and renamed over it (spec §9.1), so a reader that has the old one open keeps
+    /// reading it whole instead of being killed by a signal when its pages vanish.
+    ///
     /// # Errors
-    /// `InvalidMeta` when the metadata cannot be stored; `Io` naming the path.
+    /// `InvalidMeta` when the metadata cannot be stored; `Locked` while another writer
+    /// has the file; `Io` naming the path.
     pub fn create(path: impl AsRef<Path>, meta: &FileMeta, opts: WriterOptions) -> Result<Self> {
         let path = path.as_ref();
         let block = meta::encode_meta(meta, opts.zstd_level)?;
-        // Open without truncating, take the writer's lock, then truncate: a file another
-        // process is still writing is refused, never clobbered.
-        let mut file = OpenOptions::new()
-            .read(true)
-            .write(true)
-            .create(true)
-            .truncate(false)
-            .open(path)
-            .map_err(|e| FfzError::io(path, "create", e))?;
-        lock_for_writing(path, &file)?;
-        // (Only regular files have a length to cut; a device such as /dev/full has none.)
-        if file.metadata().is_ok_and(|m| m.is_file()) {
-            file.set_len(0)
-                .map_err(|e| FfzError::io(path, "truncate", e))?;
-        }
-        file.write_all(&block)
-            .map_err(|e| FfzError::io(path, "write header", e))?;
+        // Take the lock of what is there first: a file another process is still
+        // writing is refused, never replaced.
+        let target = open_locked(path, true, "create")?;
+        // (Only regular files can be replaced; a device such as /dev/full is written.)
+        let file = if target.metadata().is_ok_and(|m| m.is_file()) {
+            let (mut file, staging) = start_staging(path)?;
+            file.write_all(&block).map_err(|e| {
+                let _ = std::fs::remove_file(&staging);
+                FfzError::io(&staging, "write header", e)
+            })?;
+            publish(&file, &staging, path, opts.fsync)?;
+            file
+        } else {
+            let mut device = target;
+            device
+                .write_all(&block)
+                .map_err(|e| FfzError::io(path, "write header", e))?;
+            device
+        };
         Ok(Self::empty(path, file, opts, meta, block.len() as u64))
     }
 
@@ -155,99 +254,48 @@ impl FfzWriter {
         }
     }
 
-    /// Reopen a partial or finished file to add the rows it lacks. Checks that the file
-    /// was written for the same problem (scene hash, n, layout and k, method, params),
-    /// keeps every good chunk, cuts off a torn last chunk and the old index and footer,
-    /// and returns which rows are already there.
+    /// Reopen a partial or finished file to add the rows it lacks (spec §9.2). Checks
+    /// that the file was written for the same problem (scene hash, n, layout and k,
+    /// method, params), keeps every good chunk wherever it is (before or after a
+    /// damaged region), and returns which rows are already there.
+    ///
+    /// A file that ends with its last good chunk is appended to in place. Any other
+    /// (an old index and footer, a torn last chunk, a damaged region) is rewritten: the
+    /// kept chunks are copied into a new file beside it that is renamed over it, so the
+    /// file never shrinks under a reader (the copy needs that much free space; when the
+    /// disk cannot hold it the old file is left as it was).
     ///
     /// # Errors
     /// `ResumeMismatch` naming the field that differs; `Header` when the file's header
-    /// is unreadable; `Io` naming the path.
+    /// is unreadable; `Locked` while another writer has it; `Io` naming the path.
     pub fn resume(
         path: impl AsRef<Path>,
         meta: &FileMeta,
         opts: WriterOptions,
     ) -> Result<(Self, RowPresence)> {
         let path = path.as_ref();
-        let file = OpenOptions::new()
-            .read(true)
-            .write(true)
-            .open(path)
-            .map_err(|e| FfzError::io(path, "open for resume", e))?;
-        lock_for_writing(path, &file)?;
-        let (map, header, old) = map_and_meta(path, &file)?;
+        let target = open_locked(path, false, "open for resume")?;
+        let (map, header, old) = map_and_meta(path, &target)?;
         check_resumable(path, &header, &old, meta)?;
-        let n = header.n;
-        let mut w = Self::empty(path, file, opts, meta, header.meta_len);
-        let keep = match trusted_index(&map, n, header.meta_len) {
-            Some((ix, raw)) => {
-                w.chunk_offsets = ix.chunk_offsets;
-                w.row_chunk = ix.row_chunk;
-                w.presence = ix.presence;
-                w.raw_bytes = raw;
-                ix.index_offset
-            }
-            None => w.adopt_scanned_chunks(&map, header.meta_len),
+        let kept = kept_chunks(path, &map, header.n, header.meta_len, old.layout);
+        let (file, offsets, end) = if kept.whole {
+            let end = kept.chunks.last().map_or(header.meta_len, |&(o, l)| o + l);
+            (target, kept.chunks.iter().map(|c| c.0).collect(), end)
+        } else {
+            rewrite(path, &map, header.meta_len, &kept.chunks, opts.fsync)?
         };
         drop(map);
+        let mut w = Self::empty(path, file, opts, meta, end);
         w.file
-            .set_len(keep)
-            .map_err(|e| FfzError::io(path, "truncate for resume", e))?;
-        w.file
-            .seek(SeekFrom::Start(keep))
+            .seek(SeekFrom::Start(w.pos))
             .map_err(|e| FfzError::io(path, "seek", e))?;
-        if opts.fsync {
-            w.file
-                .sync_all()
-                .map_err(|e| FfzError::io(path, "fsync", e))?;
-        }
-        w.pos = keep;
+        w.chunk_offsets = offsets;
+        w.row_chunk = kept.row_chunk;
+        w.presence = kept.presence;
+        w.raw_bytes = kept.raw_bytes;
+        w.warnings = kept.warnings;
         let presence = w.presence.clone();
         Ok((w, presence))
-    }
-
-    /// Adopts the complete chunks of the unindexed file `map` (a killed run's) in file
-    /// order, up to the first that repeats a row of an earlier one; returns where the
-    /// kept part ends. What is cut off is said in `warnings`.
-    fn adopt_scanned_chunks(&mut self, map: &[u8], meta_len: u64) -> u64 {
-        let n = self.n;
-        let file_len = map.len() as u64;
-        let scan = recover::scan_chunks(map, meta_len, file_len, n, self.layout, true);
-        let mut keep = meta_len;
-        'chunks: for c in &scan.chunks[..scan.prefix_chunks] {
-            for e in c.decoded.entries() {
-                if self.presence.get(e.row) != RowState::Missing {
-                    self.warnings.push(format!(
-                        "{}: chunk at byte {} repeats row {}; it and what follows are dropped",
-                        self.path.display(),
-                        c.offset,
-                        e.row
-                    ));
-                    break 'chunks;
-                }
-            }
-            let k = self.chunk_offsets.len() as u32;
-            for e in c.decoded.entries() {
-                let s = if e.flags & spec::ROW_FLAG_SKIPPED != 0 {
-                    RowState::Skipped
-                } else {
-                    RowState::Present
-                };
-                self.presence.set(e.row, s);
-                self.row_chunk[e.row as usize] = k;
-            }
-            self.chunk_offsets.push(c.offset);
-            self.raw_bytes += c.decoded.header.raw_len;
-            keep = c.offset + c.len;
-        }
-        if keep < file_len {
-            self.warnings.push(format!(
-                "{}: dropped {} bytes after byte {keep} (torn last chunk, or an old index that is rewritten at finish)",
-                self.path.display(),
-                file_len - keep
-            ));
-        }
-        keep
     }
 
     /// Notes from `resume` (bytes dropped, ...).
@@ -502,13 +550,171 @@ fn check_resumable(
             old.layout, meta.layout
         ));
     }
-    if old.method != meta.method || old.params != meta.params {
+    if old.method != meta.method {
         return mismatch(format!(
-            "file was computed with method '{}' params '{}', this run has method '{}' params '{}'",
-            old.method, old.params, meta.method, meta.params
+            "the file was computed with method {}, this run uses {}",
+            old.method, meta.method
         ));
     }
+    if let Some(what) = params_difference(&old.params, &meta.params) {
+        return mismatch(what);
+    }
     Ok(())
+}
+
+/// The first setting in which two params strings (spec §3.2: space-separated
+/// `key=value` tokens) differ, ignoring the keys that end in `_path` (where an input
+/// was read from, which does not determine the rows: the scene hash, or a `_hash` key,
+/// stands for its content); None when they agree.
+fn params_difference(old: &str, new: &str) -> Option<String> {
+    fn settings(p: &str) -> Vec<(&str, &str)> {
+        p.split_ascii_whitespace()
+            .map(|t| t.split_once('=').unwrap_or((t, "")))
+            .filter(|(k, _)| !k.ends_with("_path"))
+            .collect()
+    }
+    let (a, b) = (settings(old), settings(new));
+    fn value<'a>(s: &[(&str, &'a str)], key: &str) -> Option<&'a str> {
+        s.iter().find(|(k, _)| *k == key).map(|kv| kv.1)
+    }
+    for &(k, v) in &a {
+        match value(&b, k) {
+            Some(w) if w == v => {}
+            Some(w) => {
+                return Some(format!(
+                    "{k} differs: the file was computed with {k}={v}, this run has {k}={w}"
+                ))
+            }
+            None => {
+                return Some(format!(
+                    "the file was computed with {k}={v}, this run has no {k}"
+                ))
+            }
+        }
+    }
+    b.iter()
+        .find(|(k, _)| value(&a, k).is_none())
+        .map(|(k, v)| format!("this run has {k}={v}, the file was computed without {k}"))
+}
+
+/// What a resume keeps of the file mapped at `map`: the chunks its index lists when
+/// they all pass their cheap checks, else every good chunk a scan finds (spec §8), a
+/// chunk that repeats a row of an earlier one excepted. What is dropped is said in the
+/// warnings.
+fn kept_chunks(path: &Path, map: &[u8], n: u32, meta_len: u64, layout: Layout) -> KeptChunks {
+    if let Some((ix, raw_bytes)) = trusted_index(map, n, meta_len) {
+        let ends = ix
+            .chunk_offsets
+            .iter()
+            .skip(1)
+            .copied()
+            .chain([ix.index_offset]);
+        let chunks = ix
+            .chunk_offsets
+            .iter()
+            .zip(ends)
+            .map(|(&o, e)| (o, e - o))
+            .collect();
+        return KeptChunks {
+            chunks,
+            row_chunk: ix.row_chunk,
+            presence: ix.presence,
+            raw_bytes,
+            // The old index and footer are dropped (`finish` writes new ones).
+            whole: false,
+            warnings: Vec::new(),
+        };
+    }
+    let scan = recover::scan_chunks(map, meta_len, map.len() as u64, n, layout);
+    let mut kept = KeptChunks {
+        chunks: Vec::with_capacity(scan.chunks.len()),
+        row_chunk: vec![spec::NO_CHUNK; n as usize],
+        presence: RowPresence::new(n),
+        raw_bytes: 0,
+        whole: scan.bad.is_empty(),
+        warnings: Vec::new(),
+    };
+    for c in &scan.chunks {
+        if let Some(e) = c
+            .entries
+            .iter()
+            .find(|e| kept.presence.get(e.row) != RowState::Missing)
+        {
+            kept.warnings.push(format!(
+                "{}: the chunk at byte {} repeats row {} of an earlier chunk: it is dropped and its rows that no other chunk holds are computed again",
+                path.display(),
+                c.offset,
+                e.row
+            ));
+            kept.whole = false;
+            continue;
+        }
+        let k = kept.chunks.len() as u32;
+        for e in &c.entries {
+            let state = if e.flags & spec::ROW_FLAG_SKIPPED != 0 {
+                RowState::Skipped
+            } else {
+                RowState::Present
+            };
+            kept.presence.set(e.row, state);
+            kept.row_chunk[e.row as usize] = k;
+        }
+        kept.chunks.push((c.offset, c.len));
+        kept.raw_bytes += c.header.raw_len;
+    }
+    for b in &scan.bad {
+        kept.warnings.push(format!(
+            "{}: bytes {}..{} dropped: {}",
+            path.display(),
+            b.start,
+            b.end,
+            b.reason
+        ));
+    }
+    kept
+}
+
+/// Writes the meta block of `map` and its chunks `chunks` ((offset, length), in
+/// order) into a new file and renames it over `path` ([`publish`]); returns the new
+/// file, the chunks' new offsets and where the copy ends. On failure (a full disk)
+/// the new file is removed and `path` is as it was.
+fn rewrite(
+    path: &Path,
+    map: &[u8],
+    meta_len: u64,
+    chunks: &[(u64, u64)],
+    fsync: bool,
+) -> Result<(File, Vec<u64>, u64)> {
+    let (mut file, staging) = start_staging(path)?;
+    let mut copy = || -> std::io::Result<(Vec<u64>, u64)> {
+        file.write_all(&map[..meta_len as usize])?;
+        let mut pos = meta_len;
+        let mut offsets = Vec::with_capacity(chunks.len());
+        for &(o, l) in chunks {
+            offsets.push(pos);
+            file.write_all(&map[o as usize..(o + l) as usize])?;
+            pos += l;
+        }
+        Ok((offsets, pos))
+    };
+    match copy() {
+        Ok((offsets, end)) => {
+            publish(&file, &staging, path, fsync)?;
+            Ok((file, offsets, end))
+        }
+        Err(e) => {
+            let _ = std::fs::remove_file(&staging);
+            Err(FfzError::io(
+                &staging,
+                format!(
+                    "copy the {} chunks a resume keeps (it rewrites a file it must cut, so that no reader sees it shrink; {} is unchanged)",
+                    chunks.len(),
+                    path.display()
+                ),
+                e,
+            ))
+        }
+    }
 }
 
 /// The index of a finished file whose chunks all pass their cheap checks (and tile

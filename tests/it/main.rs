@@ -23,3 +23,4 @@ mod stress_fuzz;
 mod stress_geom;
 mod stress_numeric;
 mod stress_props;
+mod stress_resume;

@@ -251,6 +251,16 @@ fn unreadable_and_unwritable_paths_name_the_path_once() {
     ]);
     let line = assert_one_error(&out, "unwritable output", &["/nonexistent/dir/x.ffz"]);
     assert_eq!(line.matches("No such file").count(), 1, "{line}");
+    // A directory where a file is wanted (it used to say "mmap: No such device").
+    let dir = tempfile::tempdir().unwrap();
+    for cmd in ["info", "verify"] {
+        let out = ffstream(&[cmd, path_str(dir.path())]);
+        assert_one_error(
+            &out,
+            cmd,
+            &[path_str(dir.path()), "is a directory, not an .ffz file"],
+        );
+    }
 }
 
 /// Every fixed choice of every command: a misspelt value exits 2 at once (before the
