@@ -109,3 +109,54 @@ choice! {
         Exact => Visibility::Exact,
     }
 }
+
+/// Numbers with a range, as clap value parsers: a value outside it is a usage error
+/// (exit 2, before any scene is loaded) that states the range. Integers use clap's
+/// ranged parsers (`value_parser!(u32).range(..)`); these are the real-valued ones.
+pub(crate) mod number {
+    fn real(s: &str) -> Result<f64, String> {
+        s.trim()
+            .parse::<f64>()
+            .map_err(|_| format!("`{s}` is not a number"))
+    }
+
+    /// A finite number > 0.
+    pub(crate) fn positive(s: &str) -> Result<f64, String> {
+        match real(s)? {
+            x if x.is_finite() && x > 0.0 => Ok(x),
+            x => Err(format!("{x} is not a finite number > 0")),
+        }
+    }
+
+    /// A finite number ≥ 0.
+    pub(crate) fn non_negative(s: &str) -> Result<f64, String> {
+        match real(s)? {
+            x if x.is_finite() && x >= 0.0 => Ok(x),
+            x => Err(format!("{x} is not a finite number ≥ 0")),
+        }
+    }
+
+    /// A finite number.
+    pub(crate) fn finite(s: &str) -> Result<f64, String> {
+        match real(s)? {
+            x if x.is_finite() => Ok(x),
+            x => Err(format!("{x} is not a finite number")),
+        }
+    }
+
+    /// A tolerance: a number in (0, 0.1].
+    pub(crate) fn tolerance(s: &str) -> Result<f64, String> {
+        match real(s)? {
+            x if x > 0.0 && x <= 0.1 => Ok(x),
+            x => Err(format!("{x} is outside (0, 0.1]")),
+        }
+    }
+
+    /// A relative residual: a number in (0, 1).
+    pub(crate) fn residual(s: &str) -> Result<f64, String> {
+        match real(s)? {
+            x if x > 0.0 && x < 1.0 => Ok(x),
+            x => Err(format!("{x} is outside (0, 1)")),
+        }
+    }
+}

@@ -9,7 +9,7 @@ use anyhow::bail;
 use clap::Args;
 
 use ffstream::ffz::{FileMeta, Layout, WriterOptions};
-use ffstream::formfactor::{FormFactorConfig, Method, RowEngine, Visibility};
+use ffstream::formfactor::{FormFactorConfig, Method, RowEngine, Visibility, MAX_SAMPLES};
 use ffstream::geometry::occluders::Occluders;
 use ffstream::geometry::subdivide::{default_max_edge, patch_count, subdivide};
 use ffstream::patch::PatchSet;
@@ -18,12 +18,14 @@ use ffstream::scene::{self, Scene};
 use ffstream::service::ServiceError;
 use ffstream::service::{ComputeJob, ComputeReport};
 
-use super::choices::{MethodArg, PresetArg, RowsArg, ScheduleArg, SymmetricArg, VisibilityArg};
+use super::choices::{
+    number, MethodArg, PresetArg, RowsArg, ScheduleArg, SymmetricArg, VisibilityArg,
+};
 use super::SceneInput;
 
 /// Most patches a job may have: 2^26 (row ids are u32; the patch table alone is then
 /// about 10 GB, and a dense f32 row 256 MiB per compute thread).
-const MAX_PATCHES: usize = 1 << 26;
+pub(super) const MAX_PATCHES: usize = 1 << 26;
 
 #[derive(Args, Debug, Clone)]
 pub(crate) struct ComputeArgs {
@@ -52,22 +54,23 @@ pub(crate) struct ComputeOptions {
     /// Exact visibility: target error of an entry's blocked part, relative to the
     /// entry's unoccluded value (default: the preset's, fast 1e-2, accurate 1e-3,
     /// reference 1e-6; see README for cost against accuracy).
-    #[arg(long, value_name = "TOL")]
+    #[arg(long, value_name = "TOL", value_parser = number::tolerance)]
     pub shadow_tol: Option<f64>,
     /// Visibility samples per pair (mc: point pairs; contour: rays per pair that may be
-    /// occluded, all of them cast unless --first-batch is also given).
-    #[arg(long, value_name = "S")]
+    /// occluded, all of them cast unless --first-batch is also given). 1 to 65536.
+    #[arg(long, value_name = "S", value_parser = clap::value_parser!(u32).range(1..=i64::from(MAX_SAMPLES)))]
     pub samples: Option<u32>,
     /// Rays cast for a pair before the adaptive early stop (when they all agree the
     /// pair is done; the stop is biased, see README). Equal to --samples: no early
-    /// stop. Default: the preset's, or --samples when that is given.
-    #[arg(long, value_name = "B")]
+    /// stop. Default: the preset's, or --samples when that is given. 1 to 65536.
+    #[arg(long, value_name = "B", value_parser = clap::value_parser!(u32).range(1..=i64::from(MAX_SAMPLES)))]
     pub first_batch: Option<u32>,
     /// Keep only the K largest entries of each row (the dropped mass is stored per row).
-    #[arg(long, value_name = "K")]
+    #[arg(long, value_name = "K", value_parser = clap::value_parser!(u32).range(1..))]
     pub top_k: Option<u32>,
-    /// Compute threads per process (embedded) or per worker rank (MPI). Default: all cores.
-    #[arg(long, value_name = "T")]
+    /// Compute threads per process (embedded) or per worker rank (MPI), 1 to 4096.
+    /// Default: all cores.
+    #[arg(long, value_name = "T", value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=MAX_THREADS as u64))]
     pub threads: Option<usize>,
     /// Work distribution over the workers.
     #[arg(long, value_enum, default_value_t = ScheduleArg::Dynamic, value_name = "SCHEDULE")]
@@ -102,15 +105,16 @@ pub(crate) struct ComputeOptions {
     /// f64 matrix in memory and writes it at the end.
     #[arg(long)]
     pub gather: bool,
-    /// zstd compression level of the row chunks.
-    #[arg(long, default_value_t = 1, value_name = "LEVEL")]
+    /// zstd compression level of the row chunks, 1 (fastest) to 22.
+    #[arg(long, default_value_t = 1, value_name = "LEVEL", value_parser = clap::value_parser!(i32).range(1..=22))]
     pub zstd_level: i32,
-    /// Target uncompressed size of a row chunk, in KiB.
-    #[arg(long, default_value_t = 1024, value_name = "KIB")]
+    /// Target uncompressed size of a row chunk, in KiB (1 to 1048576, i.e. 1 GiB; a
+    /// chunk holds at least one row).
+    #[arg(long, default_value_t = 1024, value_name = "KIB", value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=1 << 20))]
     pub chunk_kib: usize,
     /// Seconds after which a compute thread sends its pending rows even if its chunk is
-    /// not full (bounds the work a killed run loses).
-    #[arg(long, default_value_t = 5.0, value_name = "SECONDS")]
+    /// not full (bounds the work a killed run loses). A finite number ≥ 0.
+    #[arg(long, default_value_t = 5.0, value_name = "SECONDS", value_parser = number::non_negative)]
     pub flush_seconds: f64,
     /// Do not fsync the file at the end (faster; a power loss may lose the index).
     #[arg(long)]
@@ -201,18 +205,6 @@ pub(super) fn build_job(
     let threads = o
         .threads
         .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
-    if threads == 0 || threads > MAX_THREADS {
-        bail!("--threads must be between 1 and {MAX_THREADS}, got {threads}");
-    }
-    if o.chunk_kib == 0 {
-        bail!("--chunk-kib must be at least 1");
-    }
-    if !(o.flush_seconds.is_finite() && o.flush_seconds >= 0.0) {
-        bail!(
-            "--flush-seconds must be a finite number of seconds ≥ 0, got {}",
-            o.flush_seconds
-        );
-    }
     Ok(ComputeJob {
         output,
         meta,
@@ -245,11 +237,9 @@ fn patches_of(
     scene: &Scene,
     announce: bool,
 ) -> anyhow::Result<(Arc<PatchSet>, f64)> {
-    let max_edge = match input.max_edge {
-        Some(l) if l.is_finite() && l > 0.0 => l,
-        Some(l) => bail!("--max-edge must be a positive length, got {l}"),
-        None => default_max_edge(scene, input.patches),
-    };
+    let max_edge = input
+        .max_edge
+        .unwrap_or_else(|| default_max_edge(scene, input.patches));
     // Refuse before allocating: a tiny --max-edge (or a huge --patches) would otherwise
     // abort on a failed allocation instead of giving an error.
     let count = patch_count(scene, max_edge);

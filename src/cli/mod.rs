@@ -69,11 +69,12 @@ pub(crate) struct SceneInput {
     #[arg(value_parser = scene_spec)]
     pub scene: String,
     /// Longest patch edge, in scene units. Default: chosen so the scene gets about
-    /// --patches patches (the value chosen is printed).
-    #[arg(long, value_name = "L")]
+    /// --patches patches (the value chosen is printed). A finite length > 0.
+    #[arg(long, value_name = "L", value_parser = choices::number::positive)]
     pub max_edge: Option<f64>,
-    /// Target patch count used to choose --max-edge when it is not given.
-    #[arg(long, value_name = "N", default_value_t = ffstream::geometry::subdivide::DEFAULT_TARGET_PATCHES)]
+    /// Target patch count used to choose --max-edge when it is not given (1 to 2^26).
+    #[arg(long, value_name = "N", default_value_t = ffstream::geometry::subdivide::DEFAULT_TARGET_PATCHES,
+          value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=compute::MAX_PATCHES as u64))]
     pub patches: usize,
 }
 

@@ -39,17 +39,32 @@ pub(crate) struct ViewOptions {
     pub wireframe: bool,
     /// Exposure: linear radiosity multiplied by this before sRGB encoding. Default:
     /// automatic (the 99th percentile of non-emitting patches maps to 0.8).
-    #[arg(long, value_name = "X")]
+    #[arg(long, value_name = "X", value_parser = render_exposure)]
     pub exposure: Option<f32>,
-    /// Image width in pixels.
-    #[arg(long, default_value_t = 512)]
+    /// Image width in pixels (1 to 16384).
+    #[arg(long, default_value_t = 512, value_parser = clap::value_parser!(u32).range(1..=16384))]
     pub width: u32,
-    /// Image height in pixels.
-    #[arg(long, default_value_t = 512)]
+    /// Image height in pixels (1 to 16384).
+    #[arg(long, default_value_t = 512, value_parser = clap::value_parser!(u32).range(1..=16384))]
     pub height: u32,
     /// Samples per pixel for anti-aliasing (a perfect square: 1, 4, 9, 16).
-    #[arg(long, default_value_t = 9, value_name = "N")]
+    #[arg(long, default_value_t = 9, value_name = "N", value_parser = render_spp)]
     pub spp: u32,
+}
+
+/// `--spp`: a perfect square from 1 to 256.
+fn render_spp(s: &str) -> Result<u32, String> {
+    match s.trim().parse::<u32>() {
+        Ok(n) if (1..=16u32).any(|k| k * k == n) => Ok(n),
+        _ => Err(format!(
+            "{s} is not a perfect square from 1 to 256 (1, 4, 9, ..., 256)"
+        )),
+    }
+}
+
+/// `--exposure`: a finite number > 0.
+fn render_exposure(s: &str) -> Result<f32, String> {
+    super::choices::number::positive(s).map(|x| x as f32)
 }
 
 /// `--camera`, checked when the command line is read (a usage error).

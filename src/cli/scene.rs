@@ -15,7 +15,7 @@ pub(crate) struct SceneArgs {
     pub output: PathBuf,
     /// Scene parameter: plates = distance (default 1), cube = side (1), perpendicular =
     /// height (1), room = clutter (number of boxes, 16), city = blocks per side (4).
-    #[arg(long, value_name = "P")]
+    #[arg(long, value_name = "P", value_parser = super::choices::number::finite)]
     pub param: Option<f64>,
 }
 

@@ -98,6 +98,11 @@ impl Preset {
     }
 }
 
+/// Most visibility samples per pair (`samples`, `first_batch`): 65 536 rays per pair
+/// is far past the point where exact visibility is the better route, and bounds the
+/// per-thread sample buffers (about 12 bytes a sample).
+pub const MAX_SAMPLES: u32 = 1 << 16;
+
 /// Parameters of a form-factor run. Everything that changes the numbers is here and
 /// in [`RowEngine::describe`] (stored in the file header).
 #[derive(Clone, Debug, PartialEq)]
@@ -285,11 +290,17 @@ impl FormFactorConfig {
     /// [`FormFactorError::InvalidConfig`] naming the offending field.
     pub fn validate(&self) -> Result<(), FormFactorError> {
         let bad = |m: String| Err(FormFactorError::InvalidConfig(m));
-        if self.samples == 0 {
-            return bad("samples must be at least 1".into());
+        if !(1..=MAX_SAMPLES).contains(&self.samples) {
+            return bad(format!(
+                "samples {} outside 1..={MAX_SAMPLES}",
+                self.samples
+            ));
         }
-        if self.first_batch == 0 {
-            return bad("first_batch must be at least 1".into());
+        if !(1..=MAX_SAMPLES).contains(&self.first_batch) {
+            return bad(format!(
+                "first_batch {} outside 1..={MAX_SAMPLES}",
+                self.first_batch
+            ));
         }
         if !(1..=quadrature::MAX_ORDER as u32).contains(&self.quad_order) {
             return bad(format!(

@@ -206,11 +206,8 @@ fn invalid_utf8_and_binary_garbage_are_errors_naming_the_file() {
 
 #[test]
 fn impossible_sizes_are_refused_before_allocating() {
-    for args in [
-        &["--max-edge", "1e-7"][..],
-        &["--max-edge", "1e-300"],
-        &["--patches", "4000000000"],
-    ] {
+    // Too many patches for this scene: known once it is loaded (exit 1, naming it).
+    for args in [&["--max-edge", "1e-7"][..], &["--max-edge", "1e-300"]] {
         let mut a = vec!["compute", "builtin:cube", "-o", "/dev/null", "--quiet"];
         a.extend_from_slice(args);
         let out = ffstream(&a);
@@ -221,16 +218,77 @@ fn impossible_sizes_are_refused_before_allocating() {
         );
         assert!(line.contains("--max-edge"), "{line}");
     }
-    for v in ["0", "nan", "inf", "-inf"] {
-        let out = ffstream(&[
-            "compute",
-            "builtin:cube",
-            "-o",
-            "/dev/null",
-            "--quiet",
-            &format!("--max-edge={v}"),
-        ]);
-        assert_one_error(&out, v, &["--max-edge"]);
+}
+
+/// Every number an option takes has a range, checked when the command line is read:
+/// a value outside it exits 2 at once (the scene, which does not exist here, is never
+/// opened), and the message names the option and the range. Before, `--threads 100000`
+/// aborted after starting 16k threads, `--samples 4294967295` died allocating 51 GB,
+/// and `--patches 0` or `--flush-seconds=-1` were silently accepted.
+#[test]
+fn option_values_out_of_range_are_refused_at_once_naming_the_range() {
+    let compute = ["compute", "no.obj", "-o", "x.ffz"];
+    let cases: &[(&[&str], &str, &str)] = &[
+        (&compute, "--samples=4294967295", "1..=65536"),
+        (&compute, "--samples=0", "1..=65536"),
+        (&compute, "--first-batch=0", "1..=65536"),
+        (&compute, "--threads=100000", "1..=4096"),
+        (&compute, "--threads=0", "1..=4096"),
+        (&compute, "--patches=0", "1..=67108864"),
+        (&compute, "--patches=4000000000", "1..=67108864"),
+        (&compute, "--top-k=0", "1..="),
+        (&compute, "--chunk-kib=0", "1..=1048576"),
+        (&compute, "--zstd-level=30", "1..=22"),
+        (&compute, "--flush-seconds=nan", "finite number ≥ 0"),
+        (&compute, "--flush-seconds=-1", "finite number ≥ 0"),
+        (&compute, "--max-edge=0", "finite number > 0"),
+        (&compute, "--max-edge=inf", "finite number > 0"),
+        (&compute, "--max-edge=-inf", "finite number > 0"),
+        (&compute, "--max-edge=nan", "finite number > 0"),
+        (&compute, "--shadow-tol=1", "(0, 0.1]"),
+        (&["run", "no.obj"], "--samples=0", "1..=65536"),
+        (
+            &["solve", "no.ffz", "-o", "r.csv"],
+            "--tolerance=0",
+            "(0, 1)",
+        ),
+        (
+            &["solve", "no.ffz", "-o", "r.csv"],
+            "--max-iterations=0",
+            "1..",
+        ),
+        (
+            &["render", "no.ffz", "-o", "i.png"],
+            "--width=0",
+            "1..=16384",
+        ),
+        (
+            &["render", "no.ffz", "-o", "i.png"],
+            "--spp=8",
+            "perfect square from 1 to 256",
+        ),
+        (
+            &["render", "no.ffz", "-o", "i.png"],
+            "--exposure=nan",
+            "finite number > 0",
+        ),
+        (
+            &["scene", "plates", "-o", "x.obj"],
+            "--param=inf",
+            "finite number",
+        ),
+    ];
+    for (cmd, arg, range) in cases {
+        let mut a = cmd.to_vec();
+        a.push(arg);
+        let out = ffstream(&a);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{a:?}: {stderr}");
+        let option = arg.split('=').next().unwrap();
+        assert!(
+            stderr.contains(option) && stderr.contains(range),
+            "{a:?}: the message should name {option} and {range}: {stderr}"
+        );
     }
 }
 
