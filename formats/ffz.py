@@ -176,6 +176,7 @@ class _Chunk:
             raise ValueError(f"payload decompresses to {len(raw)} bytes, header says {rlen}")
         if not _crc_ok(raw, crc_r):
             raise ValueError("decompressed payload checksum mismatch")
+        self.pos = pos
         self.length = CHUNK_HEADER_LEN + clen
         self.shuffled = bool(flags & SHUFFLED)
         self.raw = raw
@@ -350,12 +351,16 @@ def _parse(path, buf) -> FfzFile:
     dropped = np.zeros(n, dtype=np.float32)
     row_ids, col_parts, val_parts = [], [], []
     counts = np.zeros(n, dtype=np.int64)
+    held = np.zeros(n, dtype=bool)  # rows the chunks hold (checked against the index)
     for c, ch in enumerate(chunks):
         try:
             for row, state, cols, vals, dr in ch.rows(n):
-                if indexed:
-                    if row_chunk[row] != c or presence[row] != state:
-                        raise ValueError(f"row {row} disagrees with the index")
+                if indexed:  # spec 9.3: the chunk holds the row the index says it does
+                    if row_chunk[row] != c:
+                        raise ValueError(f"holds row {row} which the index puts in chunk {int(row_chunk[row])}")
+                    if presence[row] != state:
+                        raise ValueError(f"row {row}: skipped flag disagrees with the index")
+                    held[row] = True
                 else:
                     if row_chunk[row] != NO_CHUNK:
                         warnings.append(f"{path}: row {row} repeated in chunk {c}; first copy kept")
@@ -373,11 +378,13 @@ def _parse(path, buf) -> FfzFile:
                 col_parts.append(cols)
                 val_parts.append(np.asarray(vals, dtype=np.float32))
         except ValueError as e:
-            raise FfzError(f"{path}: chunk {c}: {e}") from None
+            raise FfzError(f"{path}: chunk {c} at byte {ch.pos}: {e}") from None
     if indexed:
-        missing_listed = np.flatnonzero((presence != MISSING) & (row_chunk == NO_CHUNK))
-        if len(missing_listed):
-            raise FfzError(f"{path}: index lists rows without chunks")
+        unheld = np.flatnonzero((presence != MISSING) & ~held)
+        if len(unheld):
+            i = int(unheld[0])
+            c = int(row_chunk[i])
+            raise FfzError(f"{path}: chunk {c} at byte {offsets[c]}: the index puts row {i} here but the chunk does not hold it")
     # CSR in row order, whatever order the file holds the rows in.
     order = np.argsort(np.asarray(row_ids, dtype=np.int64), kind="stable")
     indptr = np.zeros(n + 1, dtype=np.int64)

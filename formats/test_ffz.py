@@ -10,6 +10,7 @@ import csv
 import os
 import pathlib
 import re
+import struct
 
 import numpy as np
 import pytest
@@ -132,6 +133,68 @@ def test_cut_file_recovers_complete_chunks(tmp_path):
     assert not f.indexed and "recovered 1 chunks" in f.warnings[0]
     assert list(f.presence) == [ffz.MISSING, ffz.SKIPPED_STATE, ffz.PRESENT]
     assert f.matrix[2, 0] == np.float32(0.5)
+
+
+# Row table of tiny-v1.ffz (spec 11.1): chunk 0 (byte 657) holds rows 2 and 1 (skipped),
+# chunk 1 (byte 736) holds row 0.
+TINY_TABLE = [(1, ffz.PRESENT), (0, ffz.SKIPPED_STATE), (0, ffz.PRESENT)]
+
+
+def reindex(data, table, n_chunks=None):
+    """The finished file `data` with a new index (spec 6) whose row table is `table`
+    [(chunk, state) per row], keeping only its first n_chunks chunks (the rest cut away);
+    index checksum and footer (spec 7) recomputed, so only what `table` says is wrong."""
+    ioff = struct.unpack_from("<Q", data, len(data) - 32)[0]
+    nch = struct.unpack_from("<Q", data, ioff + 8)[0]
+    offsets = list(struct.unpack_from(f"<{nch}Q", data, ioff + 24))
+    end = ioff
+    if n_chunks is not None and n_chunks < nch:
+        end, offsets = offsets[n_chunks], offsets[:n_chunks]
+    ix = ffz.INDEX_MAGIC + struct.pack("<IQQ", 0, len(offsets), len(table))
+    ix += struct.pack(f"<{len(offsets)}Q", *offsets) + b"".join(struct.pack("<II", c, s) for c, s in table)
+    foot = struct.pack("<QQI", end, len(ix), ffz.crc32c(ix))
+    foot += struct.pack("<I", ffz.crc32c(foot)) + ffz.FOOTER_MAGIC
+    return data[:end] + ix + foot
+
+
+def read_reindexed(tmp_path, table, n_chunks=None):
+    good = (HERE / "golden" / "tiny-v1.ffz").read_bytes()
+    assert reindex(good, TINY_TABLE) == good  # the helper changes nothing but the table
+    p = tmp_path / "bad.ffz"
+    p.write_bytes(reindex(good, table, n_chunks))
+    return ffz.read(p)
+
+
+@pytest.mark.parametrize("state", [ffz.PRESENT, ffz.SKIPPED_STATE], ids=["present", "skipped"])
+def test_index_marks_present_a_row_its_chunk_does_not_hold(tmp_path, state):
+    # Chunk 1 (the only one holding row 0) is cut away; the index still puts row 0 in chunk 0.
+    table = [(0, state)] + TINY_TABLE[1:]
+    with pytest.raises(ffz.FfzError, match=r"bad\.ffz: chunk 0 at byte 657: the index puts row 0 here but the chunk does not hold it"):
+        read_reindexed(tmp_path, table, n_chunks=1)
+
+
+def test_chunk_holds_a_row_the_index_marks_missing(tmp_path):
+    table = [(ffz.NO_CHUNK, ffz.MISSING)] + TINY_TABLE[1:]
+    with pytest.raises(ffz.FfzError, match=r"bad\.ffz: chunk 1 at byte 736: holds row 0 which the index puts in chunk 4294967295"):
+        read_reindexed(tmp_path, table)
+
+
+def test_chunk_holds_a_row_the_index_assigns_to_another_chunk(tmp_path):
+    table = TINY_TABLE[:2] + [(1, ffz.PRESENT)]
+    with pytest.raises(ffz.FfzError, match=r"bad\.ffz: chunk 0 at byte 657: holds row 2 which the index puts in chunk 1"):
+        read_reindexed(tmp_path, table)
+
+
+def test_index_marks_skipped_a_row_its_chunk_holds_computed(tmp_path):
+    table = TINY_TABLE[:2] + [(0, ffz.SKIPPED_STATE)]
+    with pytest.raises(ffz.FfzError, match=r"bad\.ffz: chunk 0 at byte 657: row 2: skipped flag disagrees with the index"):
+        read_reindexed(tmp_path, table)
+
+
+def test_index_marks_present_a_row_its_chunk_holds_skipped(tmp_path):
+    table = [TINY_TABLE[0], (0, ffz.PRESENT), TINY_TABLE[2]]
+    with pytest.raises(ffz.FfzError, match=r"bad\.ffz: chunk 0 at byte 657: row 1: skipped flag disagrees with the index"):
+        read_reindexed(tmp_path, table)
 
 
 @pytest.mark.skipif(not os.environ.get("FFZ_FILE"), reason="set FFZ_FILE (and FFZ_MTX, FFZ_CSV) to a Rust-written file and its export")
