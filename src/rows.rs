@@ -18,6 +18,38 @@ pub enum RowValues {
     Skipped,
 }
 
+/// Largest value a stored form factor, or a row's dropped mass, may have. No form
+/// factor and no row's total exceeds 1; the margin is far beyond any honest numerical
+/// error (sampled visibility gives row sums of 1.0014), so a value above it is damage
+/// or a bug, not noise (spec §5.6, §10).
+pub const MAX_FORM_FACTOR: f32 = 1.5;
+
+/// What is wrong with the numbers of one row, if anything (all zero / false / None for
+/// a row that can be a row of form factors). `verify` fails a file with any fault and
+/// `solve` refuses it, so the two agree; both report [`RowFaults::lost_mass`].
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct RowFaults {
+    pub negative: u64,
+    pub non_finite: u64,
+    /// Finite values above [`MAX_FORM_FACTOR`].
+    pub too_large: u64,
+    /// The dropped mass is not finite, negative, or above [`MAX_FORM_FACTOR`].
+    pub bad_dropped: bool,
+    /// A sparse row that stores nothing (or only zeros) but has dropped mass > 0. Not
+    /// a fault (all of a row's k largest entries can be hidden by occluders while its
+    /// tail is not), but its mass cannot be put back by rescaling: readers report it
+    /// (spec §5.6), and it is not counted in [`RowFaults::any`].
+    pub lost_mass: bool,
+    /// The first fault (not [`RowFaults::lost_mass`]), in words (column and value).
+    pub first: Option<String>,
+}
+
+impl RowFaults {
+    pub fn any(&self) -> bool {
+        self.first.is_some()
+    }
+}
+
 /// One row of the form-factor matrix.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Row {
@@ -77,6 +109,45 @@ impl Row {
             }
             RowValues::Skipped => {}
         }
+    }
+
+    /// Checks every stored value and the dropped mass ([`RowFaults`]).
+    pub fn faults(&self) -> RowFaults {
+        let mut f = RowFaults::default();
+        let note = |f: &mut RowFaults, what: String| {
+            f.first.get_or_insert(what);
+        };
+        self.for_each_nonzero(|j, x| {
+            if !x.is_finite() {
+                f.non_finite += 1;
+                note(&mut f, format!("value {x} at column {j} is not finite"));
+            } else if x < 0.0 {
+                f.negative += 1;
+                note(&mut f, format!("value {x:e} at column {j} is negative"));
+            } else if x > MAX_FORM_FACTOR {
+                f.too_large += 1;
+                note(
+                    &mut f,
+                    format!(
+                        "value {x:e} at column {j} is above {MAX_FORM_FACTOR}: not a form factor"
+                    ),
+                );
+            }
+        });
+        let d = self.dropped;
+        if !(d.is_finite() && (0.0..=MAX_FORM_FACTOR).contains(&d)) {
+            f.bad_dropped = true;
+            note(
+                &mut f,
+                format!("dropped mass {d:e} is not a finite number in [0, {MAX_FORM_FACTOR}]"),
+            );
+        } else if d > 0.0
+            && matches!(self.values, RowValues::Sparse { .. })
+            && self.stored_sum() == 0.0
+        {
+            f.lost_mass = true;
+        }
+        f
     }
 
     /// The row as n dense values (zeros where nothing is stored).

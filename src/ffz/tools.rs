@@ -155,11 +155,23 @@ pub fn verify(path: &Path, against: Option<&Path>, out: &mut dyn Write) -> Resul
         )
         .map_err(&e)?;
     }
-    if rep.negative_entries > 0 || rep.non_finite_entries > 0 {
+    if let Some((row, what)) = &rep.first_row_fault {
         writeln!(
             out,
-            "FAIL: {} negative and {} non-finite entries",
-            rep.negative_entries, rep.non_finite_entries
+            "FAIL: {} negative, {} non-finite and {} impossible (> {}) entries, {} rows with bad dropped mass; first: row {row}: {what}",
+            rep.negative_entries,
+            rep.non_finite_entries,
+            rep.too_large_entries,
+            crate::rows::MAX_FORM_FACTOR,
+            rep.bad_dropped_rows,
+        )
+        .map_err(&e)?;
+    }
+    if let Some((first, total)) = rep.lost_mass {
+        writeln!(
+            out,
+            "warning:     {} top-k rows store nothing but have dropped mass (first: row {first}; total {total:.3e}): a solve cannot redistribute it (spec §5.6)",
+            rep.lost_mass_rows
         )
         .map_err(&e)?;
     }

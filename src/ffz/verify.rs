@@ -87,18 +87,29 @@ pub struct VerifyReport {
     pub(crate) dropped_max: f64,
     pub(crate) negative_entries: u64,
     pub(crate) non_finite_entries: u64,
+    /// Finite entries above [`crate::rows::MAX_FORM_FACTOR`].
+    pub(crate) too_large_entries: u64,
+    /// Rows whose dropped mass is not finite, negative or above the same bound.
+    pub(crate) bad_dropped_rows: u64,
+    /// Sparse rows that store nothing but have dropped mass (it cannot be put back:
+    /// reported, not a failure), and the first of them with the sum of that mass.
+    pub(crate) lost_mass_rows: u64,
+    pub(crate) lost_mass: Option<(u32, f64)>,
+    /// The first faulty row and what is wrong with it ([`Row::faults`]).
+    pub(crate) first_row_fault: Option<(u32, String)>,
     pub reciprocity: Option<Reciprocity>,
 }
 
 impl VerifyReport {
     /// True when nothing is wrong: every chunk good, index usable, no row missing, no
-    /// negative or non-finite entry. (Row sums and reciprocity are reported, not judged.)
+    /// row with faulty numbers ([`Row::faults`]: negative, non-finite or impossible
+    /// entries, bad or unrecoverable dropped mass). (Row sums and reciprocity are
+    /// reported, not judged.)
     pub fn ok(&self) -> bool {
         self.bad_chunks.is_empty()
             && self.open_warnings.is_empty()
             && self.rows_missing == 0
-            && self.negative_entries == 0
-            && self.non_finite_entries == 0
+            && self.first_row_fault.is_none()
     }
 }
 
@@ -300,15 +311,19 @@ impl FfzReader {
                     continue;
                 }
             };
-            let mut s = row.dropped as f64;
-            row.for_each_nonzero(|_, x| {
-                if !x.is_finite() {
-                    rep.non_finite_entries += 1;
-                } else if x < 0.0 {
-                    rep.negative_entries += 1;
-                }
-                s += x as f64;
-            });
+            let f = row.faults();
+            rep.negative_entries += f.negative;
+            rep.non_finite_entries += f.non_finite;
+            rep.too_large_entries += f.too_large;
+            rep.bad_dropped_rows += u64::from(f.bad_dropped);
+            if f.lost_mass {
+                rep.lost_mass_rows += 1;
+                rep.lost_mass.get_or_insert((row.index, 0.0)).1 += f64::from(row.dropped);
+            }
+            if let (None, Some(what)) = (&rep.first_row_fault, f.first) {
+                rep.first_row_fault = Some((row.index, what));
+            }
+            let s = row.true_sum();
             rep.rows_checked += 1;
             rep.dropped_max = rep.dropped_max.max(row.dropped as f64);
             rep.row_sum_min = rep.row_sum_min.min(s);

@@ -71,7 +71,7 @@ pub(crate) fn final_pass(
             return Ok(());
         }
         presence.mark(row.index)?;
-        let Some(view) = RowView::new(row, n, sys.renormalize)? else {
+        let Some(view) = sys.view(row)? else {
             if sys.reflects[j] {
                 return Err(skipped_error(patches, j, FOR_GATHER));
             }

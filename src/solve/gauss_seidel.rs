@@ -22,7 +22,6 @@
 use tracing::debug;
 
 use super::check::{final_pass, Mode};
-use super::rowview::RowView;
 use super::source::RowSource;
 use super::system::{
     check_index, column_max_abs, max_of, missing_error, nan_max, relative, skipped_error, Presence,
@@ -59,7 +58,8 @@ pub(crate) fn run(
                 return Ok(());
             }
             presence.mark(row.index)?;
-            let view = RowView::new(row, n, sys.renormalize)?
+            let view = sys
+                .view(row)?
                 .ok_or_else(|| skipped_error(patches, i, FOR_GATHER))?;
             let abs_sum = view.gather(&b, m, &mut acc)?;
             for c in 0..m {

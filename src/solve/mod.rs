@@ -294,6 +294,13 @@ pub fn solve(
              non-reflecting emitting patch(es) whose rows are not stored (first: row {first})"
         ));
     }
+    if let Some((count, first, total)) = sys.lost_mass() {
+        warnings.push(format!(
+            "{count} top-k row(s) store nothing but have dropped mass (first: row {first}; \
+             total {total:.3e}): that light cannot be redistributed and is lost (absorbed); \
+             a larger --top-k keeps it"
+        ));
+    }
     let energy = energy::energy_reports(&sys, &it.b, &it.h);
     let split = |v: &[f64]| -> Vec<Vec<[f64; 3]>> {
         (0..sys.cases)

@@ -28,6 +28,9 @@ pub(crate) struct RowView<'r> {
     pub(crate) entries: Entries<'r>,
     /// Factor applied to every stored entry (1 unless renormalising a top-k row).
     pub(crate) scale: f64,
+    /// Dropped mass that the scale cannot put back (a row that stores nothing), when
+    /// renormalizing; else 0.
+    pub(crate) lost: f32,
 }
 
 impl<'r> RowView<'r> {
@@ -35,8 +38,8 @@ impl<'r> RowView<'r> {
     ///
     /// # Errors
     /// [`SolveError::BadRow`] for a dense row whose length is not n, a sparse row whose
-    /// column and value lists differ in length, or a dropped mass that is negative or
-    /// not finite. Column indices are checked where they are used.
+    /// column and value lists differ in length, or a row with [`Row::faults`]. Column
+    /// indices are checked where they are used.
     pub(crate) fn new(
         row: &'r Row,
         n: usize,
@@ -68,25 +71,28 @@ impl<'r> RowView<'r> {
                 Entries::Sparse(cols, vals)
             }
         };
-        if !(row.dropped.is_finite() && row.dropped >= 0.0) {
-            return Err(bad(format!(
-                "dropped mass {} is not a finite number ≥ 0",
-                row.dropped
-            )));
+        // The same checks as `verify` (negative, non-finite or impossible values, bad
+        // or unrecoverable dropped mass), so what one accepts the other does.
+        if let Some(what) = row.faults().first {
+            return Err(bad(what));
         }
         let mut scale = 1.0;
+        let mut lost = 0.0;
         if renormalize && row.dropped > 0.0 {
             let stored = row.stored_sum();
-            // A row whose kept entries sum to 0 has nowhere to put the dropped light;
-            // leave it as stored (its light is lost either way).
+            // A row whose kept entries sum to 0 has nowhere to put the dropped light:
+            // it stays as stored and the solve reports the light lost.
             if stored > 0.0 {
                 scale = (stored + row.dropped as f64) / stored;
+            } else {
+                lost = row.dropped;
             }
         }
         Ok(Some(RowView {
             index: row.index,
             entries,
             scale,
+            lost,
         }))
     }
 
@@ -286,11 +292,19 @@ mod tests {
                 ..
             })
         ));
-        let nan = Row::dense(1, vec![f32::NAN, 0.0, 0.0]);
-        let v = RowView::new(&nan, 3, true).unwrap().unwrap();
-        assert!(matches!(
-            v.gather(&[1.0; 9], 3, &mut acc),
-            Err(SolveError::BadRow { row: 1, .. })
-        ));
+        // Refused when viewed (the checks `verify` makes), naming row and column.
+        for (x, words) in [
+            (f32::NAN, "value NaN at column 0 is not finite"),
+            (-0.5, "value -5e-1 at column 0 is negative"),
+            (1e30, "value 1e30 at column 0 is above 1.5"),
+        ] {
+            let bad = Row::dense(1, vec![x, 0.0, 0.0]);
+            match RowView::new(&bad, 3, true) {
+                Err(SolveError::BadRow { row: 1, message }) => {
+                    assert!(message.contains(words), "{message}")
+                }
+                other => panic!("{x}: {:?}", other.map(|v| v.is_some())),
+            }
+        }
     }
 }

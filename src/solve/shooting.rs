@@ -25,7 +25,6 @@
 
 use tracing::debug;
 
-use super::rowview::RowView;
 use super::source::RowSource;
 use super::system::{missing_error, skipped_error, System, FOR_SHOOT};
 use super::{HState, Iterate, SolveConfig, SolveError};
@@ -89,7 +88,8 @@ pub(crate) fn run(
                 message: format!("random access returned row {} instead", row.index),
             });
         }
-        let view = RowView::new(&row, n, sys.renormalize)?
+        let view = sys
+            .view(&row)?
             .ok_or_else(|| skipped_error(patches, j, FOR_SHOOT))?;
         shot.copy_from_slice(&unshot[j * m..(j + 1) * m]);
         unshot[j * m..(j + 1) * m].fill(0.0);

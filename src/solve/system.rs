@@ -11,7 +11,7 @@ use crate::patch::PatchSet;
 use super::error::SolveError;
 
 /// Validated inputs of one solve.
-#[derive(Clone, Debug)]
+#[derive(Debug)]
 pub(crate) struct System {
     pub(crate) n: usize,
     pub(crate) cases: usize,
@@ -30,6 +30,9 @@ pub(crate) struct System {
     pub(crate) dark: Vec<u32>,
     /// Scale top-k rows so that no light is lost (see [`super::rowview`]).
     pub(crate) renormalize: bool,
+    /// Rows seen that store nothing but have dropped mass (their light cannot be
+    /// kept, spec §5.6), by row: their dropped mass (0: none, or not seen).
+    lost_mass: Vec<std::sync::atomic::AtomicU32>,
 }
 
 impl System {
@@ -115,6 +118,9 @@ impl System {
             emits,
             dark,
             renormalize,
+            lost_mass: (0..n)
+                .map(|_| std::sync::atomic::AtomicU32::new(0))
+                .collect(),
         })
     }
 
@@ -265,5 +271,42 @@ pub(crate) fn missing_error(
         group: patches.group_name(row as usize).to_string(),
         needed_for,
         missing,
+    }
+}
+
+impl System {
+    /// [`RowView::new`] for this system, noting a row whose dropped mass cannot be
+    /// put back ([`crate::rows::RowFaults::lost_mass`]) for [`System::lost_mass`].
+    ///
+    /// # Errors
+    /// As [`RowView::new`].
+    pub(crate) fn view<'r>(
+        &self,
+        row: &'r crate::rows::Row,
+    ) -> Result<Option<super::rowview::RowView<'r>>, SolveError> {
+        let view = super::rowview::RowView::new(row, self.n, self.renormalize)?;
+        if let Some(v) = &view {
+            if v.lost > 0.0 {
+                if let Some(slot) = self.lost_mass.get(row.index as usize) {
+                    slot.store(v.lost.to_bits(), std::sync::atomic::Ordering::Relaxed);
+                }
+            }
+        }
+        Ok(view)
+    }
+
+    /// Rows that store nothing but have dropped mass, among those seen: (count, first
+    /// row, total dropped mass), or None.
+    pub(crate) fn lost_mass(&self) -> Option<(usize, u32, f64)> {
+        let mut out: Option<(usize, u32, f64)> = None;
+        for (i, slot) in self.lost_mass.iter().enumerate() {
+            let d = f32::from_bits(slot.load(std::sync::atomic::Ordering::Relaxed));
+            if d > 0.0 {
+                let o = out.get_or_insert((0, i as u32, 0.0));
+                o.0 += 1;
+                o.2 += f64::from(d);
+            }
+        }
+        out
     }
 }
