@@ -36,4 +36,8 @@ impl RowSource for FfzReader {
     fn row(&self, i: u32) -> Result<Option<Row>, SolveError> {
         FfzReader::row(self, i).map_err(SolveError::source_error)
     }
+
+    fn has_row(&self, i: u32) -> bool {
+        self.presence().get(i) != crate::ffz::RowState::Missing
+    }
 }

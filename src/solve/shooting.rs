@@ -79,9 +79,13 @@ pub(crate) fn run(
         let Some(j) = argmax(&priority) else {
             break true;
         };
-        let row = src
-            .row(j as u32)?
-            .ok_or_else(|| missing_error(patches, (j as u32, 1), FOR_SHOOT))?;
+        let row = src.row(j as u32)?.ok_or_else(|| {
+            // Every row that can be shot (it emits or reflects) is needed.
+            let missing = (0..n as u32)
+                .filter(|&i| (sys.reflects[i as usize] || sys.emits[i as usize]) && !src.has_row(i))
+                .count();
+            missing_error(patches, (j as u32, missing), FOR_SHOOT)
+        })?;
         if row.index as usize != j {
             return Err(SolveError::BadRow {
                 row: j as u32,

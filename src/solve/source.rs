@@ -31,6 +31,10 @@ pub trait RowSource {
     /// # Errors
     /// The source's read error (corrupt data, I/O).
     fn row(&self, i: u32) -> Result<Option<Row>, SolveError>;
+
+    /// Whether row `i` is stored (present or skipped), without reading it: how a
+    /// random-access solve counts the missing rows it needs when it meets the first.
+    fn has_row(&self, i: u32) -> bool;
 }
 
 /// Rows held in memory, in the order given (that order is the "file order" of
@@ -94,6 +98,10 @@ impl RowSource for MemoryRows {
             .copied()
             .flatten()
             .map(|k| self.rows[k].clone()))
+    }
+
+    fn has_row(&self, i: u32) -> bool {
+        self.position.get(i as usize).copied().flatten().is_some()
     }
 }
 

@@ -220,6 +220,26 @@ fn impossible_sizes_are_refused_before_allocating() {
     }
 }
 
+/// Log output to a file or a pipe (a batch system's capture, not a terminal) has no
+/// ANSI colour codes (a worker failure used to print them into the job's log).
+#[test]
+fn log_lines_to_a_pipe_carry_no_colour_codes() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = std::process::Command::new(crate::common::exe())
+        .args(["compute", "builtin:cube", "--patches", "20", "-q", "-o"])
+        .arg(dir.path().join("c.ffz"))
+        .env("FFSTREAM_FAIL_ROW", "3")
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("ERROR worker failed"),
+        "the worker's log line: {err}"
+    );
+    assert!(!err.contains('\u{1b}'), "no escape codes: {err:?}");
+}
+
 /// Every number an option takes has a range, checked when the command line is read:
 /// a value outside it exits 2 at once (the scene, which does not exist here, is never
 /// opened), and the message names the option and the range. Before, `--threads 100000`
