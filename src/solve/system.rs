@@ -275,11 +275,11 @@ pub(crate) fn missing_error(
 }
 
 impl System {
-    /// [`RowView::new`] for this system, noting a row whose dropped mass cannot be
+    /// [`super::rowview::RowView::new`] for this system, noting a row whose dropped mass cannot be
     /// put back ([`crate::rows::RowFaults::lost_mass`]) for [`System::lost_mass`].
     ///
     /// # Errors
-    /// As [`RowView::new`].
+    /// As [`super::rowview::RowView::new`].
     pub(crate) fn view<'r>(
         &self,
         row: &'r crate::rows::Row,
