@@ -58,12 +58,9 @@ struct MtlLines {
 /// Degenerate, non-planar and non-convex faces and a scene with no emitter are not
 /// errors: they end up in [`Scene::warnings`].
 pub fn load_obj(path: &Path) -> Result<Scene, SceneError> {
-    let text = std::fs::read_to_string(path).map_err(|cause| SceneError::Read {
-        path: path.to_owned(),
-        cause,
-    })?;
-    let pre = prepass(path, &text)?;
     let mut warnings = Vec::new();
+    let text = read_text(path, &mut warnings)?;
+    let pre = prepass(path, &text)?;
 
     let (materials, mtl_texts) = load_materials(path, &pre, &mut warnings)?;
 
@@ -126,6 +123,55 @@ pub fn load_obj(path: &Path) -> Result<Scene, SceneError> {
 /// The materials of the `mtllib` statements of `pre`, in `mtllib` order, which is the
 /// order tobj concatenates them in (its material ids index this concatenation), and
 /// the text of each library, by the name the OBJ gives it.
+/// The text of an OBJ or MTL file. A line that is not UTF-8 is kept as it is in a
+/// comment (which nothing reads) and read as Latin-1 (ISO 8859-1) elsewhere, with a
+/// warning naming the first such line; a byte that is no text in either (NUL, or a
+/// C1 control 0x80-0x9F) is an error naming the line.
+///
+/// # Errors
+/// [`SceneError::Read`] naming the file (and the line for bytes that are not text).
+fn read_text(path: &Path, warnings: &mut Vec<String>) -> Result<String, SceneError> {
+    let read_error = |cause| SceneError::Read {
+        path: path.to_owned(),
+        cause,
+    };
+    let bytes = std::fs::read(path).map_err(read_error)?;
+    let bytes = match String::from_utf8(bytes) {
+        Ok(text) => return Ok(text),
+        Err(e) => e.into_bytes(),
+    };
+    let mut text = String::with_capacity(bytes.len());
+    let mut first_latin1 = None;
+    for (i, line) in bytes.split_inclusive(|&b| b == b'\n').enumerate() {
+        match std::str::from_utf8(line) {
+            Ok(s) => text.push_str(s),
+            Err(_) if line.trim_ascii_start().starts_with(b"#") => {
+                text.push_str(&String::from_utf8_lossy(line));
+            }
+            Err(_) => {
+                if let Some(b) = line.iter().find(|&&b| b == 0 || (0x80..0xa0).contains(&b)) {
+                    return Err(read_error(std::io::Error::new(
+                        std::io::ErrorKind::InvalidData,
+                        format!(
+                            "line {}: byte {b:#04x} is neither UTF-8 nor Latin-1 text",
+                            i + 1
+                        ),
+                    )));
+                }
+                first_latin1.get_or_insert(i + 1);
+                text.extend(line.iter().map(|&b| char::from(b)));
+            }
+        }
+    }
+    if let Some(line) = first_latin1 {
+        warnings.push(format!(
+            "{}: line {line} is not UTF-8: read as Latin-1 (ISO 8859-1)",
+            path.display()
+        ));
+    }
+    Ok(text)
+}
+
 fn load_materials(
     path: &Path,
     pre: &PrePass,
@@ -136,11 +182,14 @@ fn load_materials(
     let mut materials = Vec::new();
     for (lib, line) in &pre.mtllibs {
         let full = dir.join(lib);
-        let mtl_text = std::fs::read_to_string(&full).map_err(|e| SceneError::MissingMtl {
-            path: path.to_owned(),
-            line: *line,
-            mtl: full.clone(),
-            reason: e.to_string(),
+        let mtl_text = read_text(&full, warnings).map_err(|e| match e {
+            SceneError::Read { cause, .. } => SceneError::MissingMtl {
+                path: path.to_owned(),
+                line: *line,
+                mtl: full.clone(),
+                reason: cause.to_string(),
+            },
+            other => other,
         })?;
         let lines = mtl_prepass(&full, &mtl_text)?;
         let (mats, _) = tobj::load_mtl_buf(&mut Cursor::new(mtl_text.as_bytes())).map_err(|e| {

@@ -75,6 +75,8 @@ fn expected(file: &str) -> Want {
         "index_zero.obj" => Error("index_zero.obj", Some(16)),
         "inf.obj" => Error("inf.obj", Some(9)),
         "kd_high.obj" => Error("kd_high.mtl", Some(3)),
+        "latin1.obj" => Warning("line 13 is not UTF-8: read as Latin-1"),
+        "not_text.obj" => Error("not_text.obj", None),
         "kd_negative.obj" => Error("kd_negative.mtl", Some(6)),
         "kd_short.obj" => Error("kd_short.mtl", Some(3)),
         "ke_negative.obj" => Error("ke_negative.mtl", Some(6)),
@@ -199,6 +201,20 @@ fn invalid_utf8_and_binary_garbage_are_errors_naming_the_file() {
     std::fs::write(&f, &bytes).unwrap();
     let out = ffstream(&["compute", path_str(&f), "-o", "/dev/null", "--quiet"]);
     assert_one_error(&out, "garbage.obj", &["garbage.obj", "UTF-8"]);
+    // A byte that is no Latin-1 text either is refused naming its line (a Latin-1 byte
+    // outside a comment is read, with a warning: corpus latin1.obj).
+    let out = ffstream(&[
+        "compute",
+        path_str(&bad("not_text.obj")),
+        "-o",
+        "/dev/null",
+        "-q",
+    ]);
+    assert_one_error(
+        &out,
+        "not_text.obj",
+        &["not_text.obj", "line 3", "0x9d", "Latin-1"],
+    );
     // The same bytes as an .ffz file.
     let out = ffstream(&["solve", path_str(&f), "-o", "/dev/null"]);
     assert_one_error(&out, "solve garbage", &["garbage.obj", "not an .ffz file"]);
