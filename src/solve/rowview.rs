@@ -44,6 +44,7 @@ impl<'r> RowView<'r> {
         row: &'r Row,
         n: usize,
         renormalize: bool,
+        check_values: bool,
     ) -> Result<Option<Self>, SolveError> {
         let bad = |message: String| SolveError::BadRow {
             row: row.index,
@@ -72,9 +73,12 @@ impl<'r> RowView<'r> {
             }
         };
         // The same checks as `verify` (negative, non-finite or impossible values, bad
-        // or unrecoverable dropped mass), so what one accepts the other does.
-        if let Some(what) = row.faults().first {
-            return Err(bad(what));
+        // or unrecoverable dropped mass), so what one accepts the other does; a pass
+        // over the row, so the caller asks for it once per row, not once per sweep.
+        if check_values {
+            if let Some(what) = row.faults().first {
+                return Err(bad(what));
+            }
         }
         let mut scale = 1.0;
         let mut lost = 0.0;
@@ -238,12 +242,12 @@ mod tests {
             },
             dropped: 0.25,
         };
-        let v = RowView::new(&row, 4, true).unwrap().unwrap();
+        let v = RowView::new(&row, 4, true, true).unwrap().unwrap();
         assert!((v.scale - 1.0 / 0.75).abs() < 1e-15);
         let mut sum = 0.0;
         v.visit(4, |_, f| sum += f).unwrap();
         assert!((sum - 1.0).abs() < 1e-15, "{sum}");
-        let off = RowView::new(&row, 4, false).unwrap().unwrap();
+        let off = RowView::new(&row, 4, false, true).unwrap().unwrap();
         assert_eq!(off.scale, 1.0);
     }
 
@@ -255,7 +259,7 @@ mod tests {
         let b: Vec<f64> = (0..3)
             .flat_map(|j| (0..m).map(move |c| j as f64 + 10.0 * c as f64))
             .collect();
-        let v = RowView::new(&row, 3, true).unwrap().unwrap();
+        let v = RowView::new(&row, 3, true, true).unwrap().unwrap();
         let mut acc = vec![0.0; m];
         let abs = v.gather(&b, m, &mut acc).unwrap();
         for (c, a) in acc.iter().enumerate() {
@@ -271,7 +275,7 @@ mod tests {
     fn bad_rows_are_named() {
         let short = Row::dense(5, vec![0.0; 2]);
         assert!(matches!(
-            RowView::new(&short, 3, true),
+            RowView::new(&short, 3, true, true),
             Err(SolveError::BadRow { row: 5, .. })
         ));
         let far = Row {
@@ -282,7 +286,7 @@ mod tests {
             },
             dropped: 0.0,
         };
-        let v = RowView::new(&far, 3, true).unwrap().unwrap();
+        let v = RowView::new(&far, 3, true, true).unwrap().unwrap();
         let mut acc = vec![0.0; 3];
         assert!(matches!(
             v.gather(&[0.0; 9], 3, &mut acc),
@@ -299,7 +303,7 @@ mod tests {
             (1e30, "value 1e30 at column 0 is above 1.5"),
         ] {
             let bad = Row::dense(1, vec![x, 0.0, 0.0]);
-            match RowView::new(&bad, 3, true) {
+            match RowView::new(&bad, 3, true, true) {
                 Err(SolveError::BadRow { row: 1, message }) => {
                     assert!(message.contains(words), "{message}")
                 }

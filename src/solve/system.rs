@@ -33,6 +33,9 @@ pub(crate) struct System {
     /// Rows seen that store nothing but have dropped mass (their light cannot be
     /// kept, spec §5.6), by row: their dropped mass (0: none, or not seen).
     lost_mass: Vec<std::sync::atomic::AtomicU32>,
+    /// Rows whose values have been checked ([`crate::rows::Row::faults`]): the rows of
+    /// a source do not change between sweeps, so each is checked the first time only.
+    checked: Vec<std::sync::atomic::AtomicBool>,
 }
 
 impl System {
@@ -120,6 +123,9 @@ impl System {
             renormalize,
             lost_mass: (0..n)
                 .map(|_| std::sync::atomic::AtomicU32::new(0))
+                .collect(),
+            checked: (0..n)
+                .map(|_| std::sync::atomic::AtomicBool::new(false))
                 .collect(),
         })
     }
@@ -275,8 +281,8 @@ pub(crate) fn missing_error(
 }
 
 impl System {
-    /// [`super::rowview::RowView::new`] for this system, noting a row whose dropped mass cannot be
-    /// put back ([`crate::rows::RowFaults::lost_mass`]) for [`System::lost_mass`].
+    /// [`super::rowview::RowView::new`] for this system, checking a row's values the
+    /// first time it is seen only, and noting a row whose dropped mass cannot be put back ([`crate::rows::RowFaults::lost_mass`]) for [`System::lost_mass`].
     ///
     /// # Errors
     /// As [`super::rowview::RowView::new`].
@@ -284,7 +290,11 @@ impl System {
         &self,
         row: &'r crate::rows::Row,
     ) -> Result<Option<super::rowview::RowView<'r>>, SolveError> {
-        let view = super::rowview::RowView::new(row, self.n, self.renormalize)?;
+        let first_look = self
+            .checked
+            .get(row.index as usize)
+            .is_none_or(|c| !c.swap(true, std::sync::atomic::Ordering::Relaxed));
+        let view = super::rowview::RowView::new(row, self.n, self.renormalize, first_look)?;
         if let Some(v) = &view {
             if v.lost > 0.0 {
                 if let Some(slot) = self.lost_mass.get(row.index as usize) {
