@@ -150,12 +150,7 @@ impl FfzReader {
                     continue;
                 }
                 self.row_chunk[e.row as usize] = k as u32;
-                let state = if e.flags & spec::ROW_FLAG_SKIPPED != 0 {
-                    RowState::Skipped
-                } else {
-                    RowState::Present
-                };
-                self.presence.set(e.row, state);
+                self.presence.set(e.row, e.state());
             }
         }
         self.chunk_area_end = end;

@@ -403,6 +403,15 @@ impl RowDirEntryV1 {
         })
     }
 
+    /// The state of a row this entry stores: Skipped or Present (spec §5.3).
+    pub(crate) fn state(&self) -> super::presence::RowState {
+        if self.flags & ROW_FLAG_SKIPPED != 0 {
+            super::presence::RowState::Skipped
+        } else {
+            super::presence::RowState::Present
+        }
+    }
+
     /// Bytes of row data this entry describes (spec §5.4).
     pub(crate) fn data_len(&self) -> u64 {
         if self.flags & ROW_FLAG_SKIPPED != 0 {

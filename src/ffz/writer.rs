@@ -651,12 +651,7 @@ fn kept_chunks(path: &Path, map: &[u8], n: u32, meta_len: u64, layout: Layout) -
         }
         let k = kept.chunks.len() as u32;
         for e in &c.entries {
-            let state = if e.flags & spec::ROW_FLAG_SKIPPED != 0 {
-                RowState::Skipped
-            } else {
-                RowState::Present
-            };
-            kept.presence.set(e.row, state);
+            kept.presence.set(e.row, e.state());
             kept.row_chunk[e.row as usize] = k;
         }
         kept.chunks.push((c.offset, c.len));
