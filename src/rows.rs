@@ -38,16 +38,10 @@ pub struct RowFaults {
     /// A sparse row that stores nothing (or only zeros) but has dropped mass > 0. Not
     /// a fault (all of a row's k largest entries can be hidden by occluders while its
     /// tail is not), but its mass cannot be put back by rescaling: readers report it
-    /// (spec §5.6), and it is not counted in [`RowFaults::any`].
+    /// (spec §5.6), and it is not counted in [`RowFaults::first`].
     pub lost_mass: bool,
     /// The first fault (not [`RowFaults::lost_mass`]), in words (column and value).
     pub first: Option<String>,
-}
-
-impl RowFaults {
-    pub fn any(&self) -> bool {
-        self.first.is_some()
-    }
 }
 
 /// One row of the form-factor matrix.
