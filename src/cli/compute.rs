@@ -116,6 +116,12 @@ pub(crate) struct ComputeOptions {
     /// not full (bounds the work a killed run loses). A finite number ≥ 0.
     #[arg(long, default_value_t = 5.0, value_name = "SECONDS", value_parser = number::non_negative)]
     pub flush_seconds: f64,
+    /// MPI: rank 0 ends the job, keeping the rows written so far for --resume, when a
+    /// worker rank has sent nothing for this many seconds (stopped by SIGSTOP, hung, its
+    /// node lost). Quiet workers send a heartbeat every min(limit/4, 5 s), so a long row
+    /// is not silence. A finite number > 0.
+    #[arg(long, default_value_t = 600.0, value_name = "SECONDS", value_parser = number::positive)]
+    pub stall_seconds: f64,
     /// Do not fsync the file at the end (faster; a power loss may lose the index).
     #[arg(long)]
     pub no_fsync: bool,
@@ -223,6 +229,7 @@ pub(super) fn build_job(
         },
         flush_seconds: o.flush_seconds,
         progress: !o.quiet,
+        stall_seconds: o.stall_seconds,
     })
 }
 
@@ -507,18 +514,21 @@ fn execute_mpi(input: &SceneInput, output: PathBuf, o: &ComputeOptions) -> anyho
             eprintln!("ffstream: error: {e}");
             if matches!(
                 e,
-                ServiceError::WorkerFailed { .. } | ServiceError::Transport(_)
+                ServiceError::WorkerFailed { .. }
+                    | ServiceError::WorkerStalled { .. }
+                    | ServiceError::Transport(_)
             ) {
                 eprintln!("ffstream: rows written so far are kept: rerun with --resume to complete the file");
             }
             ctx.abort(1)
         }
         Err(e) => {
-            // Rank 0 names the failure and aborts the job: wait for that.
+            // Rank 0 names the failure and aborts the job: wait for that. A failed row
+            // was sent to rank 0, which prints it: saying it here too would print it
+            // twice.
             match e {
-                ServiceError::Setup { .. } | ServiceError::WorkerFailed { .. } => {
-                    eprintln!("ffstream: {e}")
-                }
+                ServiceError::WorkerFailed { .. } => {}
+                ServiceError::Setup { .. } => eprintln!("ffstream: {e}"),
                 _ => eprintln!("ffstream: rank {rank}: {e}"),
             }
             ctx.await_abort(AWAIT_ABORT)

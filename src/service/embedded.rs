@@ -23,14 +23,18 @@ impl MasterLink for MasterSide {
         1
     }
 
-    fn poll(&mut self, timeout: Duration) -> Result<Option<ToMaster>, ServiceError> {
+    fn poll(&mut self, timeout: Duration) -> Result<Option<(usize, ToMaster)>, ServiceError> {
         match self.rx.recv_timeout(timeout) {
-            Ok(m) => Ok(Some(m)),
+            Ok(m) => Ok(Some((0, m))),
             Err(RecvTimeoutError::Timeout) => Ok(None),
             Err(RecvTimeoutError::Disconnected) => Err(ServiceError::Transport(
                 "the compute pool stopped without reporting".into(),
             )),
         }
+    }
+
+    fn rank_of(&self, _worker: usize) -> i32 {
+        0
     }
 
     fn assign(&mut self, _worker: usize, rows: Vec<u32>) -> Result<(), ServiceError> {
@@ -93,6 +97,10 @@ impl WorkerLink for WorkerSide {
 
     fn done(&mut self, stats: WorkerStats) -> Result<(), ServiceError> {
         self.send(ToMaster::Done { stats })
+    }
+
+    fn alive(&mut self) -> Result<(), ServiceError> {
+        self.send(ToMaster::Alive)
     }
 }
 

@@ -16,6 +16,10 @@ pub enum ServiceError {
         row: Option<u32>,
         message: String,
     },
+    /// A worker sent nothing, not even its heartbeat, for longer than the liveness
+    /// limit (`--stall-seconds`): stopped (SIGSTOP), hung, or its node lost.
+    #[error("rank {rank} has sent nothing for {seconds:.0} s (the --stall-seconds limit): it is stopped, hung or lost; the job was ended")]
+    WorkerStalled { rank: i32, seconds: f64 },
     /// A worker could not set up (scene missing, different scene, ...).
     #[error("rank {rank}: {message}")]
     Setup { rank: i32, message: String },

@@ -43,6 +43,9 @@ pub struct ComputeJob {
     pub flush_seconds: f64,
     /// Show a progress bar / periodic progress lines.
     pub progress: bool,
+    /// MPI: rank 0 ends the job when a worker has sent nothing for this long (workers
+    /// send a heartbeat when quiet, so a long row does not count as silence).
+    pub stall_seconds: f64,
 }
 
 impl ComputeJob {

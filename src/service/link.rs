@@ -25,15 +25,20 @@ pub(crate) enum ToMaster {
     },
     /// The worker computed all its rows and sent every chunk.
     Done { stats: WorkerStats },
+    /// Nothing else to say for a while: the worker is alive (the liveness limit,
+    /// `--stall-seconds`, counts the time since a worker's last message of any kind).
+    Alive,
 }
 
 /// The master's side of the link.
 pub(crate) trait MasterLink {
     /// Number of workers (embedded: 1 pool; MPI: P-1 ranks).
     fn workers(&self) -> usize;
-    /// Wait up to `timeout` for the next message. Waiting must not burn a core: the
-    /// master shares the machine with compute threads.
-    fn poll(&mut self, timeout: Duration) -> Result<Option<ToMaster>, ServiceError>;
+    /// Wait up to `timeout` for the next message and the worker (0-based) that sent it.
+    /// Waiting must not burn a core: the master shares the machine with compute threads.
+    fn poll(&mut self, timeout: Duration) -> Result<Option<(usize, ToMaster)>, ServiceError>;
+    /// The rank of `worker`, for messages (MPI: worker + 1; embedded: 0).
+    fn rank_of(&self, worker: usize) -> i32;
     /// Give `rows` to `worker`; an empty list means "no more work".
     fn assign(&mut self, worker: usize, rows: Vec<u32>) -> Result<(), ServiceError>;
 }
@@ -50,4 +55,7 @@ pub(crate) trait WorkerLink {
     fn half_rows_done(&mut self, rows: Vec<u32>) -> Result<(), ServiceError>;
     fn failed(&mut self, row: Option<u32>, message: &str) -> Result<(), ServiceError>;
     fn done(&mut self, stats: WorkerStats) -> Result<(), ServiceError>;
+    /// Tell the master this worker is alive (sent when it has said nothing else for a
+    /// while, see [`ToMaster::Alive`]).
+    fn alive(&mut self) -> Result<(), ServiceError>;
 }

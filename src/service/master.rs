@@ -40,6 +40,10 @@ pub(crate) struct MasterPlan {
     /// `--symmetric`: workers send half rows as spill pieces, kept in this file until
     /// their row block is complete (service::symmetric).
     pub(crate) spill: Option<std::path::PathBuf>,
+    /// The liveness limit: a worker silent this long (counted while the master listens)
+    /// ends the job. None: no limit (embedded, where the workers are threads of this
+    /// process and cannot stop on their own).
+    pub(crate) stall: Option<Duration>,
 }
 
 /// What the master observed.
@@ -187,6 +191,7 @@ fn master_loop(
     if let Err(e) = record_skipped(plan, tx) {
         return (state.outcome, Some(e));
     }
+    let mut liveness = Liveness::new(workers, plan.stall);
     while state.done < workers {
         let t0 = Instant::now();
         let msg = match link.poll(Duration::from_millis(100)) {
@@ -196,8 +201,20 @@ fn master_loop(
                 break;
             }
         };
-        state.outcome.idle_seconds += t0.elapsed().as_secs_f64();
-        let Some(msg) = msg else { continue };
+        let waited = t0.elapsed();
+        state.outcome.idle_seconds += waited.as_secs_f64();
+        liveness.listened(waited);
+        if let Some((worker, m)) = &msg {
+            liveness.heard(*worker, matches!(m, ToMaster::Done { .. }));
+        }
+        if let Some((worker, silent)) = liveness.stalled() {
+            state.failure.get_or_insert(ServiceError::WorkerStalled {
+                rank: link.rank_of(worker),
+                seconds: silent.as_secs_f64(),
+            });
+            break;
+        }
+        let Some((_, msg)) = msg else { continue };
         if let Err(e) = state.handle(msg, link) {
             state.failure.get_or_insert(e);
             break;
@@ -226,6 +243,46 @@ fn master_loop(
     outcome.wall_seconds = start.elapsed().as_secs_f64();
     outcome.workers.sort_by_key(|w| w.rank);
     (outcome, failure)
+}
+
+/// When each worker was last heard from, on a clock that runs only while the master
+/// listens: while the writer queue is full the master stops receiving and the workers'
+/// sends wait, and that wait is not their silence.
+struct Liveness {
+    limit: Option<Duration>,
+    /// Time spent listening (in `poll`) since the start.
+    clock: Duration,
+    /// Per worker: the clock at its last message; None once it said it is done.
+    last: Vec<Option<Duration>>,
+}
+
+impl Liveness {
+    fn new(workers: usize, limit: Option<Duration>) -> Self {
+        Liveness {
+            limit,
+            clock: Duration::ZERO,
+            last: vec![Some(Duration::ZERO); workers],
+        }
+    }
+
+    fn listened(&mut self, d: Duration) {
+        self.clock += d;
+    }
+
+    fn heard(&mut self, worker: usize, finished: bool) {
+        if let Some(l) = self.last.get_mut(worker) {
+            *l = (!finished).then_some(self.clock);
+        }
+    }
+
+    /// The first worker silent for longer than the limit, and for how long.
+    fn stalled(&self) -> Option<(usize, Duration)> {
+        let limit = self.limit?;
+        self.last.iter().enumerate().find_map(|(w, l)| {
+            let silent = self.clock.saturating_sub((*l)?);
+            (silent > limit).then_some((w, silent))
+        })
+    }
 }
 
 /// Rows skipped on purpose are recorded by the master itself, in small chunks.
@@ -303,7 +360,8 @@ impl MasterState<'_> {
                 }
             }
             ToMaster::Failed { rank, row, message } => {
-                tracing::error!(rank, row, "worker failed: {message}");
+                // The caller prints the error once; this is for the log at debug level.
+                tracing::debug!(rank, row, "worker failed: {message}");
                 self.failure
                     .get_or_insert(ServiceError::WorkerFailed { rank, row, message });
                 Ok(())
@@ -313,6 +371,7 @@ impl MasterState<'_> {
                 self.outcome.workers.push(stats);
                 Ok(())
             }
+            ToMaster::Alive => Ok(()),
         }
     }
 }
@@ -377,6 +436,7 @@ pub(crate) fn prepare(
         spill: job
             .symmetric
             .then(|| crate::service::symmetric::spill_path(&job.output)),
+        stall: None,
     };
     Ok((writer, plan, present))
 }
@@ -413,5 +473,30 @@ pub(crate) fn report(
         raw_bytes: outcome.writer.raw_bytes,
         master_peak_rss: crate::service::rss::peak_rss_bytes(),
         workers: outcome.workers,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn liveness_counts_only_listening_time_and_forgets_finished_workers() {
+        let s = Duration::from_secs;
+        let mut l = Liveness::new(3, Some(s(10)));
+        l.listened(s(6));
+        l.heard(0, false);
+        l.heard(1, true); // worker 1 is done: never stalled
+        assert_eq!(l.stalled(), None);
+        l.listened(s(5)); // worker 2 has been silent 11 s of listening
+        assert_eq!(l.stalled(), Some((2, s(11))));
+        l.heard(2, false);
+        l.heard(0, false);
+        assert_eq!(l.stalled(), None);
+        l.listened(s(10)); // exactly the limit is not past it
+        assert_eq!(l.stalled(), None);
+        l.listened(Duration::from_millis(1));
+        assert_eq!(l.stalled().map(|(w, _)| w), Some(0));
+        assert_eq!(Liveness::new(2, None).stalled(), None, "no limit, no stall");
     }
 }

@@ -28,6 +28,12 @@ use crate::service::{ComputeJob, PairRoutes, ServiceError, WorkerStats};
 /// (fault-injection for tests of the failure path). Documented in the README.
 pub(crate) const FAIL_ROW_ENV: &str = "FFSTREAM_FAIL_ROW";
 
+/// Environment variable that makes the worker process that reaches this row stop
+/// itself with SIGSTOP, as an operator's `kill -STOP` would (a hung or lost rank looks
+/// the same to rank 0): for the test of the liveness limit, `--stall-seconds`.
+/// Documented in the README.
+pub(crate) const STOP_ROW_ENV: &str = "FFSTREAM_TEST_STOP_ROW";
+
 /// How one worker runs.
 #[derive(Clone, Debug)]
 pub(crate) struct WorkerConfig {
@@ -42,6 +48,8 @@ pub(crate) struct WorkerConfig {
     /// `--symmetric`: compute half rows; `in_run[i]` says whether row i is computed in
     /// this run (see [`RowEngine::half_row`]).
     pub(crate) symmetric: Option<Arc<Vec<bool>>>,
+    /// The driver tells the master it is alive when it has sent nothing for this long.
+    pub(crate) heartbeat: Duration,
 }
 
 impl WorkerConfig {
@@ -58,8 +66,16 @@ impl WorkerConfig {
             chunk_bytes: job.writer.chunk_bytes,
             flush_seconds: job.flush_seconds,
             symmetric: job.symmetric.then(|| Arc::new(in_run(todo, n))),
+            heartbeat: heartbeat(job.stall_seconds),
         }
     }
+}
+
+/// How often a quiet worker says it is alive, for a liveness limit of `stall_seconds`:
+/// four times per limit, at least every 5 s (tiny messages; a thousand ranks send a few
+/// hundred a second at most), and no more often than every 50 ms.
+fn heartbeat(stall_seconds: f64) -> Duration {
+    Duration::from_secs_f64((stall_seconds / 4.0).clamp(0.05, 5.0))
 }
 
 /// What a compute thread hands back to the driver.
@@ -88,9 +104,11 @@ pub(crate) fn run_worker(
     static_rows: Option<Vec<u32>>,
 ) -> Result<WorkerStats, ServiceError> {
     let _span = tracing::info_span!("worker", rank = cfg.rank, threads = cfg.threads).entered();
-    let fail_row: Option<u32> = std::env::var(FAIL_ROW_ENV)
-        .ok()
-        .and_then(|v| v.parse().ok());
+    let row_of = |var: &str| -> Option<u32> { std::env::var(var).ok()?.parse().ok() };
+    let faults = Faults {
+        fail_row: row_of(FAIL_ROW_ENV),
+        stop_row: row_of(STOP_ROW_ENV),
+    };
     let threads = cfg.threads.max(1);
     let (jobs_tx, jobs_rx) = unbounded::<u32>();
     let (out_tx, out_rx) = bounded::<FromCompute>(2 * threads);
@@ -112,7 +130,7 @@ pub(crate) fn run_worker(
             std::thread::Builder::new()
                 .name(format!("compute-{t}"))
                 .spawn_scoped(s, move || {
-                    compute_thread(engine, cfg, fail_row, &jobs_rx, &out_tx, counters)
+                    compute_thread(engine, cfg, faults, &jobs_rx, &out_tx, counters)
                 })
                 .map_err(|e| {
                     ServiceError::Transport(format!("cannot start a compute thread: {e}"))
@@ -152,6 +170,8 @@ fn drive(
     let mut assigned = 0u64;
     let mut requested = false;
     let low_water = 2 * cfg.threads.max(1) as u64;
+    // When the driver last sent anything: a quiet worker (long rows) says it is alive.
+    let mut last_word = Instant::now();
     if let Some(rows) = static_rows {
         if let Some(tx) = jobs_tx.take() {
             for r in rows {
@@ -166,6 +186,7 @@ fn drive(
             {
                 link.request()?;
                 requested = true;
+                last_word = Instant::now();
             }
             if requested {
                 if let Some(rows) = link.try_assignment()? {
@@ -182,12 +203,16 @@ fn drive(
             }
         }
         match out_rx.recv_timeout(Duration::from_millis(2)) {
-            Ok(FromCompute::Chunk(chunk)) => link.send_chunk(chunk)?,
+            Ok(FromCompute::Chunk(chunk)) => {
+                link.send_chunk(chunk)?;
+                last_word = Instant::now();
+            }
             Ok(FromCompute::Pieces { pieces, rows }) => {
                 for p in pieces {
                     link.send_piece(p)?;
                 }
                 link.half_rows_done(rows)?;
+                last_word = Instant::now();
             }
             Ok(FromCompute::Failed { row, message }) => {
                 link.failed(row, &message)?;
@@ -197,9 +222,30 @@ fn drive(
                     message,
                 });
             }
-            Err(RecvTimeoutError::Timeout) => {}
+            Err(RecvTimeoutError::Timeout) => {
+                if last_word.elapsed() >= cfg.heartbeat {
+                    link.alive()?;
+                    last_word = Instant::now();
+                }
+            }
             Err(RecvTimeoutError::Disconnected) => return Ok(()), // every thread finished
         }
+    }
+}
+
+/// Faults injected on purpose by the test hooks [`FAIL_ROW_ENV`] and [`STOP_ROW_ENV`].
+#[derive(Clone, Copy)]
+struct Faults {
+    fail_row: Option<u32>,
+    stop_row: Option<u32>,
+}
+
+/// [`STOP_ROW_ENV`]: stop this whole process with SIGSTOP, as `kill -STOP` would.
+fn stop_process() {
+    #[cfg(unix)]
+    // SAFETY: raise(3) with a valid signal number has no memory-safety preconditions.
+    unsafe {
+        libc::raise(libc::SIGSTOP);
     }
 }
 
@@ -311,7 +357,7 @@ impl Pending {
 fn compute_thread(
     engine: &RowEngine,
     cfg: &WorkerConfig,
-    fail_row: Option<u32>,
+    faults: Faults,
     jobs: &Receiver<u32>,
     out: &Sender<FromCompute>,
     counters: Counters<'_>,
@@ -338,7 +384,10 @@ fn compute_thread(
         }
         if let Some(i) = next {
             let t0 = Instant::now();
-            let done = if fail_row == Some(i) {
+            if faults.stop_row == Some(i) {
+                stop_process();
+            }
+            let done = if faults.fail_row == Some(i) {
                 Err(format!("failure injected by {FAIL_ROW_ENV}={i}"))
             } else {
                 catch_unwind(AssertUnwindSafe(|| {

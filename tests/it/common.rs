@@ -42,6 +42,7 @@ pub(crate) fn mpirun(ranks: usize, args: &[&str]) -> Command {
         // Shared-memory transport only: no network interfaces needed.
         .env("OMPI_MCA_btl", "self,vader")
         .env_remove("FFSTREAM_FAIL_ROW")
+        .env_remove("FFSTREAM_TEST_STOP_ROW")
         .arg(exe())
         .args(args);
     c

@@ -153,6 +153,47 @@ fn worker_failure_is_named_file_stays_readable_and_resume_completes_it() {
     assert_same_rows(&reference, &f);
 }
 
+/// Issue 20 item 9: a worker stopped with SIGSTOP used to stall the job for ever.
+/// With a liveness limit rank 0 names the silent rank, keeps the rows written so far
+/// and ends the job; `--resume` then completes the file to the uninterrupted rows.
+#[test]
+fn a_stopped_worker_is_named_after_the_stall_limit_and_resume_completes_the_file() {
+    if !need_mpi() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let reference = embedded_reference(dir.path());
+    let f = dir.path().join("stalled.ffz");
+    let mut args = vec!["compute"];
+    args.extend_from_slice(CUBE);
+    args.extend_from_slice(&["-o", path_str(&f), "--chunk-kib", "4"]);
+    args.extend_from_slice(&["--stall-seconds", "3"]);
+    let t0 = Instant::now();
+    let out = mpirun(3, &args)
+        .env("FFSTREAM_TEST_STOP_ROW", "60")
+        .output_within("a stopped worker");
+    let took = t0.elapsed();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "the job must fail: {stderr}");
+    let named = ["rank 1 has sent nothing", "rank 2 has sent nothing"]
+        .iter()
+        .any(|m| stderr.contains(m));
+    assert!(named, "the silent rank is named: {stderr}");
+    assert!(stderr.contains("--resume"), "the way on is said: {stderr}");
+    assert!(
+        took >= Duration::from_secs(3),
+        "ended only after the limit: {took:?}"
+    );
+    let r = FfzReader::open(&f).expect("the file written so far is readable");
+    assert!(
+        r.row(60).unwrap().is_none(),
+        "the stopped worker's row is not in the file"
+    );
+    drop(r);
+    assert_ok(&mpi_compute(3, &f, &["--resume"]), "resume");
+    assert_same_rows(&reference, &f);
+}
+
 #[test]
 fn a_rank_with_a_different_scene_is_named_before_computing() {
     if !need_mpi() {

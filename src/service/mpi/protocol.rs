@@ -15,6 +15,8 @@
 //! | `GATHER_ROW` | worker → 0 | `u32` row, then n × `f64` (the `--gather` baseline only) |
 //! | `PIECE` | worker → 0 | as `CHUNK`: a spill piece of partial rows (`--symmetric`) |
 //! | `HALF_DONE` | worker → 0 | `count` × `u32` row ids: half rows whose pieces were all sent |
+//! | `ALIVE` | worker → 0 | empty: the worker has sent nothing else for a while (liveness) |
+//! | `FINISH` | 0 → worker | empty: the file is complete, finalise (see [`super::run`]) |
 //!
 //! The trailer of `CHUNK` sits after the chunk bytes so the master can cut it off in
 //! place and hand the buffer to the writer without copying.
@@ -33,6 +35,8 @@ pub(crate) const SETUP: Tag = 6;
 pub(crate) const GATHER_ROW: Tag = 7;
 pub(crate) const PIECE: Tag = 8;
 pub(crate) const HALF_DONE: Tag = 9;
+pub(crate) const ALIVE: Tag = 10;
+pub(crate) const FINISH: Tag = 11;
 
 fn malformed(what: &str, rank: i32) -> ServiceError {
     ServiceError::Transport(format!("malformed {what} message from rank {rank}"))
