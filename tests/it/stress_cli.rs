@@ -237,23 +237,41 @@ fn impossible_sizes_are_refused_before_allocating() {
 }
 
 /// Log output to a file or a pipe (a batch system's capture, not a terminal) has no
-/// ANSI colour codes (a worker failure used to print them into the job's log).
+/// ANSI colour codes (a worker failure used to print them into the job's log), and a
+/// worker failure is said once: the `ffstream: error:` line (it used to come with a
+/// coloured `ERROR worker failed` log line saying the same; that is now at debug level).
 #[test]
 fn log_lines_to_a_pipe_carry_no_colour_codes() {
     let dir = tempfile::tempdir().unwrap();
-    let out = std::process::Command::new(crate::common::exe())
-        .args(["compute", "builtin:cube", "--patches", "20", "-q", "-o"])
-        .arg(dir.path().join("c.ffz"))
-        .env("FFSTREAM_FAIL_ROW", "3")
-        .output()
-        .unwrap();
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(1), "{err}");
+    let run = |verbose: &[&str]| {
+        let out = std::process::Command::new(crate::common::exe())
+            .args(verbose)
+            .args([
+                "compute",
+                "builtin:cube",
+                "--patches",
+                "20",
+                "-q",
+                "--force",
+                "-o",
+            ])
+            .arg(dir.path().join("c.ffz"))
+            .env("FFSTREAM_FAIL_ROW", "3")
+            .output()
+            .unwrap();
+        assert_eq!(out.status.code(), Some(1), "{out:?}");
+        String::from_utf8_lossy(&out.stderr).into_owned()
+    };
+    let err = run(&["-vv"]);
     assert!(
-        err.contains("ERROR worker failed"),
+        err.contains("DEBUG") && err.contains("worker failed"),
         "the worker's log line: {err}"
     );
     assert!(!err.contains('\u{1b}'), "no escape codes: {err:?}");
+    let err = run(&[]);
+    let said: Vec<_> = err.lines().filter(|l| l.contains("row 3")).collect();
+    assert_eq!(said.len(), 1, "the failed row is said once: {err}");
+    assert!(said[0].starts_with("ffstream: error: "), "{err}");
 }
 
 /// Every number an option takes has a range, checked when the command line is read:
