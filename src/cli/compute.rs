@@ -122,6 +122,11 @@ pub(crate) struct ComputeOptions {
     /// is not silence. A finite number > 0.
     #[arg(long, default_value_t = 600.0, value_name = "SECONDS", value_parser = number::positive)]
     pub stall_seconds: f64,
+    /// Start even when the free disk is less than the file's size before compression
+    /// (the plan printed first gives both; zstd may make the file fit, and a run that
+    /// fills the disk stops with a clear error and its rows kept for --resume).
+    #[arg(long)]
+    pub no_space_check: bool,
     /// Do not fsync the file at the end (faster; a power loss may lose the index).
     #[arg(long)]
     pub no_fsync: bool,
@@ -170,7 +175,18 @@ pub(super) fn build_job(
             eprintln!("ffstream: warning: {w}");
         }
     }
-    let (patches, max_edge) = patches_of(input, &scene, role != Role::Worker)?;
+    let symmetric = symmetric_mode(o, &cfg)?;
+    let threads = o
+        .threads
+        .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
+    let plan = (role != Role::Worker).then(|| PlanInputs {
+        output: &output,
+        layout: layout_of(&cfg),
+        symmetric,
+        threads,
+        o,
+    });
+    let (patches, max_edge) = patches_of(input, &scene, plan)?;
     let (engine, description) = engine_for(role, o, &scene, &patches, &cfg)?;
     let took = setup_start.elapsed().as_secs_f64();
     match role {
@@ -185,12 +201,8 @@ pub(super) fn build_job(
         ),
         Role::Worker => {}
     }
-    let symmetric = symmetric_mode(o, &cfg)?;
     let meta = FileMeta {
-        layout: match cfg.top_k {
-            Some(k) => Layout::TopK { k },
-            None => Layout::Dense,
-        },
+        layout: layout_of(&cfg),
         method: cfg.method.to_string(),
         params: format!(
             "{} max_edge={max_edge} scene_path={}{}{}",
@@ -208,9 +220,6 @@ pub(super) fn build_job(
         created: creation_info(),
         patches: (*patches).clone(),
     };
-    let threads = o
-        .threads
-        .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
     Ok(ComputeJob {
         output,
         meta,
@@ -237,13 +246,32 @@ pub(super) fn build_job(
 /// that every thread can be started (16k threads aborted the process here).
 const MAX_THREADS: usize = 4096;
 
+fn layout_of(cfg: &FormFactorConfig) -> Layout {
+    match cfg.top_k {
+        Some(k) => Layout::TopK { k },
+        None => Layout::Dense,
+    }
+}
+
+/// What the plan needs besides the scene (rank 0 or a process running alone only).
+struct PlanInputs<'a> {
+    output: &'a std::path::Path,
+    layout: Layout,
+    symmetric: bool,
+    threads: usize,
+    o: &'a ComputeOptions,
+}
+
 /// The patches of `scene` by `--max-edge` (or the edge that gives about `--patches`),
-/// refused before they are allocated when there would be too many; and the edge.
+/// refused before they are allocated when there would be too many; and the edge. With
+/// `plan` (a process that prints), the plan is printed and checked first
+/// ([`super::plan::Plan::check`]): a file the disk cannot hold costs no subdivision.
 fn patches_of(
     input: &SceneInput,
     scene: &Scene,
-    announce: bool,
+    plan: Option<PlanInputs<'_>>,
 ) -> anyhow::Result<(Arc<PatchSet>, f64)> {
+    let announce = plan.is_some();
     let max_edge = input
         .max_edge
         .unwrap_or_else(|| default_max_edge(scene, input.patches));
@@ -257,6 +285,23 @@ fn patches_of(
              use a larger --max-edge or a smaller --patches",
             input.scene
         );
+    }
+    if let Some(p) = plan {
+        super::plan::Plan {
+            scene: &input.scene,
+            output: p.output,
+            n: count as u64,
+            faces: scene.faces.len() as u64,
+            target: input.max_edge.is_none().then_some(input.patches as u64),
+            layout: p.layout,
+            symmetric: p.symmetric,
+            threads: p.threads as u64,
+            chunk_bytes: (p.o.chunk_kib * 1024) as u64,
+            occluder_triangles: scene.triangles().count() as u64,
+            resume: p.o.resume,
+            no_space_check: p.o.no_space_check,
+        }
+        .check()?;
     }
     let patches =
         Arc::new(tracing::info_span!("subdivide").in_scope(|| subdivide(scene, max_edge)));

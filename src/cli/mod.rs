@@ -4,6 +4,7 @@
 mod choices;
 mod compute;
 mod files;
+mod plan;
 mod render;
 mod run;
 mod scene;

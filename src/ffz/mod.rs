@@ -23,6 +23,7 @@ mod meta;
 mod presence;
 mod reader;
 mod recover;
+pub mod size;
 pub mod spec;
 pub mod tools;
 mod verify;

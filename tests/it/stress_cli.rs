@@ -590,3 +590,103 @@ fn visibility_options_that_would_do_nothing_are_refused() {
         );
     }
 }
+
+/// Issue 20 item 5: a mesh far too fine for its file used to be subdivided (seconds,
+/// gigabytes) and then started with an ETA of days for a file of terabytes. The plan
+/// comes first and a file the disk cannot hold is refused before any subdivision,
+/// naming the sizes and the ways on; nothing is created.
+#[test]
+fn a_file_the_disk_cannot_hold_is_refused_before_subdividing() {
+    let dir = tempfile::tempdir().unwrap();
+    let f = dir.path().join("huge.ffz");
+    // 6 faces at edge 1e-3: 1.2e7 patches, a dense file of about 5.8e14 bytes.
+    let out = ffstream(&[
+        "compute",
+        "builtin:cube",
+        "--max-edge",
+        "0.001",
+        "-q",
+        "-o",
+        path_str(&f),
+    ]);
+    let line = assert_one_error(
+        &out,
+        "huge dense file",
+        &["huge.ffz", "needs up to", "TB", "free", "--no-space-check"],
+    );
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("ffstream: plan: "),
+        "the plan is printed: {err}"
+    );
+    assert!(!err.contains("patches (max edge"), "no subdivision: {err}");
+    assert!(!f.exists(), "nothing created: {line}");
+}
+
+/// Issue 20 item 5: a scene with more faces than `--patches` gets far more patches than
+/// asked for (each face is at least one patch); that used to pass without a word.
+#[test]
+fn a_patch_count_far_above_the_target_is_warned_about() {
+    let dir = tempfile::tempdir().unwrap();
+    let args = |target: &'static str| {
+        let f = dir.path().join(format!("room{target}.ffz"));
+        let out = ffstream(&[
+            "compute",
+            "builtin:room:0",
+            "--patches",
+            target,
+            "--top-k",
+            "4",
+            "-q",
+            "-o",
+            path_str(&f),
+        ]);
+        assert!(out.status.success(), "{out:?}");
+        String::from_utf8_lossy(&out.stderr).into_owned()
+    };
+    let err = args("2");
+    let warning = err
+        .lines()
+        .find(|l| l.starts_with("ffstream: warning: ") && l.contains("--patches target 2"))
+        .unwrap_or_else(|| panic!("warned: {err}"));
+    assert!(warning.contains("faces"), "{warning}");
+    let err = args("200");
+    assert!(
+        !err.contains("--patches target"),
+        "no warning near the target: {err}"
+    );
+}
+
+/// The plan's file size is the most the file can take: files written in both layouts
+/// stay under it, and it is not far above their uncompressed size.
+#[test]
+fn written_files_stay_under_the_planned_size() {
+    use ffstream::ffz::size::file_bytes_bound;
+    use ffstream::ffz::{FfzReader, Layout};
+    let dir = tempfile::tempdir().unwrap();
+    for (extra, layout) in [
+        (&[][..], Layout::Dense),
+        (&["--top-k", "8"][..], Layout::TopK { k: 8 }),
+    ] {
+        let f = dir.path().join(format!("c{}.ffz", extra.len()));
+        let mut a = vec!["compute", "builtin:cornell", "--patches", "400", "-q"];
+        a.extend_from_slice(&["--chunk-kib", "16", "-o", path_str(&f)]);
+        a.extend_from_slice(extra);
+        let out = ffstream(&a);
+        assert!(out.status.success(), "{out:?}");
+        let n = FfzReader::open(&f).unwrap().n() as u64;
+        let len = std::fs::metadata(&f).unwrap().len();
+        let bound = file_bytes_bound(n, layout, 16 * 1024);
+        assert!(len <= bound, "{layout:?}: {len} > {bound}");
+        let values = match layout {
+            Layout::Dense => 4 * n * n,
+            Layout::TopK { k } => 8 * u64::from(k) * n,
+        };
+        // Header slack (1 MiB) plus 3 % of the values and the patch table.
+        let not_far = values + values * 3 / 100 + 168 * n + (1 << 20) + 64 * n;
+        assert!(
+            bound <= not_far,
+            "{layout:?}: bound {bound} far above {values}"
+        );
+    }
+}
