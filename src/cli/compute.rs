@@ -170,6 +170,15 @@ pub(super) fn build_job(
     let cfg = form_factor_config(o)?;
     let setup_start = std::time::Instant::now();
     let scene = tracing::info_span!("load_scene").in_scope(|| load_scene(&input.scene))?;
+    if input.strict {
+        if let Some(first) = scene.warnings.first() {
+            let more = match scene.warnings.len() - 1 {
+                0 => String::new(),
+                m => format!(" (and {m} more warning(s))"),
+            };
+            bail!("--strict refuses this scene: {first}{more}");
+        }
+    }
     if role != Role::Worker {
         for w in &scene.warnings {
             eprintln!("ffstream: warning: {w}");

@@ -77,6 +77,11 @@ pub(crate) struct SceneInput {
     #[arg(long, value_name = "N", default_value_t = ffstream::geometry::subdivide::DEFAULT_TARGET_PATCHES,
           value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=compute::MAX_PATCHES as u64))]
     pub patches: usize,
+    /// Refuse a scene that loads with warnings (faces that repeat another, text read as
+    /// Latin-1, degenerate faces dropped, non-planar quads split, no emitter, ...):
+    /// each is then an error, exit 1, instead of a warning.
+    #[arg(long)]
+    pub strict: bool,
 }
 
 /// Checks a `builtin:NAME[:PARAM]` scene at parse time (a usage error naming the

@@ -17,6 +17,7 @@
 mod builder;
 mod builtin;
 mod city;
+mod duplicates;
 mod error;
 mod obj;
 mod polygon;

@@ -115,6 +115,12 @@ pub fn load_obj(path: &Path) -> Result<Scene, SceneError> {
             "{p}: no face uses an emitting material (Ke > 0): a radiosity solve has no light source"
         ));
     }
+    let dups = super::duplicates::coincident_duplicates(&scene.faces);
+    if let Some(w) =
+        super::duplicates::duplicates_warning(&p.to_string(), &scene.faces, &scene.groups, &dups)
+    {
+        warnings.push(w);
+    }
     scene.warnings = warnings;
     debug_assert_eq!(scene.validate(), Ok(()));
     Ok(scene)

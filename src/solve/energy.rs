@@ -66,6 +66,22 @@ pub(crate) fn energy_reports(sys: &System, b: &[f64], h: &[f64]) -> Vec<EnergyRe
         .collect()
 }
 
+/// Escaped power below this fraction of the total is more than rounding and row
+/// accuracy explain (a closed scene's rows sum to 1 within about 1e-6 with `contour`).
+const CREATED_LIGHT: f64 = 1e-3;
+
+/// The first case and channel fraction where the escaped power is negative beyond
+/// [`CREATED_LIGHT`] of the total: light created by rows that sum above 1.
+pub(crate) fn created_light(reports: &[EnergyReport]) -> Option<(usize, f64)> {
+    reports.iter().enumerate().find_map(|(k, r)| {
+        (0..3)
+            .filter(|&c| r.total[c] > 0.0)
+            .map(|c| r.escaped[c] / r.total[c])
+            .find(|&f| f < -CREATED_LIGHT)
+            .map(|f| (k, f))
+    })
+}
+
 fn rgb(v: &[f64; 3]) -> String {
     format!("{:.6e} {:.6e} {:.6e}", v[0], v[1], v[2])
 }
@@ -80,5 +96,21 @@ impl fmt::Display for EnergyReport {
         writeln!(f, "  escaped    {}", rgb(&self.escaped))?;
         let im = self.imbalance();
         write!(f, "  imbalance  {:.2e} {:.2e} {:.2e}", im[0], im[1], im[2])
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn created_light_is_a_negative_escape_beyond_rounding() {
+        let report = |escaped: f64| EnergyReport {
+            total: [2.0; 3],
+            escaped: [0.0, escaped, 0.0],
+            ..Default::default()
+        };
+        assert_eq!(created_light(&[report(-1e-8), report(0.5)]), None);
+        assert_eq!(created_light(&[report(0.0), report(-0.4)]), Some((1, -0.2)));
     }
 }

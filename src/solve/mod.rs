@@ -302,6 +302,14 @@ pub fn solve(
         ));
     }
     let energy = energy::energy_reports(&sys, &it.b, &it.h);
+    if let Some((case, fraction)) = energy::created_light(&energy) {
+        warnings.push(format!(
+            "case {case}: the escaped power is negative ({fraction:.2e} of the total): more light \
+             arrives at the surfaces than leaves them, so some rows sum above 1 (faces that \
+             repeat or overlap another, or rows that were not computed for this scene); \
+             `ffstream verify` shows the row sums"
+        ));
+    }
     let split = |v: &[f64]| -> Vec<Vec<[f64; 3]>> {
         (0..sys.cases)
             .map(|k| {

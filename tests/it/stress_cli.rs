@@ -66,6 +66,7 @@ fn expected(file: &str) -> Want {
         "big_index.obj" => Error("big_index.obj", Some(8)),
         "collinear.obj" => Error("collinear.obj", None),
         "degenerate.obj" => Warning("dropped 3 degenerate"),
+        "duplicate_faces.obj" => Warning("1 face(s) repeat another face exactly (same corners, same facing; first line 25 repeats line 23), in group(s) y0_copy"),
         "empty.obj" => Error("empty.obj", None),
         "empty_file.obj" => Error("empty_file.obj", None),
         "huge_coords.obj" => Error("huge_coords.obj", Some(4)),
@@ -177,6 +178,33 @@ fn every_corpus_file_gives_one_error_line_or_a_warning_through_compute_and_run()
                     warning.contains(text) && warning.contains(file),
                     "{warning}"
                 );
+                // --strict makes the warning an error (exit 1), naming the same.
+                let strict = ffstream(&[
+                    "compute",
+                    path_str(&path),
+                    "-o",
+                    path_str(&out_ffz),
+                    "--patches",
+                    "40",
+                    "--quiet",
+                    "--force",
+                    "--strict",
+                ]);
+                assert_one_error(
+                    &strict,
+                    &format!("--strict {file}"),
+                    &[text, file, "--strict"],
+                );
+                if file == "duplicate_faces.obj" {
+                    // The solve says that light was created (it used to print a
+                    // negative escaped power without a word).
+                    let all = format!(
+                        "{}{}",
+                        String::from_utf8_lossy(&run.stdout),
+                        String::from_utf8_lossy(&run.stderr)
+                    );
+                    assert!(all.contains("escaped power is negative"), "{all}");
+                }
                 if file == "no_emitter.obj" {
                     // The solve must say that nothing emits.
                     assert_one_error(&run, "run no_emitter.obj", &["nothing emits"]);
