@@ -126,31 +126,47 @@ fn folded_schedule_and_gather_baseline_give_the_same_rows() {
     assert_same_rows(&full, &gather);
 }
 
+/// A 3-rank job on the cube made to break by the test hook `hook` = `row`, with
+/// `extra` options; the caller checks what it said. Then: the file written so far is
+/// readable without `row`, and `--resume` completes it to the rows of an uninterrupted
+/// embedded run. `check` gets the broken job's stderr and how long it took.
+fn broken_job_resumes(hook: &str, row: u32, extra: &[&str], check: impl Fn(&str, Duration)) {
+    let dir = tempfile::tempdir().unwrap();
+    let reference = embedded_reference(dir.path());
+    let f = dir.path().join("broken.ffz");
+    let mut args = vec!["compute"];
+    args.extend_from_slice(CUBE);
+    args.extend_from_slice(&["-o", path_str(&f), "--chunk-kib", "4"]);
+    args.extend_from_slice(extra);
+    let t0 = Instant::now();
+    let out = mpirun(3, &args)
+        .env(hook, row.to_string())
+        .output_within(hook);
+    let took = t0.elapsed();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "the job must fail: {stderr}");
+    check(&stderr, took);
+    let r = FfzReader::open(&f).expect("the file written so far is readable");
+    assert!(
+        r.row(row).unwrap().is_none(),
+        "row {row} is not in the file"
+    );
+    drop(r);
+    assert_ok(&mpi_compute(3, &f, &["--resume"]), "resume");
+    assert_same_rows(&reference, &f);
+}
+
 #[test]
 fn worker_failure_is_named_file_stays_readable_and_resume_completes_it() {
     if !need_mpi() {
         return;
     }
-    let dir = tempfile::tempdir().unwrap();
-    let reference = embedded_reference(dir.path());
-    let f = dir.path().join("failed.ffz");
-    let mut args = vec!["compute"];
-    args.extend_from_slice(CUBE);
-    args.extend_from_slice(&["-o", path_str(&f), "--chunk-kib", "4"]);
-    let out = mpirun(3, &args)
-        .env("FFSTREAM_FAIL_ROW", "50")
-        .output_within("a failing worker");
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(!out.status.success(), "the job must fail");
-    assert!(
-        stderr.contains("row 50") && stderr.contains("rank "),
-        "rank and row named: {stderr}"
-    );
-    let r = FfzReader::open(&f).expect("the file written so far is readable");
-    assert!(r.row(50).unwrap().is_none());
-    drop(r);
-    assert_ok(&mpi_compute(3, &f, &["--resume"]), "resume");
-    assert_same_rows(&reference, &f);
+    broken_job_resumes("FFSTREAM_FAIL_ROW", 50, &[], |stderr, _| {
+        assert!(
+            stderr.contains("row 50") && stderr.contains("rank "),
+            "rank and row named: {stderr}"
+        );
+    });
 }
 
 /// Issue 20 item 9: a worker stopped with SIGSTOP used to stall the job for ever.
@@ -161,37 +177,18 @@ fn a_stopped_worker_is_named_after_the_stall_limit_and_resume_completes_the_file
     if !need_mpi() {
         return;
     }
-    let dir = tempfile::tempdir().unwrap();
-    let reference = embedded_reference(dir.path());
-    let f = dir.path().join("stalled.ffz");
-    let mut args = vec!["compute"];
-    args.extend_from_slice(CUBE);
-    args.extend_from_slice(&["-o", path_str(&f), "--chunk-kib", "4"]);
-    args.extend_from_slice(&["--stall-seconds", "3"]);
-    let t0 = Instant::now();
-    let out = mpirun(3, &args)
-        .env("FFSTREAM_TEST_STOP_ROW", "60")
-        .output_within("a stopped worker");
-    let took = t0.elapsed();
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(!out.status.success(), "the job must fail: {stderr}");
-    let named = ["rank 1 has sent nothing", "rank 2 has sent nothing"]
-        .iter()
-        .any(|m| stderr.contains(m));
-    assert!(named, "the silent rank is named: {stderr}");
-    assert!(stderr.contains("--resume"), "the way on is said: {stderr}");
-    assert!(
-        took >= Duration::from_secs(3),
-        "ended only after the limit: {took:?}"
-    );
-    let r = FfzReader::open(&f).expect("the file written so far is readable");
-    assert!(
-        r.row(60).unwrap().is_none(),
-        "the stopped worker's row is not in the file"
-    );
-    drop(r);
-    assert_ok(&mpi_compute(3, &f, &["--resume"]), "resume");
-    assert_same_rows(&reference, &f);
+    let limit = ["--stall-seconds", "3"];
+    broken_job_resumes("FFSTREAM_TEST_STOP_ROW", 60, &limit, |stderr, took| {
+        let named = ["rank 1 has sent nothing", "rank 2 has sent nothing"]
+            .iter()
+            .any(|m| stderr.contains(m));
+        assert!(named, "the silent rank is named: {stderr}");
+        assert!(stderr.contains("--resume"), "the way on is said: {stderr}");
+        assert!(
+            took >= Duration::from_secs(3),
+            "ended only after the limit: {took:?}"
+        );
+    });
 }
 
 #[test]

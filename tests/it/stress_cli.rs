@@ -126,16 +126,13 @@ fn every_corpus_file_gives_one_error_line_or_a_warning_through_compute_and_run()
         let path = bad(file);
         let out_ffz = dir.path().join("x.ffz");
         let out_dir = dir.path().join("run");
-        let compute = ffstream(&[
-            "compute",
-            path_str(&path),
-            "-o",
-            path_str(&out_ffz),
-            "--patches",
-            "40",
-            "--quiet",
-            "--force",
-        ]);
+        let compute_with = |extra: &[&str]| {
+            let mut a = vec!["compute", path_str(&path), "-o", path_str(&out_ffz)];
+            a.extend_from_slice(&["--patches", "40", "--quiet", "--force"]);
+            a.extend_from_slice(extra);
+            ffstream(&a)
+        };
+        let compute = compute_with(&[]);
         let run = ffstream(&[
             "run",
             path_str(&path),
@@ -179,17 +176,7 @@ fn every_corpus_file_gives_one_error_line_or_a_warning_through_compute_and_run()
                     "{warning}"
                 );
                 // --strict makes the warning an error (exit 1), naming the same.
-                let strict = ffstream(&[
-                    "compute",
-                    path_str(&path),
-                    "-o",
-                    path_str(&out_ffz),
-                    "--patches",
-                    "40",
-                    "--quiet",
-                    "--force",
-                    "--strict",
-                ]);
+                let strict = compute_with(&["--strict"]);
                 assert_one_error(
                     &strict,
                     &format!("--strict {file}"),
