@@ -16,17 +16,24 @@ const HEADER_SLACK: u64 = 1 << 20;
 /// most the file can take, not what it will take. Saturates at `u64::MAX`.
 pub fn file_bytes_bound(n: u64, layout: Layout, chunk_bytes: u64) -> u64 {
     let per_row = match layout {
-        Layout::Dense => 4 * n,
-        Layout::TopK { k } => 8 * u64::from(k).min(n),
+        Layout::Dense => n.saturating_mul(4),
+        Layout::TopK { k } => u64::from(k).min(n).saturating_mul(8),
     }
     .saturating_add(spec::ROW_DIR_ENTRY_LEN as u64);
     let rows = per_row.saturating_mul(n);
     let chunks = rows / chunk_bytes.max(1) + 1;
-    let header = spec::HEADER_LEN as u64 + n * spec::PATCH_RECORD_LEN as u64 + HEADER_SLACK;
-    let index = spec::INDEX_FIXED_LEN as u64 + 8 * chunks + 8 * n;
+    let header = n
+        .saturating_mul(spec::PATCH_RECORD_LEN as u64)
+        .saturating_add(spec::HEADER_LEN as u64 + HEADER_SLACK);
+    let index = chunks
+        .saturating_add(n)
+        .saturating_mul(8)
+        .saturating_add(spec::INDEX_FIXED_LEN as u64);
     rows.saturating_add(rows / 256)
         .saturating_add(chunks.saturating_mul(spec::CHUNK_HEADER_LEN as u64 + 64))
-        .saturating_add(header + index + spec::FOOTER_LEN as u64)
+        .saturating_add(header)
+        .saturating_add(index)
+        .saturating_add(spec::FOOTER_LEN as u64)
 }
 
 /// The most the spill file of a `--symmetric` run can hold (all half-row pieces, when
@@ -36,7 +43,7 @@ pub fn file_bytes_bound(n: u64, layout: Layout, chunk_bytes: u64) -> u64 {
 pub fn spill_bytes_bound(n: u64) -> u64 {
     n.saturating_mul(n.saturating_sub(1))
         .saturating_mul(8)
-        .saturating_add(n * spec::ROW_DIR_ENTRY_LEN as u64 * 2)
+        .saturating_add(n.saturating_mul(2 * spec::ROW_DIR_ENTRY_LEN as u64))
 }
 
 /// Bytes with a decimal unit (kB, MB, GB, TB, PB; 1 kB = 1000 B), 3 significant
@@ -65,8 +72,15 @@ mod tests {
     fn bounds_grow_as_the_layout_says_and_saturate() {
         let d = file_bytes_bound(1000, Layout::Dense, 1 << 20);
         assert!(d > 4 * 1000 * 1000 && d < 4 * 1000 * 1000 * 103 / 100 + 2 * HEADER_SLACK);
+        // Top-64 rows: 8 bytes per entry, far below dense once n is large (at n = 1000
+        // the header's fixed slack still dominates).
         let k = file_bytes_bound(1000, Layout::TopK { k: 64 }, 1 << 20);
-        assert!(k > 8 * 64 * 1000 && k < d / 4);
+        assert!(k > 8 * 64 * 1000 && k < 8 * 64 * 1000 * 103 / 100 + 2 * HEADER_SLACK);
+        let (d, k) = (
+            file_bytes_bound(100_000, Layout::Dense, 1 << 20),
+            file_bytes_bound(100_000, Layout::TopK { k: 64 }, 1 << 20),
+        );
+        assert!(k < d / 100, "{k} {d}");
         // k above n stores n entries per row at most.
         assert_eq!(
             file_bytes_bound(10, Layout::TopK { k: 1000 }, 1024),
