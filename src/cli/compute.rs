@@ -565,15 +565,25 @@ fn execute_mpi(input: &SceneInput, output: PathBuf, o: &ComputeOptions) -> anyho
         Ok(None) => Ok(Outcome::Worker),
         Err(e) if rank == 0 => {
             // Rank 0 has finished the file with what it had; stop every rank.
-            eprintln!("ffstream: error: {e}");
+            let mut say = format!("ffstream: error: {e}\n");
             if matches!(
                 e,
                 ServiceError::WorkerFailed { .. }
                     | ServiceError::WorkerStalled { .. }
                     | ServiceError::Transport(_)
             ) {
-                eprintln!("ffstream: rows written so far are kept: rerun with --resume to complete the file");
+                say += "ffstream: rows written so far are kept: rerun with --resume to complete the file\n";
             }
+            // One write, then a moment for mpirun to forward it: on MPI_Abort, Open MPI
+            // stops forwarding a rank's stderr, and a message written piece by piece was
+            // seen cut after "ffstream: error: rank " (1 run in about 40).
+            {
+                use std::io::Write;
+                let mut err = std::io::stderr().lock();
+                let _ = err.write_all(say.as_bytes());
+                let _ = err.flush();
+            }
+            std::thread::sleep(std::time::Duration::from_millis(300));
             ctx.abort(1)
         }
         Err(e) => {
