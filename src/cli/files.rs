@@ -28,6 +28,15 @@ pub(crate) struct ExportArgs {
     /// Write the matrix as Matrix Market coordinate real general (1-based i j F_ij).
     #[arg(long, value_name = "F.mtx")]
     pub matrix: Option<PathBuf>,
+    /// Write the matrix as sparse text, View3D/uDALES style: `#` header lines (source,
+    /// n, what is left out), then one `i j F_ij` line per entry (1-based), rows in file
+    /// order.
+    #[arg(long, value_name = "F.txt")]
+    pub sparse: Option<PathBuf>,
+    /// Leave entries below EPS out of --matrix and --sparse (uDALES keeps F ≥ 5e-7);
+    /// default 0: every non-zero entry. A finite number ≥ 0.
+    #[arg(long, value_name = "EPS", default_value_t = 0.0, value_parser = super::choices::number::non_negative)]
+    pub min_ff: f64,
     /// Write the patch table as CSV (patch,group,area,cx,cy,cz,nx,ny,nz,rho_*,e_*).
     /// (`--patches` is the old spelling, kept for one release.)
     #[arg(long, alias = "patches", value_name = "patches.csv")]
@@ -51,9 +60,17 @@ pub(super) fn verify(a: VerifyArgs) -> anyhow::Result<ExitCode> {
 }
 
 pub(super) fn export(a: ExportArgs) -> anyhow::Result<ExitCode> {
-    if a.matrix.is_none() && a.patches_csv.is_none() {
-        anyhow::bail!("nothing to export: give --matrix F.mtx and/or --patches-csv patches.csv");
+    if a.matrix.is_none() && a.sparse.is_none() && a.patches_csv.is_none() {
+        anyhow::bail!(
+            "nothing to export: give --matrix F.mtx, --sparse F.txt and/or --patches-csv patches.csv"
+        );
     }
-    ffstream::ffz::tools::export(&a.file, a.matrix.as_deref(), a.patches_csv.as_deref())?;
+    let targets = ffstream::ffz::tools::ExportTargets {
+        matrix: a.matrix.as_deref(),
+        sparse: a.sparse.as_deref(),
+        min_ff: a.min_ff as f32,
+        patches_csv: a.patches_csv.as_deref(),
+    };
+    ffstream::ffz::tools::export(&a.file, targets)?;
     Ok(ExitCode::SUCCESS)
 }

@@ -227,66 +227,100 @@ pub fn verify(path: &Path, against: Option<&Path>, out: &mut dyn Write) -> Resul
     Ok(ok)
 }
 
+/// Write `head`, then `i j F_ij` (1-based) for every entry `kept` accepts, row by row.
+fn write_entries(r: &FfzReader, out: &Path, head: &str, kept: impl Fn(f32) -> bool) -> Result<()> {
+    let f = std::fs::File::create(out).map_err(|e| FfzError::io(out, "create", e))?;
+    let mut w = BufWriter::with_capacity(1 << 20, f);
+    let e = |err| FfzError::io(out, "write", err);
+    w.write_all(head.as_bytes()).map_err(e)?;
+    let mut werr = None;
+    r.scan(|row| {
+        if werr.is_some() {
+            return;
+        }
+        let i = row.index as u64 + 1;
+        row.for_each_nonzero(|j, x| {
+            if werr.is_none() && kept(x) {
+                if let Err(err) = writeln!(w, "{i} {} {x:e}", j as u64 + 1) {
+                    werr = Some(err);
+                }
+            }
+        });
+    })?;
+    if let Some(err) = werr {
+        return Err(e(err));
+    }
+    w.flush().map_err(e)
+}
+
 /// Header of the patch table of `export --patches-csv` (docs/architecture.md §7).
 pub const PATCHES_CSV_HEADER: &str =
     "patch,group,area,cx,cy,cz,nx,ny,nz,rho_r,rho_g,rho_b,e_r,e_g,e_b";
 
-/// Export the matrix as Matrix Market (`coordinate real general`, 1-based `i j F_ij`,
-/// rows in file order; dense rows give their non-zero entries, top-k rows every stored
-/// entry) and/or the patch table as CSV (0-based patch ids). Streams: two passes over
-/// the chunks (count, then write), never the whole matrix in memory.
+/// What `export` writes: each output is optional.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct ExportTargets<'a> {
+    /// Matrix Market `coordinate real general`, 1-based `i j F_ij`.
+    pub matrix: Option<&'a Path>,
+    /// Sparse text, View3D/uDALES style: `#` header lines, then one `i j F_ij` per line
+    /// (1-based).
+    pub sparse: Option<&'a Path>,
+    /// Entries below this are left out of both matrix outputs (0: every non-zero).
+    pub min_ff: f32,
+    /// The patch table as CSV (0-based patch ids).
+    pub patches_csv: Option<&'a Path>,
+}
+
+/// Export the matrix as Matrix Market and/or sparse text (rows in file order; dense
+/// rows give their entries ≥ `min_ff` and non-zero, top-k rows those of their stored
+/// entries), and/or the patch table as CSV. Streams: one pass over the chunks per
+/// output plus one to count for Matrix Market, never the whole matrix in memory.
 ///
 /// # Errors
 /// Opening errors; `Chunk` when a chunk is corrupt; `Io` naming the output file.
-pub fn export(path: &Path, matrix: Option<&Path>, patches_csv: Option<&Path>) -> Result<()> {
+pub fn export(path: &Path, to: ExportTargets<'_>) -> Result<()> {
     let r = FfzReader::open(path)?;
-    if let Some(mtx) = matrix {
+    let m = r.meta();
+    let p = r.presence();
+    let source = format!(
+        "ffstream form factors from {}: layout {}, method {}, params {}, scene hash {:#018x}",
+        path.display(),
+        m.layout,
+        m.method,
+        m.params,
+        m.scene_hash
+    );
+    let kept = |x: f32| x != 0.0 && x >= to.min_ff;
+    let gaps = format!(
+        "rows missing {} and skipped {} have no entries; top-k dropped mass not included; entries below {:e} left out",
+        p.missing_count(),
+        p.skipped_count(),
+        to.min_ff
+    );
+    if let Some(mtx) = to.matrix {
         let mut nnz = 0u64;
-        r.scan(|row| row.for_each_nonzero(|_, _| nnz += 1))?;
-        let f = std::fs::File::create(mtx).map_err(|e| FfzError::io(mtx, "create", e))?;
-        let mut w = BufWriter::with_capacity(1 << 20, f);
-        let e = |err| FfzError::io(mtx, "write", err);
-        let m = r.meta();
-        let p = r.presence();
-        writeln!(w, "%%MatrixMarket matrix coordinate real general").map_err(e)?;
-        writeln!(
-            w,
-            "% ffstream form factors from {}: layout {}, method {}, params {}, scene hash {:#018x}",
-            path.display(),
-            m.layout,
-            m.method,
-            m.params,
-            m.scene_hash
-        )
-        .map_err(e)?;
-        writeln!(
-            w,
-            "% entry i j = F_ij (1-based); rows missing {} and skipped {} have no entries; top-k dropped mass not included",
-            p.missing_count(),
-            p.skipped_count()
-        )
-        .map_err(e)?;
-        writeln!(w, "{} {} {nnz}", r.n(), r.n()).map_err(e)?;
-        let mut werr = None;
         r.scan(|row| {
-            if werr.is_some() {
-                return;
-            }
-            let i = row.index as u64 + 1;
-            row.for_each_nonzero(|j, x| {
-                if werr.is_none() {
-                    if let Err(err) = writeln!(w, "{i} {} {x:e}", j as u64 + 1) {
-                        werr = Some(err);
-                    }
+            row.for_each_nonzero(|_, x| {
+                if kept(x) {
+                    nnz += 1
                 }
-            });
+            })
         })?;
-        if let Some(err) = werr {
-            return Err(e(err));
-        }
-        w.flush().map_err(e)?;
+        let head = format!(
+            "%%MatrixMarket matrix coordinate real general\n% {source}\n% entry i j = F_ij (1-based); {gaps}\n{} {} {nnz}\n",
+            r.n(),
+            r.n()
+        );
+        write_entries(&r, mtx, &head, kept)?;
     }
-    if let Some(csv) = patches_csv {
+    if let Some(txt) = to.sparse {
+        let head = format!(
+            "# {source}\n# n = {}; one line per entry: i j F_ij (1-based, F_ij = fraction of the energy leaving patch i that reaches patch j); {gaps}\n",
+            r.n()
+        );
+        write_entries(&r, txt, &head, kept)?;
+    }
+    if let Some(csv) = to.patches_csv {
         let e = |err| FfzError::io(csv, "write", err);
         let mut w = TableWriter::create(csv).map_err(|err| FfzError::io(csv, "create", err))?;
         w.record(PATCHES_CSV_HEADER.split(',')).map_err(e)?;

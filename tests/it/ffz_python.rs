@@ -141,7 +141,12 @@ fn python_reader_agrees_with_rust() {
         // The export, checked by the Python test when pytest is there.
         let mtx = dir.path().join(format!("{name}.mtx"));
         let csv = dir.path().join(format!("{name}.csv"));
-        tools::export(&path, Some(&mtx), Some(&csv)).unwrap();
+        let targets = tools::ExportTargets {
+            matrix: Some(&mtx),
+            patches_csv: Some(&csv),
+            ..Default::default()
+        };
+        tools::export(&path, targets).unwrap();
         let out = Command::new("python3")
             .args([
                 "-m",

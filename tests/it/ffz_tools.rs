@@ -225,7 +225,14 @@ fn info_verify_export_outputs() {
     // Export: Matrix Market header, size line, 1-based entries equal to the rows.
     let mtx = dir.path().join("f.mtx");
     let csv = dir.path().join("p.csv");
-    tools::export(&path, Some(&mtx), Some(&csv)).unwrap();
+    let txt = dir.path().join("f.txt");
+    let all = tools::ExportTargets {
+        matrix: Some(&mtx),
+        sparse: Some(&txt),
+        min_ff: 0.0,
+        patches_csv: Some(&csv),
+    };
+    tools::export(&path, all).unwrap();
     let text = std::fs::read_to_string(&mtx).unwrap();
     let mut lines = text
         .lines()
@@ -239,19 +246,56 @@ fn info_verify_export_outputs() {
         r.for_each_nonzero(|j, x| want.push((r.index + 1, j + 1, x.to_bits())));
     }
     assert_eq!(lines.next(), Some(format!("12 12 {}", want.len()).as_str()));
-    let mut got: Vec<(u32, u32, u32)> = lines
-        .map(|l| {
-            let t: Vec<&str> = l.split_whitespace().collect();
-            (
-                t[0].parse().unwrap(),
-                t[1].parse().unwrap(),
-                t[2].parse::<f32>().unwrap().to_bits(),
-            )
-        })
-        .collect();
-    got.sort_unstable();
+    let entries = |lines: &mut dyn Iterator<Item = &str>| {
+        let mut got: Vec<(u32, u32, u32)> = lines
+            .map(|l| {
+                let t: Vec<&str> = l.split_whitespace().collect();
+                assert_eq!(t.len(), 3, "{l}");
+                (
+                    t[0].parse().unwrap(),
+                    t[1].parse().unwrap(),
+                    t[2].parse::<f32>().unwrap().to_bits(),
+                )
+            })
+            .collect();
+        got.sort_unstable();
+        got
+    };
     want.sort_unstable();
-    assert_eq!(got, want);
+    assert_eq!(entries(&mut lines), want);
+
+    // Sparse text: `#` header lines, then the same entries; with --min-ff exactly
+    // those at or above it.
+    let sparse = std::fs::read_to_string(&txt).unwrap();
+    assert!(
+        sparse.starts_with("# ffstream form factors from "),
+        "{sparse}"
+    );
+    assert!(sparse.contains("# n = 12; one line per entry: i j F_ij (1-based"));
+    let body = |t: &str| {
+        t.lines()
+            .filter(|l| !l.starts_with('#'))
+            .collect::<Vec<_>>()
+            .join("\n")
+    };
+    assert_eq!(entries(&mut body(&sparse).lines()), want);
+    let mut values: Vec<f32> = want.iter().map(|w| f32::from_bits(w.2)).collect();
+    values.sort_by(f32::total_cmp);
+    let eps = values[values.len() / 2];
+    let above = tools::ExportTargets {
+        sparse: Some(&txt),
+        min_ff: eps,
+        ..Default::default()
+    };
+    tools::export(&path, above).unwrap();
+    let kept: Vec<_> = want
+        .iter()
+        .copied()
+        .filter(|w| f32::from_bits(w.2) >= eps)
+        .collect();
+    assert!(!kept.is_empty() && kept.len() < want.len());
+    let sparse = std::fs::read_to_string(&txt).unwrap();
+    assert_eq!(entries(&mut body(&sparse).lines()), kept);
     let csv = std::fs::read_to_string(&csv).unwrap();
     let mut l = csv.lines();
     assert_eq!(
