@@ -254,8 +254,11 @@ fn write_entries(r: &FfzReader, out: &Path, head: &str, kept: impl Fn(f32) -> bo
 }
 
 /// Header of the patch table of `export --patches-csv` (docs/architecture.md §7).
+/// `row_sum` is the row's stored entries plus its dropped mass, `sky_view` = 1 − row_sum
+/// (the share of the patch's hemisphere that sees no surface: the sky of an open scene,
+/// about 0 in a closed one); both empty for a missing or skipped row.
 pub const PATCHES_CSV_HEADER: &str =
-    "patch,group,area,cx,cy,cz,nx,ny,nz,rho_r,rho_g,rho_b,e_r,e_g,e_b";
+    "patch,group,area,cx,cy,cz,nx,ny,nz,rho_r,rho_g,rho_b,e_r,e_g,e_b,row_sum,sky_view";
 
 /// What `export` writes: each output is optional.
 #[derive(Clone, Copy, Debug, Default)]
@@ -324,6 +327,13 @@ pub fn export(path: &Path, to: ExportTargets<'_>) -> Result<()> {
         let e = |err| FfzError::io(csv, "write", err);
         let mut w = TableWriter::create(csv).map_err(|err| FfzError::io(csv, "create", err))?;
         w.record(PATCHES_CSV_HEADER.split(',')).map_err(e)?;
+        // Row sums (stored + dropped) in one pass: n numbers, never the rows.
+        let mut sums: Vec<Option<f64>> = vec![None; r.n() as usize];
+        r.scan(|row| {
+            if !matches!(row.values, crate::rows::RowValues::Skipped) {
+                sums[row.index as usize] = Some(row.true_sum());
+            }
+        })?;
         let ps = &r.meta().patches;
         for (i, p) in ps.patches.iter().enumerate() {
             let c = p.centroid();
@@ -333,6 +343,10 @@ pub fn export(path: &Path, to: ExportTargets<'_>) -> Result<()> {
                 [p.area, c.x, c.y, c.z, p.normal.x, p.normal.y, p.normal.z].map(|x| x.to_string()),
             );
             fields.extend(p.rho.iter().chain(&p.emission).map(|x| x.to_string()));
+            match sums[i] {
+                Some(sum) => fields.extend([sum.to_string(), (1.0 - sum).to_string()]),
+                None => fields.extend([String::new(), String::new()]),
+            }
             w.record(&fields).map_err(e)?;
         }
         w.finish().map_err(e)?;

@@ -300,7 +300,7 @@ fn info_verify_export_outputs() {
     let mut l = csv.lines();
     assert_eq!(
         l.next(),
-        Some("patch,group,area,cx,cy,cz,nx,ny,nz,rho_r,rho_g,rho_b,e_r,e_g,e_b")
+        Some("patch,group,area,cx,cy,cz,nx,ny,nz,rho_r,rho_g,rho_b,e_r,e_g,e_b,row_sum,sky_view")
     );
     let first = l.next().unwrap();
     assert!(first.starts_with("0,floor,"), "{first}");
@@ -310,6 +310,24 @@ fn info_verify_export_outputs() {
         "{second}"
     );
     assert_eq!(csv.lines().count(), 13);
+    // row_sum = stored + dropped of the row, sky_view = 1 - row_sum; empty where the
+    // file has no row (missing or skipped).
+    let mut table = ::csv::Reader::from_reader(csv.as_bytes());
+    let mut seen = 0;
+    for (i, rec) in table.records().enumerate() {
+        let rec = rec.unwrap();
+        let (sum, sky) = (&rec[15], &rec[16]);
+        match rows.iter().find(|r| r.index as usize == i) {
+            Some(r) if !matches!(r.values, RowValues::Skipped) => {
+                let want = r.true_sum();
+                assert_eq!(sum.parse::<f64>().unwrap(), want, "row {i}");
+                assert_eq!(sky.parse::<f64>().unwrap(), 1.0 - want, "row {i}");
+                seen += 1;
+            }
+            _ => assert_eq!((sum, sky), ("", ""), "row {i} has no sum"),
+        }
+    }
+    assert_eq!(seen, 10 - skipped);
 }
 
 #[test]
