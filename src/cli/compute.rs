@@ -188,14 +188,27 @@ pub(super) fn build_job(
     let threads = o
         .threads
         .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
-    let plan = (role != Role::Worker).then(|| PlanInputs {
-        output: &output,
-        layout: layout_of(&cfg),
-        symmetric,
-        threads,
-        o,
-    });
-    let (patches, max_edge) = patches_of(input, &scene, plan)?;
+    let (count, max_edge) = patch_budget(input, &scene)?;
+    if role != Role::Worker {
+        // Printed and checked before subdividing: a file the disk cannot hold costs no
+        // subdivision.
+        super::plan::Plan {
+            scene: &input.scene,
+            output: &output,
+            n: count as u64,
+            faces: scene.faces.len() as u64,
+            target: input.max_edge.is_none().then_some(input.patches as u64),
+            layout: layout_of(&cfg),
+            symmetric,
+            threads: threads as u64,
+            chunk_bytes: (o.chunk_kib * 1024) as u64,
+            occluder_triangles: scene.triangles().count() as u64,
+            resume: o.resume,
+            no_space_check: o.no_space_check,
+        }
+        .check()?;
+    }
+    let patches = subdivided(input, &scene, max_edge, role != Role::Worker)?;
     let (engine, description) = engine_for(role, o, &scene, &patches, &cfg)?;
     let took = setup_start.elapsed().as_secs_f64();
     match role {
@@ -262,25 +275,9 @@ fn layout_of(cfg: &FormFactorConfig) -> Layout {
     }
 }
 
-/// What the plan needs besides the scene (rank 0 or a process running alone only).
-struct PlanInputs<'a> {
-    output: &'a std::path::Path,
-    layout: Layout,
-    symmetric: bool,
-    threads: usize,
-    o: &'a ComputeOptions,
-}
-
-/// The patches of `scene` by `--max-edge` (or the edge that gives about `--patches`),
-/// refused before they are allocated when there would be too many; and the edge. With
-/// `plan` (a process that prints), the plan is printed and checked first
-/// ([`super::plan::Plan::check`]): a file the disk cannot hold costs no subdivision.
-fn patches_of(
-    input: &SceneInput,
-    scene: &Scene,
-    plan: Option<PlanInputs<'_>>,
-) -> anyhow::Result<(Arc<PatchSet>, f64)> {
-    let announce = plan.is_some();
+/// The edge (`--max-edge`, or the one that gives about `--patches`) and the number of
+/// patches it makes, refused before anything is allocated when there would be too many.
+fn patch_budget(input: &SceneInput, scene: &Scene) -> anyhow::Result<(usize, f64)> {
     let max_edge = input
         .max_edge
         .unwrap_or_else(|| default_max_edge(scene, input.patches));
@@ -295,23 +292,17 @@ fn patches_of(
             input.scene
         );
     }
-    if let Some(p) = plan {
-        super::plan::Plan {
-            scene: &input.scene,
-            output: p.output,
-            n: count as u64,
-            faces: scene.faces.len() as u64,
-            target: input.max_edge.is_none().then_some(input.patches as u64),
-            layout: p.layout,
-            symmetric: p.symmetric,
-            threads: p.threads as u64,
-            chunk_bytes: (p.o.chunk_kib * 1024) as u64,
-            occluder_triangles: scene.triangles().count() as u64,
-            resume: p.o.resume,
-            no_space_check: p.o.no_space_check,
-        }
-        .check()?;
-    }
+    Ok((count, max_edge))
+}
+
+/// The patches of `scene` at `max_edge` (announced when `announce`); an error when
+/// there are none.
+fn subdivided(
+    input: &SceneInput,
+    scene: &Scene,
+    max_edge: f64,
+    announce: bool,
+) -> anyhow::Result<Arc<PatchSet>> {
     let patches =
         Arc::new(tracing::info_span!("subdivide").in_scope(|| subdivide(scene, max_edge)));
     if announce {
@@ -329,7 +320,7 @@ fn patches_of(
     if patches.is_empty() {
         bail!("{}: the scene has no patches", input.scene);
     }
-    Ok((patches, max_edge))
+    Ok(patches)
 }
 
 /// The preset with the options given explicitly on top, validated. An explicit

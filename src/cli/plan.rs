@@ -22,7 +22,8 @@ pub(super) struct Plan<'a> {
     pub symmetric: bool,
     pub threads: u64,
     pub chunk_bytes: u64,
-    /// Triangles the occluder hierarchy of each computing process holds.
+    /// Triangles of the occluder hierarchy each computing process holds: the scene's
+    /// (an `--occluders` mesh, usually coarser, is loaded later, so this overstates).
     pub occluder_triangles: u64,
     pub resume: bool,
     /// `--no-space-check`: print the plan, refuse nothing.
