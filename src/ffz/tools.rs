@@ -227,30 +227,42 @@ pub fn verify(path: &Path, against: Option<&Path>, out: &mut dyn Write) -> Resul
     Ok(ok)
 }
 
-/// Write `head`, then `i j F_ij` (1-based) for every entry `kept` accepts, row by row.
-fn write_entries(r: &FfzReader, out: &Path, head: &str, kept: impl Fn(f32) -> bool) -> Result<()> {
-    let f = std::fs::File::create(out).map_err(|e| FfzError::io(out, "create", e))?;
-    let mut w = BufWriter::with_capacity(1 << 20, f);
-    let e = |err| FfzError::io(out, "write", err);
-    w.write_all(head.as_bytes()).map_err(e)?;
-    let mut werr = None;
+/// Write to each `(path, head)` its head, then `i j F_ij` (1-based) for every entry
+/// `kept` accepts, row by row: one pass over the chunks for all of them.
+fn write_entries(
+    r: &FfzReader,
+    outputs: &[(&Path, String)],
+    kept: impl Fn(f32) -> bool,
+) -> Result<()> {
+    let mut sinks = Vec::with_capacity(outputs.len());
+    for (out, head) in outputs {
+        let f = std::fs::File::create(out).map_err(|e| FfzError::io(out, "create", e))?;
+        let mut w = BufWriter::with_capacity(1 << 20, f);
+        w.write_all(head.as_bytes())
+            .map_err(|e| FfzError::io(out, "write", e))?;
+        sinks.push((*out, w));
+    }
+    let mut werr: Option<(&Path, std::io::Error)> = None;
     r.scan(|row| {
-        if werr.is_some() {
-            return;
-        }
         let i = row.index as u64 + 1;
         row.for_each_nonzero(|j, x| {
             if werr.is_none() && kept(x) {
-                if let Err(err) = writeln!(w, "{i} {} {x:e}", j as u64 + 1) {
-                    werr = Some(err);
+                for (out, w) in sinks.iter_mut() {
+                    if let Err(err) = writeln!(w, "{i} {} {x:e}", j as u64 + 1) {
+                        werr = Some((out, err));
+                        return;
+                    }
                 }
             }
         });
     })?;
-    if let Some(err) = werr {
-        return Err(e(err));
+    if let Some((out, err)) = werr {
+        return Err(FfzError::io(out, "write", err));
     }
-    w.flush().map_err(e)
+    for (out, mut w) in sinks {
+        w.flush().map_err(|e| FfzError::io(out, "write", e))?;
+    }
+    Ok(())
 }
 
 /// Header of the patch table of `export --patches-csv` (docs/architecture.md §7).
@@ -276,8 +288,8 @@ pub struct ExportTargets<'a> {
 
 /// Export the matrix as Matrix Market and/or sparse text (rows in file order; dense
 /// rows give their entries ≥ `min_ff` and non-zero, top-k rows those of their stored
-/// entries), and/or the patch table as CSV. Streams: one pass over the chunks per
-/// output plus one to count for Matrix Market, never the whole matrix in memory.
+/// entries), and/or the patch table as CSV. Streams: at most two passes over the
+/// chunks, never the whole matrix in memory.
 ///
 /// # Errors
 /// Opening errors; `Chunk` when a chunk is corrupt; `Io` naming the output file.
@@ -300,40 +312,49 @@ pub fn export(path: &Path, to: ExportTargets<'_>) -> Result<()> {
         p.skipped_count(),
         to.min_ff
     );
-    if let Some(mtx) = to.matrix {
-        let mut nnz = 0u64;
+    // At most two passes over the chunks, whatever is asked: one for what the headers
+    // need (Matrix Market's entry count, the patch table's row sums: n numbers, never
+    // the rows), one writing the entries of both matrix outputs.
+    let mut nnz = 0u64;
+    let mut sums: Vec<Option<f64>> = Vec::new();
+    if to.matrix.is_some() || to.patches_csv.is_some() {
+        if to.patches_csv.is_some() {
+            sums = vec![None; r.n() as usize];
+        }
         r.scan(|row| {
-            row.for_each_nonzero(|_, x| {
-                if kept(x) {
-                    nnz += 1
+            if to.matrix.is_some() {
+                row.for_each_nonzero(|_, x| nnz += u64::from(kept(x)));
+            }
+            if let Some(s) = sums.get_mut(row.index as usize) {
+                if !matches!(row.values, crate::rows::RowValues::Skipped) {
+                    *s = Some(row.true_sum());
                 }
-            })
+            }
         })?;
+    }
+    let mut outputs = Vec::new();
+    if let Some(mtx) = to.matrix {
         let head = format!(
             "%%MatrixMarket matrix coordinate real general\n% {source}\n% entry i j = F_ij (1-based); {gaps}\n{} {} {nnz}\n",
             r.n(),
             r.n()
         );
-        write_entries(&r, mtx, &head, kept)?;
+        outputs.push((mtx, head));
     }
     if let Some(txt) = to.sparse {
         let head = format!(
             "# {source}\n# n = {}; one line per entry: i j F_ij (1-based, F_ij = fraction of the energy leaving patch i that reaches patch j); {gaps}\n",
             r.n()
         );
-        write_entries(&r, txt, &head, kept)?;
+        outputs.push((txt, head));
+    }
+    if !outputs.is_empty() {
+        write_entries(&r, &outputs, kept)?;
     }
     if let Some(csv) = to.patches_csv {
         let e = |err| FfzError::io(csv, "write", err);
         let mut w = TableWriter::create(csv).map_err(|err| FfzError::io(csv, "create", err))?;
         w.record(PATCHES_CSV_HEADER.split(',')).map_err(e)?;
-        // Row sums (stored + dropped) in one pass: n numbers, never the rows.
-        let mut sums: Vec<Option<f64>> = vec![None; r.n() as usize];
-        r.scan(|row| {
-            if !matches!(row.values, crate::rows::RowValues::Skipped) {
-                sums[row.index as usize] = Some(row.true_sum());
-            }
-        })?;
         let ps = &r.meta().patches;
         for (i, p) in ps.patches.iter().enumerate() {
             let c = p.centroid();
