@@ -27,7 +27,7 @@ use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
 use ffstream::formfactor::sampling::SplitMix64;
-use ffstream::formfactor::{Counters, FormFactorConfig, RowEngine, Scratch};
+use ffstream::formfactor::{Counters, FormFactorConfig, RowEngine, Scratch, TopKSearch, TopKTail};
 use ffstream::geometry::occluders::Occluders;
 use ffstream::geometry::subdivide::{default_max_edge, subdivide};
 use ffstream::patch::PatchSet;
@@ -176,11 +176,13 @@ fn sparse(i: u32, entries: &[(u32, f64)]) -> Row {
     }
 }
 
-/// Modes: `symmetric` (accurate preset, half rows: `--symmetric on`), `default` (accurate preset, full rows), `topkK` (accurate + top-k K, exact tail: what
-/// `--top-k K` does), `topkKs` (top-k K with the tail sampled from 32 pairs, so the
-/// bound skips rays), `fast`, `fasttopkK` (the fast preset with top-k K and the
-/// preset's own sampled tail: exactly `--preset fast --top-k K`, as bench/run.py's
-/// top-k scaling series runs it), `occluders` (the scene's faces as foreign occluders,
+/// Modes: `symmetric` (accurate preset, half rows: `--symmetric on`), `default` (accurate
+/// preset, full rows), `topkK` (accurate + top-k K: what `--top-k K` does, the tree
+/// search with the preset's sampled tail), `topkKe` (exhaustive search, exact tail:
+/// every pair evaluated), `topkKs` (exhaustive search with the tail sampled from 32
+/// pairs), `fast`, `fasttopkK` (exactly `--preset fast --top-k K`, as bench/run.py's
+/// top-k scaling series runs it), `fasttopkKx` (the same with `--top-k-search
+/// exhaustive`), `occluders` (the scene's faces as foreign occluders,
 /// i.e. `--occluders` with the scene's own OBJ), `fineocc` (occluders = the patches'
 /// own triangles, as if the OBJ were tessellated as finely as the patches), `exact`,
 /// `exactTOL` or `exactTOLrN` (the accurate preset with `--visibility exact`,
@@ -191,18 +193,27 @@ fn config_of(mode: &str) -> FormFactorConfig {
     match mode {
         m if m.starts_with("fasttopk") => {
             // The CLI applies --top-k on top of the preset and keeps its tail setting.
-            let k = m["fasttopk".len()..].parse().unwrap_or(64);
-            FormFactorConfig::fast().with_top_k(Some(k))
+            let k = m["fasttopk".len()..]
+                .trim_end_matches('x')
+                .parse()
+                .unwrap_or(64);
+            let mut c = FormFactorConfig::fast().with_top_k(Some(k));
+            if m.ends_with('x') {
+                c.top_k_search = TopKSearch::Exhaustive;
+            }
+            c
         }
         m if m.starts_with("topk") => {
-            let sampled = m.ends_with('s');
-            let k = m[4..].trim_end_matches('s').parse().unwrap_or(256);
-            let c = base.with_top_k(Some(k));
-            if sampled {
-                c.with_tail(ffstream::formfactor::TopKTail::Sampled(32))
-            } else {
-                c
+            let k = m[4..].trim_end_matches(['s', 'e']).parse().unwrap_or(256);
+            let mut c = base.with_top_k(Some(k));
+            if m.ends_with('s') || m.ends_with('e') {
+                c.top_k_search = TopKSearch::Exhaustive;
+                c.top_k_tail = match m.ends_with('s') {
+                    true => TopKTail::Sampled(32),
+                    false => TopKTail::Exact,
+                };
             }
+            c
         }
         "fast" => FormFactorConfig::fast(),
         m if m.starts_with("exact") => {
@@ -226,16 +237,6 @@ fn config_of(mode: &str) -> FormFactorConfig {
             base.with_samples(m["rays".len()..].parse().unwrap_or(16))
         }
         _ => base,
-    }
-}
-
-trait WithTail {
-    fn with_tail(self, t: ffstream::formfactor::TopKTail) -> Self;
-}
-impl WithTail for FormFactorConfig {
-    fn with_tail(mut self, t: ffstream::formfactor::TopKTail) -> Self {
-        self.top_k_tail = t;
-        self
     }
 }
 

@@ -596,8 +596,8 @@ def topk_series(r: Runner, quick: bool, res: dict, full: list[dict], sampled: li
 MODE_FLAGS = {
     "symmetric": "(default: half rows, `--symmetric auto`)",
     "default": "`--symmetric off` (full rows)",
-    "topk256": "`--top-k 256`",
-    "topk256s": "top-k 256, tail sampled from 32 pairs (the bound skips rays)",
+    "topk256": "`--top-k 256` (tree search, tail sampled at 256 points)",
+    "topk256s": "top-k 256, exhaustive search, tail sampled from 32 pairs",
     "occluders": "`--occluders room.obj` (the scene's faces as a foreign mesh)",
 }
 

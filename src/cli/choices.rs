@@ -3,7 +3,7 @@
 //! loaded, and `--help` lists them with what each means. Each maps onto the library's
 //! own type (the library never sees clap).
 
-use ffstream::formfactor::{Method, Preset, Visibility};
+use ffstream::formfactor::{Method, Preset, TopKSearch, TopKTail, Visibility};
 use ffstream::service::{RowSelection, Schedule};
 use ffstream::solve::SolveMethod;
 
@@ -110,6 +110,32 @@ choice! {
     }
 }
 
+choice! {
+    /// `--top-k-search`: how a top-k row finds its largest entries.
+    TopKSearchArg => TopKSearch {
+        /// Best-first over a hierarchy of the patches: only nodes whose bound can still
+        /// enter the top k are opened; the dropped mass of the others is sampled
+        /// (default of fast and accurate).
+        Tree => TopKSearch::Tree,
+        /// Every column's unoccluded value first (work grows as n per row; default of
+        /// reference).
+        Exhaustive => TopKSearch::Exhaustive,
+    }
+}
+
+/// `--top-k-tail`: `exact` or a sample count 1 to 65536.
+pub(crate) fn top_k_tail(s: &str) -> Result<TopKTail, String> {
+    match s.trim() {
+        "exact" => Ok(TopKTail::Exact),
+        n => match n.parse::<u32>() {
+            Ok(t) if (1..=1 << 16).contains(&t) => Ok(TopKTail::Sampled(t)),
+            _ => Err(format!(
+                "`{s}` is neither `exact` nor a sample count 1 to 65536"
+            )),
+        },
+    }
+}
+
 /// Numbers with a range, as clap value parsers: a value outside it is a usage error
 /// (exit 2, before any scene is loaded) that states the range. Integers use clap's
 /// ranged parsers (`value_parser!(u32).range(..)`); these are the real-valued ones.
@@ -152,8 +178,8 @@ pub(crate) mod number {
         }
     }
 
-    /// A relative residual: a number in (0, 1).
-    pub(crate) fn residual(s: &str) -> Result<f64, String> {
+    /// A number in (0, 1): a relative residual, a threshold.
+    pub(crate) fn open_unit(s: &str) -> Result<f64, String> {
         match real(s)? {
             x if x > 0.0 && x < 1.0 => Ok(x),
             x => Err(format!("{x} is outside (0, 1)")),

@@ -9,7 +9,9 @@ use anyhow::bail;
 use clap::Args;
 
 use ffstream::ffz::{FileMeta, Layout, WriterOptions};
-use ffstream::formfactor::{FormFactorConfig, Method, RowEngine, Visibility, MAX_SAMPLES};
+use ffstream::formfactor::{
+    FormFactorConfig, Method, RowEngine, TopKSearch, TopKTail, Visibility, MAX_SAMPLES,
+};
 use ffstream::geometry::occluders::Occluders;
 use ffstream::geometry::subdivide::{default_max_edge, patch_count, subdivide};
 use ffstream::patch::PatchSet;
@@ -19,7 +21,8 @@ use ffstream::service::ServiceError;
 use ffstream::service::{ComputeJob, ComputeReport};
 
 use super::choices::{
-    number, MethodArg, PresetArg, RowsArg, ScheduleArg, SymmetricArg, VisibilityArg,
+    number, top_k_tail, MethodArg, PresetArg, RowsArg, ScheduleArg, SymmetricArg, TopKSearchArg,
+    VisibilityArg,
 };
 use super::SceneInput;
 
@@ -68,6 +71,23 @@ pub(crate) struct ComputeOptions {
     /// Keep only the K largest entries of each row (the dropped mass is stored per row).
     #[arg(long, value_name = "K", value_parser = clap::value_parser!(u32).range(1..))]
     pub top_k: Option<u32>,
+    /// Keep only the entries of at least EPS, 0 < EPS < 1 (threshold rows, as View3D and
+    /// uDALES store them with 5e-7); the others go to the row's dropped mass. With
+    /// --top-k, the K largest of those. Found through the same tree as --top-k.
+    #[arg(long, value_name = "EPS", value_parser = number::open_unit)]
+    pub min_ff: Option<f64>,
+    /// With --top-k or --min-ff: how a row finds its K largest entries (default: the preset's;
+    /// tree for fast and accurate, exhaustive for reference). Both keep the same
+    /// entries bitwise; they differ in work and in how the dropped mass is obtained.
+    #[arg(long, value_enum, value_name = "SEARCH")]
+    pub top_k_search: Option<TopKSearchArg>,
+    /// With --top-k or --min-ff: how the dropped mass of the entries left out is obtained:
+    /// `exact` (every column evaluated, exhaustive search only) or a number N of
+    /// entries sampled with probability ∝ their unoccluded bound (an unbiased
+    /// estimate, error of order the dropped mass / √N). Default: the preset's (fast 128,
+    /// accurate 256, reference exact).
+    #[arg(long, value_name = "exact|N", value_parser = top_k_tail)]
+    pub top_k_tail: Option<TopKTail>,
     /// Compute threads per process (embedded) or per worker rank (MPI), 1 to 4096.
     /// Default: all cores.
     #[arg(long, value_name = "T", value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=MAX_THREADS as u64))]
@@ -198,7 +218,8 @@ pub(super) fn build_job(
             n: count as u64,
             faces: scene.faces.len() as u64,
             target: input.max_edge.is_none().then_some(input.patches as u64),
-            layout: layout_of(&cfg),
+            layout: layout_of(&cfg, count),
+            threshold: cfg.min_ff,
             symmetric,
             threads: threads as u64,
             chunk_bytes: (o.chunk_kib * 1024) as u64,
@@ -224,7 +245,7 @@ pub(super) fn build_job(
         Role::Worker => {}
     }
     let meta = FileMeta {
-        layout: layout_of(&cfg),
+        layout: layout_of(&cfg, patches.len()),
         method: cfg.method.to_string(),
         params: format!(
             "{} max_edge={max_edge} scene_path={}{}{}",
@@ -268,10 +289,15 @@ pub(super) fn build_job(
 /// that every thread can be started (16k threads aborted the process here).
 const MAX_THREADS: usize = 4096;
 
-fn layout_of(cfg: &FormFactorConfig) -> Layout {
-    match cfg.top_k {
-        Some(k) => Layout::TopK { k },
-        None => Layout::Dense,
+/// The file layout of `cfg`'s rows for `n` patches: threshold rows alone may hold up
+/// to n entries.
+fn layout_of(cfg: &FormFactorConfig, n: usize) -> Layout {
+    match (cfg.top_k, cfg.min_ff) {
+        (Some(k), _) => Layout::TopK { k },
+        (None, Some(_)) => Layout::TopK {
+            k: u32::try_from(n).unwrap_or(u32::MAX).max(1),
+        },
+        (None, None) => Layout::Dense,
     }
 }
 
@@ -364,6 +390,24 @@ fn form_factor_config(o: &ComputeOptions) -> anyhow::Result<FormFactorConfig> {
         Some(0) => bail!("--top-k must be at least 1"),
         k => k,
     };
+    cfg.min_ff = o.min_ff;
+    if !cfg.sparse_rows() && (o.top_k_search.is_some() || o.top_k_tail.is_some()) {
+        bail!(
+            "--top-k-search and --top-k-tail apply to sparse rows: add --top-k K or --min-ff EPS"
+        );
+    }
+    if let Some(search) = o.top_k_search {
+        cfg.top_k_search = search.into();
+    }
+    if let Some(tail) = o.top_k_tail {
+        cfg.top_k_tail = tail;
+    }
+    if cfg.top_k_search == TopKSearch::Tree && cfg.top_k_tail == TopKTail::Exact {
+        bail!(
+            "--top-k-tail exact evaluates every column, which the tree search exists to \
+             avoid: add --top-k-search exhaustive, or give a sample count"
+        );
+    }
     cfg.validate()?;
     Ok(cfg)
 }
@@ -452,9 +496,13 @@ fn symmetric_mode(o: &ComputeOptions, cfg: &FormFactorConfig) -> anyhow::Result<
             "--symmetric on needs --method contour: the {} kernel clamps each direction to 1, so its mirror is not its other direction",
             cfg.method
         ),
+        (SymmetricArg::On, false) if cfg.min_ff.is_some() => bail!(
+            "--symmetric on cannot be combined with --min-ff: a half row does not know which \
+             of its mirrored entries will pass the threshold (use --symmetric off)"
+        ),
         (SymmetricArg::On, false) => true,
         (SymmetricArg::Off, _) | (SymmetricArg::Auto, true) => false,
-        (SymmetricArg::Auto, false) => cfg.top_k.is_none() && halves_ok,
+        (SymmetricArg::Auto, false) => !cfg.sparse_rows() && halves_ok,
     })
 }
 
@@ -501,6 +549,9 @@ pub(super) fn execute(
     output: PathBuf,
     o: &ComputeOptions,
 ) -> anyhow::Result<Outcome> {
+    if o.gather && o.min_ff.is_some() {
+        bail!("--gather reproduces the paper's dense design and cannot be combined with --min-ff");
+    }
     if o.gather && o.top_k.is_some() {
         bail!("--gather reproduces the paper's dense design and cannot be combined with --top-k");
     }

@@ -19,6 +19,8 @@ pub(super) struct Plan<'a> {
     /// `Some(target)` when the count came from `--patches` (no `--max-edge`).
     pub target: Option<u64>,
     pub layout: Layout,
+    /// `--min-ff`: rows keep the entries at or above it.
+    pub threshold: Option<f64>,
     pub symmetric: bool,
     pub threads: u64,
     pub chunk_bytes: u64,
@@ -53,6 +55,14 @@ impl Plan<'_> {
         file_bytes_bound(self.n, self.layout, self.chunk_bytes)
     }
 
+    /// Entries a row may hold.
+    fn k(&self) -> u32 {
+        match self.layout {
+            Layout::Dense => u32::try_from(self.n).unwrap_or(u32::MAX),
+            Layout::TopK { k } => k,
+        }
+    }
+
     /// About the peak memory of one computing process (embedded, or an MPI worker).
     pub(super) fn memory_bytes(&self) -> u64 {
         let per_patch = BYTES_PER_PATCH + self.threads.saturating_sub(2) * ROW_BYTES_PER_PATCH;
@@ -85,9 +95,13 @@ impl Plan<'_> {
         } else {
             format!("{} pairs", count(n.saturating_mul(n)))
         };
-        let rows = match self.layout {
-            Layout::Dense => "dense f32 rows".to_string(),
-            Layout::TopK { k } => format!("top-{k} rows"),
+        let rows = match (self.layout, self.threshold) {
+            (Layout::Dense, _) => "dense f32 rows".to_string(),
+            (Layout::TopK { k }, None) => format!("top-{k} rows"),
+            (Layout::TopK { k }, Some(eps)) if u64::from(k) >= n => {
+                format!("rows of the entries ≥ {eps:e}, at most all of them")
+            }
+            (Layout::TopK { k }, Some(eps)) => format!("top-{k} rows of the entries ≥ {eps:e}"),
         };
         let file = self.file_bytes();
         let spill = if self.symmetric {
@@ -125,16 +139,18 @@ impl Plan<'_> {
         // A resumed file already holds part of what it needs.
         let needed = file.saturating_sub(if self.resume { d.existing } else { 0 });
         if needed > d.free && !self.no_space_check {
-            let fewer = match self.layout {
-                Layout::Dense => format!(
-                    ", keep fewer entries per row (--top-k 64: up to {})",
-                    human_bytes(file_bytes_bound(
-                        n,
-                        Layout::TopK { k: 64 },
-                        self.chunk_bytes
-                    ))
-                ),
-                Layout::TopK { .. } => String::new(),
+            let fewer = match (self.layout, self.threshold) {
+                (Layout::Dense, _) | (Layout::TopK { .. }, Some(_)) if u64::from(self.k()) >= n => {
+                    format!(
+                        ", keep fewer entries per row (--top-k 64: up to {})",
+                        human_bytes(file_bytes_bound(
+                            n,
+                            Layout::TopK { k: 64 },
+                            self.chunk_bytes
+                        ))
+                    )
+                }
+                _ => String::new(),
             };
             bail!(
                 "{}: the file needs up to {} ({rows} of {n} patches, before compression) and {} has {} free: free space, write elsewhere{fewer}, use fewer patches, or add --no-space-check to start anyway (zstd may make it fit; if the disk fills, the run stops with a clear error and its rows kept for --resume)",
@@ -216,6 +232,7 @@ mod tests {
             faces: 6,
             target: None,
             layout: Layout::Dense,
+            threshold: None,
             symmetric: false,
             threads: 2,
             chunk_bytes: 1 << 20,

@@ -38,7 +38,7 @@ pub(crate) struct SolveArgs {
 #[derive(Args, Debug, Clone)]
 pub(crate) struct SolveOptions {
     /// Stop when the relative residual (shooting: unshot / emitted power) is below this.
-    #[arg(long, default_value_t = 1e-6, value_name = "E", value_parser = super::choices::number::residual)]
+    #[arg(long, default_value_t = 1e-6, value_name = "E", value_parser = super::choices::number::open_unit)]
     pub tolerance: f64,
     /// Most sweeps (shooting: shots / n), at least 1.
     #[arg(long, default_value_t = 10_000, value_name = "N", value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..))]

@@ -30,6 +30,7 @@ pub mod sampling;
 pub(crate) mod scratch;
 pub(crate) mod shadow;
 pub(crate) mod topk;
+pub(crate) mod tree;
 pub(crate) mod visibility;
 
 use std::fmt;
@@ -121,6 +122,12 @@ pub struct FormFactorConfig {
     /// With `top_k` and `contour`: how the dropped mass of the pairs that cannot make
     /// the top k is obtained (see [`TopKTail`]).
     pub top_k_tail: TopKTail,
+    /// With `top_k` and `contour`: how the candidates of a row are found (see
+    /// [`TopKSearch`]).
+    pub top_k_search: TopKSearch,
+    /// Keep only the entries ≥ this value (threshold rows, as View3D/uDALES store them;
+    /// the rest goes to `Row::dropped`); with `top_k`, the k largest of those.
+    pub min_ff: Option<f64>,
     /// `contour`: most Gauss–Legendre points per panel of the outer line integral
     /// (1..=24); panels needing more are split.
     pub quad_order: u32,
@@ -170,6 +177,29 @@ pub enum TopKTail {
     Sampled(u32),
 }
 
+/// How a top-k row of the `contour` method finds its candidates.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum TopKSearch {
+    /// F⁰_ij of every column j, then visibility in decreasing F⁰ until the bound stops
+    /// (work ∝ n per row).
+    Exhaustive,
+    /// Best-first over a hierarchy of the patches (`tree`): nodes are opened in
+    /// decreasing bound on their F⁰ and only while that bound can still enter the top
+    /// k; the dropped mass of unopened nodes is sampled through the tree. The kept
+    /// entries are bitwise those of `Exhaustive`; needs a sampled tail.
+    #[default]
+    Tree,
+}
+
+impl TopKSearch {
+    pub(crate) fn name(self) -> &'static str {
+        match self {
+            TopKSearch::Exhaustive => "exhaustive",
+            TopKSearch::Tree => "tree",
+        }
+    }
+}
+
 impl fmt::Display for TopKTail {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
@@ -181,7 +211,7 @@ impl fmt::Display for TopKTail {
 
 impl FormFactorConfig {
     /// Cheapest settings: unoccluded part to ~1e-6 relative, 4 visibility rays, top-k
-    /// tail mass sampled from 32 pairs.
+    /// tail mass sampled at 128 points.
     pub fn fast() -> Self {
         FormFactorConfig {
             method: Method::Contour,
@@ -189,7 +219,9 @@ impl FormFactorConfig {
             first_batch: 4,
             seed: 0,
             top_k: None,
-            top_k_tail: TopKTail::Sampled(32),
+            top_k_tail: TopKTail::Sampled(128),
+            top_k_search: TopKSearch::Tree,
+            min_ff: None,
             quad_order: 6,
             quad_tol: 1e-6,
             visibility: Visibility::Rays,
@@ -210,7 +242,9 @@ impl FormFactorConfig {
             first_batch: 16,
             seed: 0,
             top_k: None,
-            top_k_tail: TopKTail::Exact,
+            top_k_tail: TopKTail::Sampled(256),
+            top_k_search: TopKSearch::Tree,
+            min_ff: None,
             quad_order: 8,
             quad_tol: 1e-8,
             visibility: Visibility::Rays,
@@ -230,6 +264,8 @@ impl FormFactorConfig {
             seed: 0,
             top_k: None,
             top_k_tail: TopKTail::Exact,
+            top_k_search: TopKSearch::Exhaustive,
+            min_ff: None,
             quad_order: 16,
             quad_tol: 1e-13,
             visibility: Visibility::Exact,
@@ -284,6 +320,17 @@ impl FormFactorConfig {
         self
     }
 
+    /// Threshold rows: keep only the entries ≥ `min_ff`.
+    pub fn with_min_ff(mut self, min_ff: Option<f64>) -> Self {
+        self.min_ff = min_ff;
+        self
+    }
+
+    /// Whether rows are sparse (top-k, threshold or both) rather than dense.
+    pub fn sparse_rows(&self) -> bool {
+        self.top_k.is_some() || self.min_ff.is_some()
+    }
+
     /// Checks the ranges of every field.
     ///
     /// # Errors
@@ -315,11 +362,23 @@ impl FormFactorConfig {
         if self.top_k == Some(0) {
             return bad("top_k must be at least 1".into());
         }
+        if let Some(eps) = self.min_ff {
+            if !(eps > 0.0 && eps < 1.0) {
+                return bad(format!("min_ff {eps} outside (0, 1)"));
+            }
+        }
         if !(self.shadow_tol > 0.0 && self.shadow_tol <= 0.1) {
             return bad(format!("shadow_tol {} outside (0, 0.1]", self.shadow_tol));
         }
         if self.top_k_tail == TopKTail::Sampled(0) {
             return bad("top_k_tail sample count must be at least 1".into());
+        }
+        if self.top_k_search == TopKSearch::Tree && self.top_k_tail == TopKTail::Exact {
+            return bad(
+                "top_k_search tree estimates the dropped mass: it needs a sampled top_k_tail \
+                 (an exact tail evaluates every column; use the exhaustive search)"
+                    .into(),
+            );
         }
         Ok(())
     }
@@ -331,7 +390,7 @@ impl FormFactorConfig {
             None => "none".to_string(),
         };
         format!(
-            "method={} visibility={} shadow_tol={:e} samples={} first_batch={} seed={} top_k={} top_k_tail={} quad_order={} quad_tol={:e} ray_epsilon={:e}",
+            "method={} visibility={} shadow_tol={:e} samples={} first_batch={} seed={} top_k={} top_k_tail={} top_k_search={} min_ff={} quad_order={} quad_tol={:e} ray_epsilon={:e}",
             self.method,
             self.visibility.name(),
             self.shadow_tol,
@@ -340,6 +399,8 @@ impl FormFactorConfig {
             self.seed,
             top_k,
             self.top_k_tail,
+            self.top_k_search.name(),
+            self.min_ff.map_or("none".to_string(), |e| format!("{e:e}")),
             self.quad_order,
             self.quad_tol,
             crate::geometry::occluders::RAY_EPSILON

@@ -40,6 +40,12 @@ pub struct Counters {
     /// Pairs meant for exact visibility that went to rays (more candidates than the
     /// exact route takes, or shadows cut into too many pieces).
     pub pairs_exact_fallback: u64,
+    /// Top-k tree search: nodes opened (their children's bounds computed, or a leaf's
+    /// columns evaluated).
+    pub tree_nodes_opened: u64,
+    /// Top-k tree search: walks from an unopened node down to one column, for the
+    /// dropped mass.
+    pub tree_tail_samples: u64,
 }
 
 impl Counters {
@@ -49,6 +55,8 @@ impl Counters {
         self.pairs_facing_away += o.pairs_facing_away;
         self.pairs_far_field += o.pairs_far_field;
         self.pairs_topk_tail_skipped += o.pairs_topk_tail_skipped;
+        self.tree_nodes_opened += o.tree_nodes_opened;
+        self.tree_tail_samples += o.tree_tail_samples;
         self.pairs_unoccludable += o.pairs_unoccludable;
         self.rays_cast += o.rays_cast;
         self.rays_skipped += o.rays_skipped;

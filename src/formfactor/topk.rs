@@ -13,13 +13,28 @@ use std::cmp::Ordering;
 
 use crate::rows::{Row, RowValues};
 
-/// Builds the row from f64 values: every positive entry if there are at most `k`,
-/// else the `k` largest (columns ascending) with the rest summed into `dropped`.
-/// `order` is scratch space.
-pub(crate) fn top_k_row(index: u32, values: &[f64], k: usize, order: &mut Vec<u32>) -> Row {
+/// Builds the row from f64 values: of the positive entries ≥ `eps` (0: every positive
+/// entry), all if there are at most `k`, else the `k` largest (columns ascending); the
+/// rest summed into `dropped`. `order` is scratch space.
+pub(crate) fn top_k_row(
+    index: u32,
+    values: &[f64],
+    k: usize,
+    eps: f64,
+    order: &mut Vec<u32>,
+) -> Row {
     order.clear();
     order.extend((0..values.len() as u32).filter(|&j| values[j as usize] > 0.0));
     let mut dropped = 0.0f64;
+    if eps > 0.0 {
+        // Below the threshold, in column order, then the top-k selection among the rest.
+        dropped = order
+            .iter()
+            .map(|&j| values[j as usize])
+            .filter(|&v| v < eps)
+            .sum();
+        order.retain(|&j| values[j as usize] >= eps);
+    }
     if order.len() > k {
         let by_value_desc = |a: &u32, b: &u32| -> Ordering {
             values[*b as usize]
@@ -31,7 +46,7 @@ pub(crate) fn top_k_row(index: u32, values: &[f64], k: usize, order: &mut Vec<u3
         }
         let (_, rest) = order.split_at_mut(k);
         rest.sort_unstable();
-        dropped = rest.iter().map(|&j| values[j as usize]).sum();
+        dropped += rest.iter().map(|&j| values[j as usize]).sum::<f64>();
         order.truncate(k);
     }
     order.sort_unstable();
@@ -52,7 +67,7 @@ mod tests {
     fn keeps_largest_and_records_dropped() {
         let v = [0.1, 0.0, 0.3, 0.2, 0.3, 0.05];
         let mut order = Vec::new();
-        let r = top_k_row(4, &v, 2, &mut order);
+        let r = top_k_row(4, &v, 2, 0.0, &mut order);
         // 0.3 at columns 2 and 4 are the two largest.
         assert_eq!(
             r.values,
@@ -69,7 +84,7 @@ mod tests {
     #[test]
     fn ties_break_by_column() {
         let v = [0.2, 0.2, 0.2, 0.2];
-        let r = top_k_row(0, &v, 3, &mut Vec::new());
+        let r = top_k_row(0, &v, 3, 0.0, &mut Vec::new());
         assert_eq!(
             r.values,
             RowValues::Sparse {
@@ -82,7 +97,7 @@ mod tests {
     #[test]
     fn short_rows_keep_all_positive() {
         let v = [0.0, 0.5, 0.0];
-        let r = top_k_row(0, &v, 3, &mut Vec::new());
+        let r = top_k_row(0, &v, 3, 0.0, &mut Vec::new());
         assert_eq!(
             r.values,
             RowValues::Sparse {
@@ -91,5 +106,30 @@ mod tests {
             }
         );
         assert_eq!(r.dropped, 0.0);
+    }
+
+    #[test]
+    fn a_threshold_keeps_the_entries_at_or_above_it() {
+        let v = [0.1, 0.0, 0.3, 0.2, 0.3, 0.05];
+        // Alone (k = every column): 0.1, 0.2, 0.3, 0.3 kept; 0.05 dropped.
+        let r = top_k_row(0, &v, v.len(), 0.1, &mut Vec::new());
+        assert_eq!(
+            r.values,
+            RowValues::Sparse {
+                cols: vec![0, 2, 3, 4],
+                vals: vec![0.1, 0.3, 0.2, 0.3]
+            }
+        );
+        assert!((f64::from(r.dropped) - 0.05).abs() < 1e-8);
+        // With k = 3: the three largest of those; 0.1 joins the dropped mass.
+        let r = top_k_row(0, &v, 3, 0.1, &mut Vec::new());
+        assert_eq!(
+            r.values,
+            RowValues::Sparse {
+                cols: vec![2, 3, 4],
+                vals: vec![0.3, 0.2, 0.3]
+            }
+        );
+        assert!((f64::from(r.dropped) - 0.15).abs() < 1e-8);
     }
 }

@@ -384,7 +384,7 @@ impl Spill {
                 Layout::TopK { k } => {
                     values.clear();
                     values.extend(dense.iter().map(|&v| f64::from(v)));
-                    top_k_row(r, &values, k as usize, &mut order)
+                    top_k_row(r, &values, k as usize, 0.0, &mut order)
                 }
             };
             emit(row)?;

@@ -306,6 +306,19 @@ fn option_values_out_of_range_are_refused_at_once_naming_the_range() {
         (&compute, "--patches=0", "1..=67108864"),
         (&compute, "--patches=4000000000", "1..=67108864"),
         (&compute, "--top-k=0", "1..="),
+        (&compute, "--min-ff=0", "(0, 1)"),
+        (&compute, "--min-ff=1", "(0, 1)"),
+        (
+            &compute,
+            "--top-k-tail=0",
+            "neither `exact` nor a sample count",
+        ),
+        (
+            &compute,
+            "--top-k-tail=sometimes",
+            "neither `exact` nor a sample count",
+        ),
+        (&compute, "--top-k-search=greedy", "exhaustive"),
         (&compute, "--chunk-kib=0", "1..=1048576"),
         (&compute, "--zstd-level=30", "1..=22"),
         (&compute, "--flush-seconds=nan", "finite number ≥ 0"),
@@ -704,4 +717,83 @@ fn written_files_stay_under_the_planned_size() {
             "{layout:?}: bound {bound} far above {values}"
         );
     }
+}
+
+/// Issue 19 item 4: `--min-ff EPS` writes threshold rows (every entry ≥ EPS, at most n a
+/// row, the rest dropped mass) that verify accepts; the choices that cannot go with it
+/// are refused with the reason before any work.
+#[test]
+fn threshold_rows_hold_the_entries_at_or_above_the_threshold() {
+    use ffstream::ffz::{FfzReader, Layout};
+    use ffstream::rows::RowValues;
+    let dir = tempfile::tempdir().unwrap();
+    let f = dir.path().join("t.ffz");
+    let base = [
+        "compute",
+        "builtin:cornell",
+        "--patches",
+        "300",
+        "-q",
+        "-o",
+        path_str(&f),
+    ];
+    let run = |extra: &[&str]| {
+        let mut a = base.to_vec();
+        a.extend_from_slice(extra);
+        a.push("--force");
+        ffstream(&a)
+    };
+    let out = run(&["--min-ff", "1e-3"]);
+    assert!(out.status.success(), "{out:?}");
+    let r = FfzReader::open(&f).unwrap();
+    let n = r.n() as usize;
+    assert_eq!(r.layout(), Layout::TopK { k: n as u32 });
+    assert!(
+        r.meta().params.contains("min_ff=1e-3"),
+        "{}",
+        r.meta().params
+    );
+    let (mut kept, mut rows_with_dropped) = (0usize, 0usize);
+    r.scan(|row| {
+        let RowValues::Sparse { vals, .. } = &row.values else {
+            panic!("sparse rows")
+        };
+        assert!(vals.iter().all(|&v| v >= 1e-3), "row {}", row.index);
+        kept += vals.len();
+        rows_with_dropped += usize::from(row.dropped > 0.0);
+    })
+    .unwrap();
+    assert!(
+        kept > 10 * n && kept < n * n / 2,
+        "{kept} entries of {n} rows"
+    );
+    assert!(rows_with_dropped > n / 2, "{rows_with_dropped}");
+    let out = ffstream(&["verify", path_str(&f)]);
+    assert!(out.status.success(), "{out:?}");
+    for (extra, says) in [
+        (
+            &["--min-ff", "1e-3", "--symmetric", "on"][..],
+            "--symmetric on cannot",
+        ),
+        (&["--min-ff", "1e-3", "--gather"][..], "--gather"),
+        (&["--top-k-search", "tree"][..], "apply to sparse rows"),
+        (
+            &["--top-k", "8", "--top-k-tail", "exact"][..],
+            "--top-k-search exhaustive",
+        ),
+    ] {
+        let out = run(extra);
+        assert_eq!(out.status.code(), Some(1), "{extra:?}: {out:?}");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.contains(says), "{extra:?}: {err}");
+    }
+    let out = run(&[
+        "--top-k",
+        "8",
+        "--top-k-tail",
+        "exact",
+        "--top-k-search",
+        "exhaustive",
+    ]);
+    assert!(out.status.success(), "{out:?}");
 }

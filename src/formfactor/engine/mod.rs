@@ -34,7 +34,10 @@ use super::polygon::{EdgeSet, Polygon};
 use super::quadrature::{gauss_table, GaussTable};
 use super::scratch::{Counters, PairScratch};
 use super::shadow::{Caster, ShadowScratch};
-use super::{mc, point, topk, visibility, FormFactorConfig, Method, TopKTail, Visibility};
+use super::tree::PatchTree;
+use super::{
+    mc, point, topk, visibility, FormFactorConfig, Method, TopKSearch, TopKTail, Visibility,
+};
 use crate::geometry::occluders::{
     Between, Occluders, MAX_PAIR_CANDIDATES, MAX_REJECTED_CANDIDATES,
 };
@@ -150,6 +153,9 @@ pub struct RowEngine {
     clusters: Option<Clusters>,
     /// A pair's rays through the hierarchy go as packets (see `visibility::Blockers`).
     packets: bool,
+    /// The hierarchy over the patches of the top-k tree search (None unless the
+    /// configuration asks for it).
+    tree: Option<PatchTree>,
 }
 
 /// Pair candidate lists (`Occluders::collect_between`) pay off only with few occluder
@@ -197,6 +203,13 @@ impl RowEngine {
                 offset: g.offset,
             })
             .collect();
+        let tol = PLANE_RELATIVE_TOLERANCE * diag;
+        let bound_slack = 1e-12 * diag + 1e-14 * magnitude;
+        let tree = (cfg.sparse_rows()
+            && cfg.method == Method::Contour
+            && cfg.top_k_search == TopKSearch::Tree
+            && matches!(cfg.top_k_tail, TopKTail::Sampled(_)))
+        .then(|| PatchTree::new(&geom, &valid, tol, bound_slack));
         static NEXT_ID: AtomicU64 = AtomicU64::new(0);
         RowEngine {
             id: NEXT_ID.fetch_add(1, Ordering::Relaxed),
@@ -204,12 +217,12 @@ impl RowEngine {
             cfg,
             geom,
             bounds,
-            bound_slack: 1e-12 * diag + 1e-14 * magnitude,
+            bound_slack,
             valid,
             gauss: gauss_table(),
             far_orders: FarOrders::new(params.tol),
             params,
-            tol: PLANE_RELATIVE_TOLERANCE * diag,
+            tol,
             list_max: match cfg_visibility {
                 Visibility::Exact => EXACT_MAX_CANDIDATES,
                 Visibility::Rays if occluders_len <= PAIR_LISTS_MAX_OCCLUDERS => {
@@ -223,6 +236,7 @@ impl RowEngine {
             },
             clusters,
             packets: true,
+            tree,
         }
     }
 
@@ -258,8 +272,8 @@ impl RowEngine {
         format!("{} occluder_triangles={occluder_triangles}", cfg.describe())
     }
 
-    /// Row i: dense, or the k largest entries when `top_k` is set. Values are
-    /// accumulated in f64 and stored as f32.
+    /// Row i: dense, or the k largest entries when `top_k` is set, only those ≥
+    /// `min_ff` when that is set. Values are accumulated in f64 and stored as f32.
     ///
     /// # Panics
     /// If `i` is not a patch index (a caller bug, not an input error).
@@ -269,16 +283,23 @@ impl RowEngine {
             "row {i} out of range (n = {})",
             self.n()
         );
-        if let (Some(k), Method::Contour, TopKTail::Sampled(t)) =
-            (self.cfg.top_k, self.cfg.method, self.cfg.top_k_tail)
+        let n = self.n();
+        let k = self.cfg.top_k.map_or(n, |k| k as usize);
+        let eps = self.cfg.min_ff.unwrap_or(0.0);
+        if let (true, Method::Contour, TopKTail::Sampled(t)) =
+            (self.cfg.sparse_rows(), self.cfg.method, self.cfg.top_k_tail)
         {
-            return self.top_k_row_bounded(i, k as usize, t as usize, scratch);
+            let kept = topk_bounded::Kept::new(k, eps);
+            return match &self.tree {
+                Some(tree) => self.top_k_row_tree(tree, (i, kept), t as usize, scratch),
+                None => self.top_k_row_bounded(i, kept, t as usize, scratch),
+            };
         }
         let mut values = std::mem::take(&mut scratch.values);
         self.row_values(i, scratch, &mut values);
-        let row = match self.cfg.top_k {
-            Some(k) => topk::top_k_row(i, &values, k as usize, &mut scratch.order),
-            None => Row::dense(i, values.iter().map(|&v| v as f32).collect()),
+        let row = match self.cfg.sparse_rows() {
+            true => topk::top_k_row(i, &values, k, eps, &mut scratch.order),
+            false => Row::dense(i, values.iter().map(|&v| v as f32).collect()),
         };
         scratch.values = values;
         row
@@ -664,3 +685,4 @@ mod exact;
 #[cfg(test)]
 mod tests;
 mod topk_bounded;
+mod topk_tree;

@@ -183,3 +183,277 @@ fn facing_away_costs_nothing() {
     assert_eq!(s.counters().pairs_facing_away, 1);
     assert_eq!(s.counters().pairs_evaluated, 0);
 }
+
+/// Patches in general position and in contact: tilted squares and triangles of sizes
+/// from 0.02 to 1.5 anywhere in a 4 m box, and grids of small squares (neighbours
+/// touching along edges, coplanar), some grids folded at right angles (touching at
+/// 90°), so the tree has nodes of every kind: far, near, touching, behind.
+fn patch_soup(seed: u64) -> PatchSet {
+    use crate::formfactor::sampling::SplitMix64;
+    let mut rng = SplitMix64::new(seed);
+    let mut r = |lo: f64, hi: f64| lo + (hi - lo) * rng.next_f64();
+    let mut patches = Vec::new();
+    let mut face = 0u32;
+    for _ in 0..120 {
+        let origin = dvec3(r(0.0, 4.0), r(0.0, 4.0), r(0.0, 4.0));
+        let size = (r(-4.0, 0.4)).exp();
+        let u = dvec3(r(-1.0, 1.0), r(-1.0, 1.0), r(-1.0, 1.0)).normalize() * size;
+        let w = dvec3(r(-1.0, 1.0), r(-1.0, 1.0), r(-1.0, 1.0));
+        let v = (w - u * (w.dot(u) / u.length_squared())).normalize() * size * r(0.3, 1.0);
+        let mut p = square(origin, u, v, face);
+        if r(0.0, 1.0) < 0.4 {
+            // The triangle of the first three corners.
+            p.n_corners = 3;
+            p.area *= 0.5;
+        }
+        patches.push(p);
+        face += 1;
+    }
+    for _ in 0..6 {
+        let origin = dvec3(r(0.0, 3.0), r(0.0, 3.0), r(0.0, 3.0));
+        let u = dvec3(r(-1.0, 1.0), r(-1.0, 1.0), r(-1.0, 1.0)).normalize();
+        let w = dvec3(r(-1.0, 1.0), r(-1.0, 1.0), r(-1.0, 1.0));
+        let v = (w - u * w.dot(u)).normalize();
+        let cell = r(0.05, 0.2);
+        let (du, dv) = (u * cell, v * cell);
+        for a in 0..6 {
+            for b in 0..6 {
+                patches.push(square(origin + du * a as f64 + dv * b as f64, du, dv, face));
+            }
+        }
+        // The fold: a second grid at 90° along the first one's v = 0 edge, facing the
+        // first grid.
+        let down = u.cross(v) * cell;
+        for a in 0..6 {
+            for b in 1..4 {
+                patches.push(square(
+                    origin + du * a as f64 + down * b as f64,
+                    -down,
+                    du,
+                    face + 1,
+                ));
+            }
+        }
+        face += 2;
+    }
+    PatchSet {
+        patches,
+        groups: vec!["g".into()],
+    }
+}
+
+/// The tree's bounds are never below the truth: over every row and every node, the
+/// largest and the summed F⁰_ij of the node's patches (the engine's own unoccluded
+/// values, which the search compares with the bounds) stay at or below the node's
+/// bounds. Random soups of patches (touching, coplanar, folded, behind one another),
+/// the Cornell box and a room.
+#[test]
+fn tree_bounds_are_never_below_the_unoccluded_form_factors() {
+    use crate::formfactor::tree::RowPatch;
+    use crate::geometry::subdivide::{default_max_edge, subdivide};
+    use crate::scene::builtin;
+    let mut sets = vec![
+        ("soup 1".to_string(), patch_soup(1)),
+        ("soup 2".to_string(), patch_soup(2)),
+        ("soup 3".to_string(), patch_soup(3)),
+    ];
+    for (name, target) in [("cornell", 300), ("room", 400)] {
+        let scene = builtin(name, None).unwrap();
+        sets.push((
+            name.to_string(),
+            subdivide(&scene, default_max_edge(&scene, target)),
+        ));
+    }
+    let cfg = FormFactorConfig::accurate().with_top_k(Some(8));
+    let (mut nodes_checked, mut leaves_seen, mut tight) = (0u64, 0u64, 0u64);
+    for (name, patches) in &sets {
+        let e = RowEngine::new(patches, Arc::new(Occluders::empty()), cfg.clone());
+        let tree = e.tree.as_ref().expect("a tree for top-k rows");
+        let mut s = Scratch::new();
+        let mut values = Vec::new();
+        for i in 0..e.n() as u32 {
+            if !e.valid[i as usize] {
+                continue;
+            }
+            e.row_values(i, &mut s, &mut values);
+            let row = RowPatch::of(&e.geom[i as usize]);
+            for id in 0..tree.len() as u32 {
+                let b = tree.bound(id, &row);
+                let under = tree.patches_under(id);
+                let max = under
+                    .iter()
+                    .map(|&j| values[j as usize])
+                    .fold(0.0, f64::max);
+                let sum: f64 = under.iter().map(|&j| values[j as usize]).sum();
+                assert!(
+                    max <= b.max && sum <= b.sum,
+                    "{name}: row {i}, node {id} ({} patches): max {max:e} > {:e} or sum {sum:e} > {:e}",
+                    under.len(),
+                    b.max,
+                    b.sum
+                );
+                // The one-patch bound the tail's walk uses.
+                for &j in under {
+                    let pb = tree.patch_bound(&e.geom[j as usize], &row);
+                    assert!(values[j as usize] <= pb.max, "{name}: row {i}, patch {j}");
+                }
+                nodes_checked += 1;
+                if let crate::formfactor::tree::Kids::Leaf(..) = tree.node(id).kids {
+                    if sum > 0.0 && b.sum.is_finite() && tree.node(id).is_far_from(&row, 3.0) {
+                        leaves_seen += 1;
+                        if b.sum < 4.0 * sum {
+                            tight += 1;
+                        }
+                    }
+                }
+            }
+        }
+    }
+    assert!(nodes_checked > 200_000, "{nodes_checked}");
+    // Bounds that are safe but useless would pass the above: most leaves that see
+    // something and are 3 radii away from the row patch must be bounded within 4x.
+    assert!(
+        2 * tight > leaves_seen,
+        "{tight} of {leaves_seen} leaves within 4x"
+    );
+}
+
+/// The tree search keeps bitwise the entries of the exhaustive one (rooms with boxes,
+/// rays through candidate lists and through the hierarchy, the Cornell box; several k,
+/// including k above the number of non-zero entries), evaluates far fewer columns, and
+/// its dropped mass is an unbiased estimate: stored + dropped against the dense row's
+/// sum, over many rows, has a mean error within three standard errors of 0 and a
+/// spread that the tail's size explains.
+#[test]
+fn tree_search_keeps_the_exhaustive_entries() {
+    use crate::formfactor::TopKSearch;
+    use crate::geometry::subdivide::{default_max_edge, subdivide};
+    use crate::scene::builtin;
+    let cases = [
+        ("room", Some(16.0), 1500, 16),
+        ("room", Some(64.0), 1500, 64),
+        ("cornell", None, 800, 4000),
+    ];
+    for (name, param, target, k) in cases {
+        let scene = builtin(name, param).unwrap();
+        let patches = subdivide(&scene, default_max_edge(&scene, target));
+        let occ = Arc::new(Occluders::new(scene.triangles().collect()));
+        let tree_cfg = FormFactorConfig::accurate().with_top_k(Some(k));
+        assert_eq!(tree_cfg.top_k_search, TopKSearch::Tree);
+        let mut flat_cfg = tree_cfg.clone();
+        flat_cfg.top_k_search = TopKSearch::Exhaustive;
+        let dense = RowEngine::new(&patches, occ.clone(), FormFactorConfig::accurate());
+        let tree = RowEngine::new(&patches, occ.clone(), tree_cfg);
+        let flat = RowEngine::new(&patches, occ, flat_cfg);
+        assert!(tree.tree.is_some() && flat.tree.is_none());
+        let (mut st, mut sf, mut sd) = (Scratch::new(), Scratch::new(), Scratch::new());
+        let mut values = Vec::new();
+        let (mut errors, mut tails) = (Vec::new(), Vec::new());
+        for i in (0..tree.n() as u32).step_by(7) {
+            let (a, b) = (tree.compute_row(i, &mut st), flat.compute_row(i, &mut sf));
+            assert_eq!(a.values, b.values, "{name}: row {i}");
+            dense.row_values(i, &mut sd, &mut values);
+            let total: f64 = values.iter().sum();
+            let stored: f64 = match &a.values {
+                crate::rows::RowValues::Sparse { vals, .. } => {
+                    vals.iter().map(|&v| f64::from(v)).sum()
+                }
+                _ => unreachable!(),
+            };
+            errors.push(stored + f64::from(a.dropped) - total);
+            tails.push(total - stored);
+        }
+        let (ct, cf) = (st.counters(), sf.counters());
+        let n = errors.len() as f64;
+        let mean = errors.iter().sum::<f64>() / n;
+        let var = errors.iter().map(|e| (e - mean).powi(2)).sum::<f64>() / (n - 1.0);
+        let tail = tails.iter().sum::<f64>() / n;
+        eprintln!(
+            "{name} k={k}: F0 evaluations {} vs {}, mean error {mean:.2e} ± {:.2e}, rms {:.2e}, mean tail {tail:.3}",
+            ct.pairs_evaluated,
+            cf.pairs_evaluated,
+            (var / n).sqrt(),
+            var.sqrt()
+        );
+        assert!(
+            mean.abs() <= 3.0 * (var / n).sqrt() + 1e-6,
+            "{name}: biased {mean:e}"
+        );
+        // t = 256 points (the preset): the error of a row is of order tail / √t, well under tail / 4.
+        assert!(
+            var.sqrt() <= 0.25 * tail + 1e-6,
+            "{name}: spread {:e}",
+            var.sqrt()
+        );
+        if k < 1000 {
+            // Columns the search evaluated (each walk of the tail evaluates one more).
+            let searched = ct.pairs_evaluated - ct.tree_tail_samples.min(ct.pairs_evaluated);
+            assert!(
+                2 * searched < cf.pairs_evaluated,
+                "{name}: the tree evaluated {searched} columns, the exhaustive search {}",
+                cf.pairs_evaluated
+            );
+        }
+    }
+}
+
+/// Threshold rows (`--min-ff`) keep exactly the entries of the dense row at or above
+/// the threshold (with a top-k, the k largest of those), bitwise, whichever search
+/// finds them; the rest is dropped mass.
+#[test]
+fn threshold_rows_keep_exactly_the_dense_entries_at_or_above_it() {
+    use crate::formfactor::TopKSearch;
+    use crate::geometry::subdivide::{default_max_edge, subdivide};
+    use crate::rows::RowValues;
+    use crate::scene::builtin;
+    let scene = builtin("room", Some(16.0)).unwrap();
+    let patches = subdivide(&scene, default_max_edge(&scene, 1500));
+    let occ = Arc::new(Occluders::new(scene.triangles().collect()));
+    let dense = RowEngine::new(&patches, occ.clone(), FormFactorConfig::accurate());
+    let eps = 2e-4;
+    let mut sd = Scratch::new();
+    let mut values = Vec::new();
+    for top_k in [None, Some(24)] {
+        let tree_cfg = FormFactorConfig::accurate()
+            .with_top_k(top_k)
+            .with_min_ff(Some(eps));
+        let mut exact_cfg = tree_cfg.clone();
+        exact_cfg.top_k_search = TopKSearch::Exhaustive;
+        exact_cfg.top_k_tail = TopKTail::Exact;
+        let tree = RowEngine::new(&patches, occ.clone(), tree_cfg);
+        let exact = RowEngine::new(&patches, occ.clone(), exact_cfg);
+        let (mut st, mut sx) = (Scratch::new(), Scratch::new());
+        let mut kept_some = 0;
+        for i in (0..dense.n() as u32).step_by(13) {
+            dense.row_values(i, &mut sd, &mut values);
+            let mut want: Vec<u32> = (0..values.len() as u32)
+                .filter(|&j| values[j as usize] >= eps)
+                .collect();
+            if let Some(k) = top_k {
+                want.sort_by(|&a, &b| {
+                    values[b as usize]
+                        .total_cmp(&values[a as usize])
+                        .then(a.cmp(&b))
+                });
+                want.truncate(k as usize);
+                want.sort_unstable();
+            }
+            let (a, b) = (tree.compute_row(i, &mut st), exact.compute_row(i, &mut sx));
+            assert_eq!(a.values, b.values, "row {i}, top-k {top_k:?}");
+            let RowValues::Sparse { cols, vals } = &b.values else {
+                panic!("sparse rows")
+            };
+            assert_eq!(cols, &want, "row {i}");
+            for (&j, &v) in cols.iter().zip(vals) {
+                assert_eq!(v, values[j as usize] as f32, "row {i} column {j}");
+            }
+            let total: f64 = values.iter().sum();
+            assert!(
+                (b.true_sum() - total).abs() <= 1e-5 * total.max(1.0),
+                "row {i}"
+            );
+            kept_some += usize::from(!cols.is_empty() && cols.len() < values.len() / 2);
+        }
+        assert!(kept_some > 50, "{kept_some} rows with a real threshold");
+    }
+}

@@ -3,10 +3,10 @@
 //!
 //! 1. F⁰_ij for every j, and whether the pair needs rays ([`RowEngine::candidates`]);
 //! 2. candidates in decreasing F⁰ (ties: smaller column first); each gets its
-//!    visibility and enters a min-heap of the k best final values, until F⁰ falls
-//!    below the heap's worst value: F ≤ F⁰, so no later candidate can enter
-//!    ([`RowEngine::best_k`]);
-//! 3. dropped = entries pushed out of the heap (exact) + tail pairs that need no rays
+//!    visibility and enters a min-heap of the k best final values (those at or above
+//!    the `--min-ff` threshold, if any), until F⁰ falls below the heap's worst value or
+//!    the threshold: F ≤ F⁰, so no later candidate can enter ([`RowEngine::best_k`]);
+//! 3. dropped = entries pushed out of the heap or below the threshold (exact) + tail pairs that need no rays
 //!    (exact, F = F⁰) + the estimate of Σ F⁰_j V_j over the tail pairs that need rays,
 //!    from `t` of them drawn by systematic sampling ∝ F⁰_j, all of them when there are
 //!    at most `t` ([`RowEngine::tail_mass`]).
@@ -24,11 +24,12 @@ use crate::rows::{Row, RowValues};
 type KeptHeap = BinaryHeap<Reverse<(u64, Reverse<u32>)>>;
 
 impl RowEngine {
-    /// Top-k row i with a sampled tail of `t` pairs (module docs).
+    /// Top-k row i into `kept` (empty, with its k and threshold), with a sampled tail
+    /// of `t` pairs (module docs).
     pub(super) fn top_k_row_bounded(
         &self,
         i: u32,
-        k: usize,
+        kept: Kept,
         t: usize,
         scratch: &mut Scratch,
     ) -> Row {
@@ -38,29 +39,15 @@ impl RowEngine {
         let mut rays = std::mem::take(&mut scratch.flags);
         self.candidates(i, scratch, &mut f0, &mut rays, &mut order);
         order.sort_unstable_by(|a, b| f0[*b as usize].total_cmp(&f0[*a as usize]).then(a.cmp(b)));
-        let (heap, mut dropped, next) = self.best_k(i, k, &f0, &rays, &order, scratch);
+        let (kept, next) = self.best_k(i, kept, &f0, &rays, &order, scratch);
         // The tail, in column order.
         let tail = &mut order[next..];
         tail.sort_unstable();
-        dropped += self.tail_mass(i, t, &f0, &rays, tail, scratch);
-        let mut kept: Vec<(u32, f32)> = heap
-            .into_iter()
-            .map(|Reverse((bits, Reverse(j)))| (j, f64::from_bits(bits) as f32))
-            .filter(|&(_, v)| v > 0.0)
-            .collect();
-        kept.sort_unstable_by_key(|&(j, _)| j);
-        // Entries whose visibility came out 0 carry no mass; they stay out of the row.
+        let tail_mass = self.tail_mass(i, t, &f0, &rays, tail, scratch);
         scratch.values = f0;
         scratch.order = order;
         scratch.flags = rays;
-        Row {
-            index: i,
-            values: RowValues::Sparse {
-                cols: kept.iter().map(|&(j, _)| j).collect(),
-                vals: kept.iter().map(|&(_, v)| v).collect(),
-            },
-            dropped: dropped as f32,
-        }
+        kept.into_row(i, tail_mass)
     }
 
     /// Step 1: `f0[j]` = F⁰_ij, `rays[j]` whether the pair needs rays, `order` the
@@ -105,40 +92,29 @@ impl RowEngine {
     }
 
     /// Step 2: the k best final values among the candidates in `order` (decreasing
-    /// F⁰), the mass pushed out of the heap, and where in `order` the tail starts.
+    /// F⁰) with the mass pushed out, and where in `order` the tail starts.
     fn best_k(
         &self,
         i: u32,
-        k: usize,
+        mut kept: Kept,
         f0: &[f64],
         rays: &[bool],
         order: &[u32],
         scratch: &mut Scratch,
-    ) -> (KeptHeap, f64, usize) {
-        let mut heap = KeptHeap::with_capacity(k + 1);
-        let mut dropped = 0.0f64;
+    ) -> (Kept, usize) {
         for (pos, &j) in order.iter().enumerate() {
             let ju = j as usize;
-            if heap.len() == k {
-                if let Some(Reverse((worst, _))) = heap.peek() {
-                    if f0[ju] < f64::from_bits(*worst) {
-                        return (heap, dropped, pos);
-                    }
-                }
+            if f0[ju] < kept.floor() {
+                return (kept, pos);
             }
             let value = if rays[ju] {
                 self.occluded_unlisted(i, j, f0[ju], scratch)
             } else {
                 f0[ju]
             };
-            heap.push(Reverse((value.to_bits(), Reverse(j))));
-            if heap.len() > k {
-                if let Some(Reverse((bits, _))) = heap.pop() {
-                    dropped += f64::from_bits(bits);
-                }
-            }
+            kept.offer(j, value);
         }
-        (heap, dropped, order.len())
+        (kept, order.len())
     }
 
     /// Step 3: the mass of the tail (columns ascending): exact for pairs without rays,
@@ -173,29 +149,127 @@ impl RowEngine {
             }
             return exact;
         }
-        let step = with_rays_mass / t as f64;
-        let mut rng = SplitMix64::new(pair_seed(self.cfg.seed, i, u32::MAX, Stream::TopKTail));
-        let mut point = rng.next_f64() * step;
-        let mut cumulative = 0.0;
-        let mut estimate = 0.0;
-        for &j in tail {
-            let ju = j as usize;
-            if !rays[ju] {
-                continue;
+        let items = tail
+            .iter()
+            .filter(|&&j| rays[j as usize])
+            .map(|&j| (j, f0[j as usize]));
+        let mut rng = self.tail_rng(i);
+        exact
+            + systematic(
+                items,
+                with_rays_mass,
+                t,
+                &mut rng,
+                |j, hits, _| match hits {
+                    0 => {
+                        scratch.pair.counters.pairs_topk_tail_skipped += 1;
+                        scratch.pair.counters.rays_skipped += self.cfg.samples as u64;
+                        0.0
+                    }
+                    _ => hits as f64 * self.visibility_fraction(i, j, f0[j as usize], scratch),
+                },
+            )
+    }
+
+    /// The random stream of row i's tail estimate.
+    pub(super) fn tail_rng(&self, i: u32) -> SplitMix64 {
+        SplitMix64::new(pair_seed(self.cfg.seed, i, u32::MAX, Stream::TopKTail))
+    }
+}
+
+/// Systematic sampling of `t` points over `items` with weights w (their sum `total`
+/// is positive): the points u0 + s·step on the cumulative weight axis, step = total / t, u0
+/// uniform in [0, step). `hit(item, hits, rng)` gets every item, with the number of
+/// points that fell on it, and returns Σ over those points of Y / w, Y an unbiased
+/// estimate of the item's mass (0 for none); the result step · Σ is unbiased for the
+/// items' total mass.
+pub(super) fn systematic<T>(
+    items: impl Iterator<Item = (T, f64)>,
+    total: f64,
+    t: usize,
+    rng: &mut SplitMix64,
+    mut hit: impl FnMut(T, u32, &mut SplitMix64) -> f64,
+) -> f64 {
+    let step = total / t as f64;
+    let mut point = rng.next_f64() * step;
+    let mut cumulative = 0.0;
+    let mut estimate = 0.0;
+    for (item, w) in items {
+        cumulative += w;
+        let mut hits = 0u32;
+        while point < cumulative && hits < t as u32 {
+            hits += 1;
+            point += step;
+        }
+        estimate += hit(item, hits, rng);
+    }
+    estimate * step
+}
+
+/// The k best final values ≥ `eps` of a row so far (ties: the smaller column) and the
+/// mass of those pushed out or below `eps`.
+pub(super) struct Kept {
+    heap: KeptHeap,
+    k: usize,
+    eps: f64,
+    dropped: f64,
+}
+
+impl Kept {
+    /// `eps` = 0: no threshold.
+    pub(super) fn new(k: usize, eps: f64) -> Self {
+        Kept {
+            heap: KeptHeap::with_capacity(k.min(1 << 12) + 1),
+            k,
+            eps,
+            dropped: 0.0,
+        }
+    }
+
+    /// What a final value must reach to enter: `eps`, and once k are kept the smallest
+    /// of them. A candidate whose F⁰ (a bound on its final value) is below it cannot
+    /// enter.
+    pub(super) fn floor(&self) -> f64 {
+        match self.heap.peek() {
+            Some(Reverse((bits, _))) if self.heap.len() == self.k => {
+                f64::from_bits(*bits).max(self.eps)
             }
-            cumulative += f0[ju];
-            let mut hits = 0u32;
-            while point < cumulative && hits < t as u32 {
-                hits += 1;
-                point += step;
-            }
-            if hits > 0 {
-                estimate += hits as f64 * self.visibility_fraction(i, j, f0[ju], scratch);
-            } else {
-                scratch.pair.counters.pairs_topk_tail_skipped += 1;
-                scratch.pair.counters.rays_skipped += self.cfg.samples as u64;
+            _ => self.eps,
+        }
+    }
+
+    /// Column j with final value `value`: kept if ≥ `eps` and among the k best, the
+    /// value pushed out (or this one, below `eps`) counted as dropped.
+    pub(super) fn offer(&mut self, j: u32, value: f64) {
+        if value < self.eps {
+            self.dropped += value;
+            return;
+        }
+        self.heap.push(Reverse((value.to_bits(), Reverse(j))));
+        if self.heap.len() > self.k {
+            if let Some(Reverse((bits, _))) = self.heap.pop() {
+                self.dropped += f64::from_bits(bits);
             }
         }
-        exact + estimate * step
+    }
+
+    /// Row i of the kept entries (columns ascending; entries whose visibility came out
+    /// 0 carry no mass and stay out), dropped = pushed out + `tail`.
+    pub(super) fn into_row(self, i: u32, tail: f64) -> Row {
+        let mut kept: Vec<(u32, f32)> = self
+            .heap
+            .into_iter()
+            .map(|Reverse((bits, Reverse(j)))| (j, f64::from_bits(bits) as f32))
+            .filter(|&(_, v)| v > 0.0)
+            .collect();
+        kept.sort_unstable_by_key(|&(j, _)| j);
+        Row {
+            index: i,
+            values: RowValues::Sparse {
+                cols: kept.iter().map(|&(j, _)| j).collect(),
+                vals: kept.iter().map(|&(_, v)| v).collect(),
+            },
+            dropped: (self.dropped + tail) as f32,
+        }
     }
 }

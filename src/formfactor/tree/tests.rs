@@ -1,0 +1,109 @@
+//! The tree's structure: every valid patch once, small leaves, the same tree for the
+//! same patches. Its bounds are tested against computed F⁰ in `engine/tests.rs`.
+
+use super::*;
+use crate::geometry::subdivide::{default_max_edge, subdivide};
+use crate::scene::builtin;
+
+fn geometry(name: &str, target: usize) -> (Vec<PatchGeom>, Vec<bool>) {
+    let scene = builtin(name, None).unwrap();
+    let patches = subdivide(&scene, default_max_edge(&scene, target));
+    let geom: Vec<PatchGeom> = patches.patches.iter().map(PatchGeom::new).collect();
+    let valid = geom.iter().map(PatchGeom::is_valid).collect();
+    (geom, valid)
+}
+
+#[test]
+fn every_valid_patch_is_in_one_leaf_and_the_tree_is_reproducible() {
+    let (geom, mut valid) = geometry("room", 900);
+    // Some patches left out, as zero-area ones would be.
+    for j in (0..valid.len()).step_by(37) {
+        valid[j] = false;
+    }
+    let tree = PatchTree::new(&geom, &valid, 1e-10, 1e-12);
+    let mut seen = vec![0u32; geom.len()];
+    for id in 0..tree.len() as u32 {
+        let node = tree.node(id);
+        let under = tree.patches_under(id);
+        assert_eq!(under.len() as u32, node.count);
+        let area: f64 = under.iter().map(|&j| geom[j as usize].area).sum();
+        assert!((area - node.area_sum).abs() <= 1e-12 * area, "{id}");
+        for &j in under {
+            let g = &geom[j as usize];
+            for c in g.poly.verts() {
+                assert!(c.cmpge(node.lo).all() && c.cmple(node.hi).all(), "{id} {j}");
+            }
+            assert!(
+                angle_between(node.axis, g.normal) <= node.spread,
+                "{id} {j}"
+            );
+        }
+        match node.kids {
+            Kids::Leaf(start, end) => {
+                let patches = tree.leaf_patches(start, end);
+                assert!(patches.len() <= LEAF_PATCHES && !patches.is_empty());
+                assert!(patches.windows(2).all(|w| w[0] < w[1]));
+                for &j in patches {
+                    seen[j as usize] += 1;
+                }
+            }
+            Kids::Inner(l, r) => {
+                let (a, b) = (tree.node(l).count, tree.node(r).count);
+                assert_eq!(a + b, node.count);
+                assert!(a > 0 && b > 0);
+                if node.spread <= SPLIT_ON_NORMALS_ABOVE {
+                    assert!(a.abs_diff(b) <= 1, "median split {a} / {b}");
+                }
+            }
+        }
+    }
+    for (j, &n) in seen.iter().enumerate() {
+        assert_eq!(n, u32::from(valid[j]), "patch {j}");
+    }
+    let again = PatchTree::new(&geom, &valid, 1e-10, 1e-12);
+    assert_eq!(again.order, tree.order);
+    assert_eq!(again.nodes.len(), tree.nodes.len());
+}
+
+#[test]
+fn the_walls_of_a_room_part_before_anything_else() {
+    let (geom, valid) = geometry("cube", 600);
+    let tree = PatchTree::new(&geom, &valid, 1e-10, 1e-12);
+    // The root holds six directions; nodes of a sixth of the patches or fewer face
+    // one way (a node straddling two walls would have a 45° cone).
+    let sixth = tree.node(0).count / 6;
+    let (mut narrow, mut wide) = (0, 0);
+    for id in 0..tree.len() as u32 {
+        let node = tree.node(id);
+        if node.count <= sixth {
+            if node.spread < 1e-3 {
+                narrow += 1;
+            } else {
+                wide += 1;
+            }
+        }
+    }
+    assert!(tree.node(0).spread > 2.0, "{:?}", tree.node(0));
+    assert!(narrow > 100 && wide == 0, "narrow {narrow}, wide {wide}");
+}
+
+#[test]
+fn a_node_behind_the_row_patch_or_facing_away_is_bounded_by_zero() {
+    let (geom, valid) = geometry("cornell", 200);
+    let tree = PatchTree::new(&geom, &valid, 1e-10, 1e-12);
+    // A patch of the floor: nothing below the floor's plane can be seen.
+    let floor = (0..geom.len())
+        .find(|&j| valid[j] && geom[j].normal.y > 0.999 && geom[j].centroid.y < 1e-6)
+        .expect("a floor patch");
+    let row = RowPatch::of(&geom[floor]);
+    for id in 0..tree.len() as u32 {
+        let under = tree.patches_under(id);
+        let coplanar = under.iter().all(|&j| {
+            let g = &geom[j as usize];
+            g.poly.verts().iter().all(|c| c.y.abs() < 1e-9)
+        });
+        if coplanar {
+            assert_eq!(tree.bound(id, &row), Bound::ZERO, "node {id}");
+        }
+    }
+}
