@@ -934,9 +934,8 @@ def topk_series_text(res: dict) -> str:
     if rays_growth > 1.5:
         rays_text = (f"The pairs with rays per row grow too ({first['rays_pairs_per_row']:.0f} at n = {first['n']}, "
                      f"{big['rays_pairs_per_row']:.0f} at n = {big['n']}, while n grew ×{big['n'] / first['n']:.1f}), "
-                     "though they stay a few percent of the F⁰ evaluations: probably because, as patches shrink, more "
-                     "candidates have an F⁰ close to the k-th kept value (e.g. ceiling patches seen from the floor, "
-                     "whose F⁰ barely varies), so more of them are visited before F⁰ falls below it.")
+                     "though they stay a fraction of the F⁰ evaluations: as patches shrink, more candidates have an "
+                     "F⁰ close to the k-th kept value, so more of them get their visibility before the bound stops.")
     else:
         rays_text = (f"The pairs with rays per row do not grow with n ({first['rays_pairs_per_row']:.0f} at "
                      f"n = {first['n']}, {big['rays_pairs_per_row']:.0f} at n = {big['n']}): the bound does limit "
@@ -947,19 +946,17 @@ def topk_series_text(res: dict) -> str:
              f"(table above, full runs, {min(x['n'] for x in res['scaling'])}–{max(x['n'] for x in res['scaling'])} "
              f"patches): wall ∝ n^{res['scaling_exponent']:.2f} (2 threads), CPU ∝ n^{res['scaling_exponent_cpu']:.2f} "
              "(1 thread).\n")
-    L.append(f"**Why top-k still grows like n²**: `--top-k` bounds what is *stored* (k entries per row, file ~ n·k) "
-             "and what is *ray traced*, not what is *evaluated*. For every row the engine "
-             "(`top_k_row_bounded`, src/formfactor/engine.rs) first computes the unoccluded form factor F⁰_ij of "
-             "every candidate j that faces patch i, because F⁰ is the upper bound that decides which candidates "
-             "can still enter the top k, then sorts the candidates by it; only after that do the rays go to the "
-             "few candidates visited before the bound stops and to the sampled tail. The F⁰ column grows in "
-             f"proportion to n (about {first['pairs_per_row'] / first['n']:.2f}·n per row: the fraction "
-             "of patches a patch faces), so the work is n rows × ~n bounds: quadratic, with a smaller constant "
-             "than dense (no rays for the pairs the bound rules out). The measured CPU per F⁰ evaluation, "
-             f"everything included, stays between {min(per_eval):.2f} and {max(per_eval):.2f} µs over the range, "
-             "so the time follows the n² count of F⁰ evaluations. " + rays_text + " Getting below n² needs "
-             "a bound on whole clusters of candidates (a hierarchy over the patches, as in hierarchical "
-             "radiosity), so that a row does not touch every j.\n")
+    L.append(f"**How top-k grows**: `--top-k` runs the tree search by default (`--top-k-search tree`, "
+             "src/formfactor/engine/topk_tree.rs): a hierarchy over the patches bounds the unoccluded form factor "
+             "of whole nodes, so a row evaluates only the columns of the nodes whose bound can still enter its top "
+             "k, not every facing column; the kept entries are bitwise those of evaluating every column "
+             "(`--top-k-search exhaustive`, which grew as n², bench/PERF.md §16). F⁰ evaluations per row: "
+             f"{first['pairs_per_row']:.0f} at n = {first['n']}, {big['pairs_per_row']:.0f} at n = {big['n']} "
+             f"(×{big['pairs_per_row'] / first['pairs_per_row']:.1f} while n grew ×{big['n'] / first['n']:.1f}; "
+             "they include the sampled tail's walks). The measured CPU per F⁰ evaluation, everything included, is "
+             f"between {min(per_eval):.2f} and {max(per_eval):.2f} µs. " + rays_text + " What remains above linear "
+             "is these pairs with rays and the evaluations near each row's patch; visibility decided for whole "
+             "nodes is the next step (issue 19 item 6).\n")
     return "\n".join(L)
 
 
@@ -1058,9 +1055,10 @@ def write_results(res: dict, path: str, plot_note: list[str], command: str) -> N
     L.append(topk_series_text(res))
     c = res["topk_vs_dense"]
     L.append(f"Top-k 64 against dense at n = {c['n']} (same preset): stored + dropped row sums minus dense row sums: "
-             f"mean {c['mean_signed']:.1e}, mean |·| {c['mean_abs']:.1e}, max |·| {c['max_abs']:.1e} (the fast preset "
-             f"estimates the dropped tail from 32 sampled pairs; `accurate` computes it exactly, see the cube top-k rows "
-             f"of 1a). Top-k wall {c['wall']:.1f} s vs dense "
+             f"mean {c['mean_signed']:.1e}, mean |·| {c['mean_abs']:.1e}, max |·| {c['max_abs']:.1e} (the dropped mass "
+             f"of the tree search is evaluated in full when a row's tail holds at most 2t patches, else estimated from "
+             f"t sampled points: 128 with the fast preset, 256 with accurate; see the cube top-k rows of 1a and "
+             f"bench/PERF.md §16). Top-k wall {c['wall']:.1f} s vs dense "
              + ", ".join(f"{x['wall']:.1f} s" for x in res['scaling'] if x['n'] == c['n'] and x['config'] == 'embedded --threads 2')
              + f": `{c['cmd']}`\n")
     L.append("![scaling](plots/scaling.png)\n")

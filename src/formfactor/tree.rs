@@ -79,6 +79,11 @@ pub(crate) struct Node {
 }
 
 impl Node {
+    /// Number of patches under the node.
+    pub(crate) fn count(&self) -> u32 {
+        self.count
+    }
+
     /// Whether the node's sphere is `ratio` times the two radii away from row patch i.
     #[cfg(test)]
     pub(crate) fn is_far_from(&self, i: &RowPatch, ratio: f64) -> bool {
@@ -187,7 +192,6 @@ impl PatchTree {
     }
 
     /// Every patch under node `id` (in tree order).
-    #[cfg(test)]
     pub(crate) fn patches_under(&self, id: u32) -> &[u32] {
         let (start, end) = self.node(id).range;
         &self.order[start as usize..end as usize]

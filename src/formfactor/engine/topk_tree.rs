@@ -13,7 +13,8 @@
 //!    largest of them with ties to the smaller column either way, so the kept entries
 //!    are bitwise those of the exhaustive search.
 //! 3. dropped = entries pushed out of the kept set (exact) + evaluated tail columns that
-//!    need no rays (exact, F = F⁰) + an estimate of the rest: the evaluated tail columns
+//!    need no rays (exact, F = F⁰) + the rest, evaluated in full when it holds at most
+//!    2t patches, else estimated: the evaluated tail columns
 //!    that need rays (weight F⁰_ij, as in the exhaustive search) and the nodes never
 //!    opened (weight: a guess at their F⁰ sum, never 0 where their bound is not; see
 //!    `Bound::guess`), from `t` points of systematic sampling over these weights. A
@@ -33,6 +34,11 @@ use super::{RowEngine, Scratch};
 use crate::formfactor::sampling::SplitMix64;
 use crate::formfactor::tree::{Kids, PatchTree, RowPatch};
 use crate::rows::Row;
+
+/// A tail of at most this many times `t` patches is evaluated in full rather than
+/// sampled (a walk costs about as much as an evaluation, and small scenes, where the
+/// tail is most of a short row, get the dense row's dropped mass).
+const EXACT_TAIL_FACTOR: usize = 2;
 
 /// A tail item of the estimate: an evaluated column that needs rays, or an unopened
 /// node.
@@ -131,8 +137,8 @@ impl RowEngine {
         kept.into_row(i, tail_mass)
     }
 
-    /// Step 3: the mass of the tail items (module docs): exact when there are no nodes
-    /// and at most `t` columns, else sampled from `t` points.
+    /// Step 3: the mass of the tail items (module docs): exact when they hold at most
+    /// [`EXACT_TAIL_FACTOR`] · `t` patches, else sampled from `t` points.
     fn tree_tail_mass(
         &self,
         tree: &PatchTree,
@@ -142,15 +148,27 @@ impl RowEngine {
         tail: &[Tail],
         scratch: &mut Scratch,
     ) -> f64 {
-        let nodes = tail.iter().any(|x| matches!(x, Tail::Node(..)));
-        if !nodes && tail.len() <= t {
-            return tail
-                .iter()
-                .map(|x| match *x {
-                    Tail::Column(j, f0) => self.occluded_unlisted(i, j, f0, scratch),
-                    Tail::Node(..) => 0.0,
-                })
-                .sum();
+        let patches: usize = tail
+            .iter()
+            .map(|x| match *x {
+                Tail::Column(..) => 1,
+                Tail::Node(id, _) => tree.node(id).count() as usize,
+            })
+            .sum();
+        if patches <= EXACT_TAIL_FACTOR * t {
+            // Few enough to evaluate every one for about the cost of the walks.
+            let mut sum = 0.0;
+            for x in tail {
+                match *x {
+                    Tail::Column(j, f0) => sum += self.occluded_unlisted(i, j, f0, scratch),
+                    Tail::Node(id, _) => {
+                        for &j in tree.patches_under(id) {
+                            sum += self.pair_value(i, j, scratch);
+                        }
+                    }
+                }
+            }
+            return sum;
         }
         let weight = |x: &Tail| match *x {
             Tail::Column(_, w) | Tail::Node(_, w) => w,
