@@ -83,8 +83,9 @@ pub(crate) struct ComputeOptions {
     pub top_k_search: Option<TopKSearchArg>,
     /// With --top-k or --min-ff: how the dropped mass of the entries left out is obtained:
     /// `exact` (every column evaluated, exhaustive search only) or a number N of
-    /// entries sampled with probability ∝ their unoccluded bound (an unbiased
-    /// estimate, error of order the dropped mass / √N). Default: the preset's (fast 128,
+    /// points sampled in proportion to the entries' unoccluded values or, for parts of
+    /// the tree never opened, an estimate of them (unbiased; error of order the dropped
+    /// mass / √N; a tail of at most 2N patches is evaluated in full). Default: the preset's (fast 128,
     /// accurate 256, reference exact).
     #[arg(long, value_name = "exact|N", value_parser = top_k_tail)]
     pub top_k_tail: Option<TopKTail>,

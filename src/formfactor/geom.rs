@@ -8,6 +8,30 @@ use super::polygon::{EdgeSet, Polygon};
 use super::sampling::PatchMap;
 use crate::geometry::occluders::Between;
 
+/// Bounding sphere and plane of a patch (one cache line): what the engine's facing
+/// test and the patch tree's bounds read of a row patch.
+#[derive(Clone, Copy, Debug)]
+#[repr(C, align(64))]
+pub(crate) struct PatchBound {
+    pub(crate) centre: DVec3,
+    /// Largest distance from the centre to a corner.
+    pub(crate) radius: f64,
+    pub(crate) normal: DVec3,
+    /// normal · x for x on the patch's plane.
+    pub(crate) offset: f64,
+}
+
+impl PatchBound {
+    pub(crate) fn of(g: &PatchGeom) -> Self {
+        PatchBound {
+            centre: g.centroid,
+            radius: g.radius,
+            normal: g.normal,
+            offset: g.offset,
+        }
+    }
+}
+
 /// Everything the kernels need about one patch, computed once.
 ///
 /// `repr(C)` keeps the fields in this order: what every evaluated pair reads first

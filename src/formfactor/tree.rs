@@ -34,7 +34,7 @@ use std::f64::consts::PI;
 
 use glam::DVec3;
 
-use super::geom::PatchGeom;
+use super::geom::{PatchBound, PatchGeom};
 
 /// Patches a leaf holds at most.
 const LEAF_PATCHES: usize = 4;
@@ -48,12 +48,11 @@ const SPLIT_ON_NORMALS_ABOVE: f64 = PI / 6.0;
 /// computed value, not only above the exact one.
 const MARGIN: f64 = 1.0 + 1e-3;
 
-/// A node's children, or its patches.
+/// A node's children, or none: a leaf, whose patches are [`PatchTree::patches_under`].
 #[derive(Clone, Copy, Debug)]
 pub(crate) enum Kids {
     Inner(u32, u32),
-    /// `PatchTree::order[start..end]`.
-    Leaf(u32, u32),
+    Leaf,
 }
 
 /// One node: what the bounds need of its patches.
@@ -86,28 +85,8 @@ impl Node {
 
     /// Whether the node's sphere is `ratio` times the two radii away from row patch i.
     #[cfg(test)]
-    pub(crate) fn is_far_from(&self, i: &RowPatch, ratio: f64) -> bool {
+    pub(crate) fn is_far_from(&self, i: &PatchBound, ratio: f64) -> bool {
         (self.centre - i.centre).length() > ratio * (self.radius + i.radius)
-    }
-}
-
-/// What the bounds need of the row patch i.
-#[derive(Clone, Copy, Debug)]
-pub(crate) struct RowPatch {
-    centre: DVec3,
-    radius: f64,
-    normal: DVec3,
-    offset: f64,
-}
-
-impl RowPatch {
-    pub(crate) fn of(g: &PatchGeom) -> Self {
-        RowPatch {
-            centre: g.centroid,
-            radius: g.radius,
-            normal: g.normal,
-            offset: g.offset,
-        }
     }
 }
 
@@ -180,18 +159,13 @@ impl PatchTree {
         &self.nodes[id as usize]
     }
 
-    /// The patches of a leaf, ascending.
-    pub(crate) fn leaf_patches(&self, start: u32, end: u32) -> &[u32] {
-        &self.order[start as usize..end as usize]
-    }
-
     /// Number of nodes.
     #[cfg(test)]
     pub(crate) fn len(&self) -> usize {
         self.nodes.len()
     }
 
-    /// Every patch under node `id` (in tree order).
+    /// Every patch under node `id` (in tree order; a leaf's ascending).
     pub(crate) fn patches_under(&self, id: u32) -> &[u32] {
         let (start, end) = self.node(id).range;
         &self.order[start as usize..end as usize]
@@ -202,7 +176,6 @@ impl PatchTree {
         let id = self.nodes.len() as u32;
         let patches = &mut order[start..end];
         let mut node = node_of(patches.iter().map(|&j| &geom[j as usize]));
-        node.kids = Kids::Leaf(start as u32, end as u32);
         node.range = (start as u32, end as u32);
         self.nodes.push(node);
         if patches.len() <= LEAF_PATCHES {
@@ -218,18 +191,18 @@ impl PatchTree {
     }
 
     /// Bounds on F⁰_ij over the patches j of node `id`, for row patch `i`.
-    pub(crate) fn bound(&self, id: u32, i: &RowPatch) -> Bound {
+    pub(crate) fn bound(&self, id: u32, i: &PatchBound) -> Bound {
         bound_of(self.node(id), i, self.plane_tol, self.slack)
     }
 
     /// The bound of one patch on its own (a node of one patch), for sampling inside a
     /// leaf.
-    pub(crate) fn patch_bound(&self, g: &PatchGeom, i: &RowPatch) -> Bound {
+    pub(crate) fn patch_bound(&self, g: &PatchGeom, i: &PatchBound) -> Bound {
         bound_of(&node_of(std::iter::once(g)), i, self.plane_tol, self.slack)
     }
 }
 
-/// The node of a set of patches (kids left for the caller).
+/// The node of a set of patches (a leaf; its range left for the caller).
 fn node_of<'a>(patches: impl Iterator<Item = &'a PatchGeom> + Clone) -> Node {
     let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
     let (mut area_sum, mut area_max, mut count) = (0.0f64, 0.0f64, 0u32);
@@ -265,7 +238,7 @@ fn node_of<'a>(patches: impl Iterator<Item = &'a PatchGeom> + Clone) -> Node {
         mean: mean / area_sum,
         count,
         range: (0, 0),
-        kids: Kids::Leaf(0, 0),
+        kids: Kids::Leaf,
     }
 }
 
@@ -345,7 +318,7 @@ fn angle_between(a: DVec3, b: DVec3) -> f64 {
 }
 
 /// The bounds of `node` for row patch `i` (module docs).
-fn bound_of(node: &Node, i: &RowPatch, plane_tol: f64, slack: f64) -> Bound {
+fn bound_of(node: &Node, i: &PatchBound, plane_tol: f64, slack: f64) -> Bound {
     // How far the box reaches in front of i's plane; no patch of a box within the
     // plane tolerance of it (or behind) is seen.
     let half = 0.5 * (node.hi - node.lo);

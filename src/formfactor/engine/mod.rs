@@ -29,7 +29,7 @@ use glam::DVec3;
 use super::clusters::{ClusterCache, Clusters};
 use super::contour::{area_form_factor_edges, ContourParams};
 use super::farfield::{self, FarOrders, PatchLanes, PatchPoints, MAX_FAR_ORDER};
-use super::geom::PatchGeom;
+use super::geom::{PatchBound, PatchGeom};
 use super::polygon::{EdgeSet, Polygon};
 use super::quadrature::{gauss_table, GaussTable};
 use super::scratch::{Counters, PairScratch};
@@ -113,18 +113,6 @@ impl Scratch {
     }
 }
 
-/// Bounding sphere and plane of a patch, for [`RowEngine::facing`] (one cache line).
-#[derive(Clone, Copy, Debug)]
-#[repr(C, align(64))]
-struct PatchBound {
-    centre: DVec3,
-    /// Largest distance from the centre to a corner.
-    radius: f64,
-    normal: DVec3,
-    /// normal · x for x on the patch's plane.
-    offset: f64,
-}
-
 /// Computes form-factor rows; shared by all threads of a process.
 #[derive(Debug)]
 pub struct RowEngine {
@@ -194,15 +182,7 @@ impl RowEngine {
         let params = cfg.contour_params();
         let occluders_len = occluders.len();
         let cfg_visibility = cfg.visibility;
-        let bounds = geom
-            .iter()
-            .map(|g| PatchBound {
-                centre: g.centroid,
-                radius: g.radius,
-                normal: g.normal,
-                offset: g.offset,
-            })
-            .collect();
+        let bounds = geom.iter().map(PatchBound::of).collect();
         let tol = PLANE_RELATIVE_TOLERANCE * diag;
         let bound_slack = 1e-12 * diag + 1e-14 * magnitude;
         let tree = (cfg.sparse_rows()
@@ -291,7 +271,7 @@ impl RowEngine {
         {
             let kept = topk_bounded::Kept::new(k, eps);
             return match &self.tree {
-                Some(tree) => self.top_k_row_tree(tree, (i, kept), t as usize, scratch),
+                Some(tree) => self.top_k_row_tree(tree, i, kept, t as usize, scratch),
                 None => self.top_k_row_bounded(i, kept, t as usize, scratch),
             };
         }

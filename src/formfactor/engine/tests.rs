@@ -249,7 +249,7 @@ fn patch_soup(seed: u64) -> PatchSet {
 /// the Cornell box and a room.
 #[test]
 fn tree_bounds_are_never_below_the_unoccluded_form_factors() {
-    use crate::formfactor::tree::RowPatch;
+    use crate::formfactor::geom::PatchBound;
     use crate::geometry::subdivide::{default_max_edge, subdivide};
     use crate::scene::builtin;
     let mut sets = vec![
@@ -276,7 +276,7 @@ fn tree_bounds_are_never_below_the_unoccluded_form_factors() {
                 continue;
             }
             e.row_values(i, &mut s, &mut values);
-            let row = RowPatch::of(&e.geom[i as usize]);
+            let row = PatchBound::of(&e.geom[i as usize]);
             for id in 0..tree.len() as u32 {
                 let b = tree.bound(id, &row);
                 let under = tree.patches_under(id);
@@ -298,7 +298,7 @@ fn tree_bounds_are_never_below_the_unoccluded_form_factors() {
                     assert!(values[j as usize] <= pb.max, "{name}: row {i}, patch {j}");
                 }
                 nodes_checked += 1;
-                if let crate::formfactor::tree::Kids::Leaf(..) = tree.node(id).kids {
+                if let crate::formfactor::tree::Kids::Leaf = tree.node(id).kids {
                     if sum > 0.0 && b.sum.is_finite() && tree.node(id).is_far_from(&row, 3.0) {
                         leaves_seen += 1;
                         if b.sum < 4.0 * sum {

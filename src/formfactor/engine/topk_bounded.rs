@@ -14,7 +14,7 @@
 use std::cmp::Reverse;
 use std::collections::BinaryHeap;
 
-use super::{RowEngine, Scratch};
+use super::{RowEngine, Scratch, Unoccluded};
 use crate::formfactor::sampling::{pair_seed, SplitMix64, Stream};
 use crate::rows::{Row, RowValues};
 
@@ -70,24 +70,51 @@ impl RowEngine {
         if !self.valid[iu] {
             return;
         }
-        let gi = &self.geom[iu];
         for j in 0..n {
-            let gj = &self.geom[j];
             if j == iu || !self.valid[j] {
                 continue;
             }
-            let Some(extent) = self.facing(iu, j, scratch) else {
-                continue;
-            };
-            if let Some(u) = self.contour_unoccluded((i, j as u32), gi, gj, extent, scratch) {
+            if let Some(u) = self.column_unoccluded(i, j as u32, scratch) {
                 f0[j] = u.f;
                 rays[j] = u.needs_rays;
-                if !u.needs_rays {
-                    scratch.pair.counters.pairs_unoccludable += 1;
-                    scratch.pair.counters.rays_skipped += self.cfg.samples as u64;
-                }
                 order.push(j as u32);
             }
+        }
+    }
+
+    /// The unoccluded part of column j ≠ i of a top-k row (valid patches), None when
+    /// they face away or it is not positive; a pair that needs no rays is counted.
+    pub(super) fn column_unoccluded(
+        &self,
+        i: u32,
+        j: u32,
+        scratch: &mut Scratch,
+    ) -> Option<Unoccluded> {
+        let (iu, ju) = (i as usize, j as usize);
+        let extent = self.facing(iu, ju, scratch)?;
+        let (gi, gj) = (&self.geom[iu], &self.geom[ju]);
+        let u = self.contour_unoccluded((i, j), gi, gj, extent, scratch)?;
+        if !u.needs_rays {
+            scratch.pair.counters.pairs_unoccludable += 1;
+            scratch.pair.counters.rays_skipped += self.cfg.samples as u64;
+        }
+        Some(u)
+    }
+
+    /// The final value of a top-k candidate whose unoccluded value is `f0`: `f0` itself
+    /// when nothing can come between, else what the occluders leave of it.
+    pub(super) fn candidate_value(
+        &self,
+        i: u32,
+        j: u32,
+        f0: f64,
+        needs_rays: bool,
+        scratch: &mut Scratch,
+    ) -> f64 {
+        if needs_rays {
+            self.occluded_unlisted(i, j, f0, scratch)
+        } else {
+            f0
         }
     }
 
@@ -107,12 +134,7 @@ impl RowEngine {
             if f0[ju] < kept.floor() {
                 return (kept, pos);
             }
-            let value = if rays[ju] {
-                self.occluded_unlisted(i, j, f0[ju], scratch)
-            } else {
-                f0[ju]
-            };
-            kept.offer(j, value);
+            kept.offer(j, self.candidate_value(i, j, f0[ju], rays[ju], scratch));
         }
         (kept, order.len())
     }

@@ -31,8 +31,9 @@ use std::collections::BinaryHeap;
 
 use super::topk_bounded::{systematic, Kept};
 use super::{RowEngine, Scratch};
+use crate::formfactor::geom::PatchBound;
 use crate::formfactor::sampling::SplitMix64;
-use crate::formfactor::tree::{Kids, PatchTree, RowPatch};
+use crate::formfactor::tree::{Kids, PatchTree};
 use crate::rows::Row;
 
 /// A tail of at most this many times `t` patches is evaluated in full rather than
@@ -54,18 +55,16 @@ impl RowEngine {
     pub(super) fn top_k_row_tree(
         &self,
         tree: &PatchTree,
-        (i, kept): (u32, Kept),
+        i: u32,
+        mut kept: Kept,
         t: usize,
         scratch: &mut Scratch,
     ) -> Row {
         scratch.start_row(i);
-        let iu = i as usize;
-        let Some(root) = tree.root().filter(|_| self.valid[iu]) else {
+        let Some(root) = tree.root().filter(|_| self.valid[i as usize]) else {
             return kept.into_row(i, 0.0);
         };
-        let mut kept = kept;
-        let gi = &self.geom[iu];
-        let row = RowPatch::of(gi);
+        let row = self.bounds[i as usize];
         // (bound on one entry, Reverse(node)): the largest bound first, then the
         // smaller id.
         let mut open: BinaryHeap<(u64, Reverse<u32>)> = BinaryHeap::new();
@@ -89,24 +88,14 @@ impl RowEngine {
                     push(&mut open, left);
                     push(&mut open, right);
                 }
-                Kids::Leaf(start, end) => {
-                    for &j in tree.leaf_patches(start, end) {
+                Kids::Leaf => {
+                    for &j in tree.patches_under(id) {
                         if j == i {
                             continue;
                         }
-                        let ju = j as usize;
-                        let Some(extent) = self.facing(iu, ju, scratch) else {
+                        let Some(u) = self.column_unoccluded(i, j, scratch) else {
                             continue;
                         };
-                        let gj = &self.geom[ju];
-                        let Some(u) = self.contour_unoccluded((i, j), gi, gj, extent, scratch)
-                        else {
-                            continue;
-                        };
-                        if !u.needs_rays {
-                            scratch.pair.counters.pairs_unoccludable += 1;
-                            scratch.pair.counters.rays_skipped += self.cfg.samples as u64;
-                        }
                         if u.f < kept.floor() {
                             if u.needs_rays {
                                 tail.push(Tail::Column(j, u.f));
@@ -115,12 +104,7 @@ impl RowEngine {
                             }
                             continue;
                         }
-                        let value = if u.needs_rays {
-                            self.occluded_unlisted(i, j, u.f, scratch)
-                        } else {
-                            u.f
-                        };
-                        kept.offer(j, value);
+                        kept.offer(j, self.candidate_value(i, j, u.f, u.needs_rays, scratch));
                     }
                 }
             }
@@ -143,7 +127,7 @@ impl RowEngine {
         &self,
         tree: &PatchTree,
         i: u32,
-        row: &RowPatch,
+        row: &PatchBound,
         t: usize,
         tail: &[Tail],
         scratch: &mut Scratch,
@@ -202,7 +186,7 @@ impl RowEngine {
         tree: &PatchTree,
         mut id: u32,
         i: u32,
-        row: &RowPatch,
+        row: &PatchBound,
         rng: &mut SplitMix64,
         scratch: &mut Scratch,
     ) -> f64 {
@@ -219,8 +203,8 @@ impl RowEngine {
                     p *= w / (l + r);
                     id = next;
                 }
-                Kids::Leaf(start, end) => {
-                    let patches = tree.leaf_patches(start, end);
+                Kids::Leaf => {
+                    let patches = tree.patches_under(id);
                     let bound = |j: u32| match j == i {
                         true => 0.0,
                         false => tree.patch_bound(&self.geom[j as usize], row).guess,

@@ -39,8 +39,8 @@ fn every_valid_patch_is_in_one_leaf_and_the_tree_is_reproducible() {
             );
         }
         match node.kids {
-            Kids::Leaf(start, end) => {
-                let patches = tree.leaf_patches(start, end);
+            Kids::Leaf => {
+                let patches = tree.patches_under(id);
                 assert!(patches.len() <= LEAF_PATCHES && !patches.is_empty());
                 assert!(patches.windows(2).all(|w| w[0] < w[1]));
                 for &j in patches {
@@ -95,7 +95,7 @@ fn a_node_behind_the_row_patch_or_facing_away_is_bounded_by_zero() {
     let floor = (0..geom.len())
         .find(|&j| valid[j] && geom[j].normal.y > 0.999 && geom[j].centroid.y < 1e-6)
         .expect("a floor patch");
-    let row = RowPatch::of(&geom[floor]);
+    let row = PatchBound::of(&geom[floor]);
     for id in 0..tree.len() as u32 {
         let under = tree.patches_under(id);
         let coplanar = under.iter().all(|&j| {
