@@ -4,6 +4,7 @@
 //! own type (the library never sees clap).
 
 use ffstream::formfactor::{Method, Preset, TopKSearch, TopKTail, Visibility};
+use ffstream::scene::SceneFormat;
 use ffstream::service::{RowSelection, Schedule};
 use ffstream::solve::SolveMethod;
 
@@ -29,6 +30,32 @@ macro_rules! choice {
             }
         }
     };
+}
+
+choice! {
+    /// `--format`: the scene file's format when its extension does not say it.
+    FormatArg => SceneFormat {
+        /// Wavefront OBJ with its MTL materials.
+        Obj => SceneFormat::Obj,
+        /// STL, ASCII or binary; materials from NAME.mtl beside it.
+        Stl => SceneFormat::Stl,
+        /// PLY, ASCII or binary; materials from NAME.mtl beside it.
+        Ply => SceneFormat::Ply,
+        /// glTF 2.0 (.gltf with its buffers, or .glb).
+        Gltf => SceneFormat::Gltf,
+    }
+}
+
+impl FormatArg {
+    /// The prefix of a scene spec that names this format (`stl:PATH`).
+    pub(crate) fn prefix(self) -> &'static str {
+        match self {
+            FormatArg::Obj => "obj",
+            FormatArg::Stl => "stl",
+            FormatArg::Ply => "ply",
+            FormatArg::Gltf => "gltf",
+        }
+    }
 }
 
 choice! {

@@ -154,7 +154,8 @@ pub(crate) struct ComputeOptions {
     /// No progress display: the global -q/--quiet, set by `dispatch`.
     #[arg(skip)]
     pub quiet: bool,
-    /// Visibility against this mesh (OBJ, same geometry, usually coarser) instead of the
+    /// Visibility against this mesh (any scene format by extension, same geometry,
+    /// usually coarser) instead of the
     /// scene's own faces. Self-occlusion is then told apart by the patches' planes.
     #[arg(long, value_name = "COARSE.obj")]
     pub occluders: Option<PathBuf>,
@@ -423,7 +424,9 @@ fn engine_for(
     cfg: &FormFactorConfig,
 ) -> anyhow::Result<(Option<Arc<RowEngine>>, String)> {
     let occluder_triangles: Vec<_> = match &o.occluders {
-        Some(path) => scene::load_obj(path)?.triangles().collect(),
+        Some(path) => scene::load_file(path, scene::SceneFormat::of_path(path))?
+            .triangles()
+            .collect(),
         None => scene.triangles().collect(),
     };
     // A foreign occluder mesh is not in the scene hash: its content goes into the

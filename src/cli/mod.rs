@@ -64,11 +64,16 @@ pub(crate) enum Command {
 /// How the scene is given and cut into patches (shared by compute and run).
 #[derive(Args, Debug, Clone)]
 pub(crate) struct SceneInput {
-    /// OBJ file (with its MTL), or builtin:NAME[:PARAM] for a built-in scene (NAME one
-    /// of cornell, cube, plates, perpendicular, obstructed, room; see `ffstream scene
-    /// --help`).
+    /// Mesh file: OBJ (with its MTL), STL or PLY (materials from NAME.mtl beside it),
+    /// glTF (.gltf or .glb), by extension (or FORMAT:PATH, or --format); or
+    /// builtin:NAME[:PARAM] for a built-in scene (NAME one of cornell, cube, plates,
+    /// perpendicular, obstructed, room, city; see `ffstream scene --help`).
     #[arg(value_parser = scene_spec)]
     pub scene: String,
+    /// Read the scene file in this format whatever its extension (recorded in the file
+    /// header as FORMAT:PATH, so solve and --resume read it the same way).
+    #[arg(long, value_enum, value_name = "FORMAT")]
+    pub format: Option<choices::FormatArg>,
     /// Longest patch edge, in scene units. Default: chosen so the scene gets about
     /// --patches patches (the value chosen is printed). A finite length > 0.
     #[arg(long, value_name = "L", value_parser = choices::number::positive)]
@@ -82,6 +87,16 @@ pub(crate) struct SceneInput {
     /// each is then an error, exit 1, instead of a warning.
     #[arg(long)]
     pub strict: bool,
+}
+
+impl SceneInput {
+    /// Fold `--format` into the scene spec as its `FORMAT:` prefix, the form the
+    /// header records.
+    fn apply_format(&mut self) {
+        if let Some(f) = self.format.take() {
+            self.scene = format!("{}:{}", f.prefix(), self.scene);
+        }
+    }
 }
 
 /// Checks a `builtin:NAME[:PARAM]` scene at parse time (a usage error naming the
@@ -129,6 +144,7 @@ pub(crate) fn dispatch(cli: Cli) -> anyhow::Result<ExitCode> {
         Command::Scene(a) => scene::run(a),
         Command::Compute(mut a) => {
             a.opts.quiet = cli.quiet;
+            a.input.apply_format();
             compute::run(a)
         }
         Command::Info(a) => files::info(a),
@@ -138,6 +154,7 @@ pub(crate) fn dispatch(cli: Cli) -> anyhow::Result<ExitCode> {
         Command::Render(a) => render::run(a),
         Command::Run(mut a) => {
             a.compute.quiet = cli.quiet;
+            a.input.apply_format();
             run::run(a)
         }
     }

@@ -52,6 +52,7 @@ pub(crate) fn duplicates_warning(
     faces: &[Face],
     groups: &[String],
     dups: &[(usize, usize)],
+    unit: &str,
 ) -> Option<String> {
     let &(f, g) = dups.first()?;
     let mut names: Vec<&str> = Vec::new();
@@ -70,7 +71,7 @@ pub(crate) fn duplicates_warning(
     };
     let at = |face: usize| match faces[face].line {
         0 => format!("face {face}"),
-        l => format!("line {l}"),
+        l => format!("{unit} {l}"),
     };
     Some(format!(
         "{path}: {} face(s) repeat another face exactly (same corners, same facing; first {} repeats {}), in group(s) {}{more}: each copy counts as a surface of its own, so its light is counted twice (row sums above 1 in a closed scene); remove the copies, or use --strict to refuse such scenes",
@@ -117,10 +118,19 @@ mod tests {
         ];
         assert_eq!(coincident_duplicates(&faces), vec![(1, 0), (3, 0)]);
         let groups: Vec<String> = (0..6).map(|g| format!("g{g}")).collect();
-        let w =
-            duplicates_warning("s.obj", &faces, &groups, &coincident_duplicates(&faces)).unwrap();
+        let w = duplicates_warning(
+            "s.obj",
+            &faces,
+            &groups,
+            &coincident_duplicates(&faces),
+            "line",
+        )
+        .unwrap();
         assert!(w.contains("2 face(s)") && w.contains("g1, g3"), "{w}");
         assert!(w.contains("face 1 repeats face 0"), "{w}");
-        assert_eq!(duplicates_warning("s.obj", &faces, &groups, &[]), None);
+        assert_eq!(
+            duplicates_warning("s.obj", &faces, &groups, &[], "line"),
+            None
+        );
     }
 }

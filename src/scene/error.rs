@@ -74,6 +74,15 @@ pub enum SceneError {
         material: String,
         value: f64,
     },
+    /// An element of an STL, PLY or glTF file (a facet, face, vertex, accessor or
+    /// buffer, named with its 1-based number) is not usable, or the file's structure is
+    /// broken (truncated, wrong counts): `element` says where.
+    #[error("{}: {element}: {reason}", path.display())]
+    Element {
+        path: PathBuf,
+        element: String,
+        reason: String,
+    },
     /// No usable face at all.
     /// `dropped` says how many degenerate faces were dropped and the first one's line
     /// (empty when none were), so a file of only bad faces still points at a line.
@@ -112,6 +121,7 @@ impl SceneError {
             | Emission { path, .. }
             | Empty { path, .. }
             | Parser { path, .. }
+            | Element { path, .. }
             | Write { path, .. } => Some(path),
             UnknownBuiltin { .. } | BadParam { .. } => None,
         }

@@ -3,26 +3,38 @@
 //! A [`Scene`] is a list of one-sided planar [`Face`]s (triangles and planar convex
 //! quads, counter-clockwise seen from the front, docs/numerics.md §3), each tagged with the
 //! OBJ group it came from and a [`Material`] (diffuse reflectance `Kd`, emitted
-//! exitance `Ke`). Scenes come from two places:
+//! exitance `Ke`). Scenes come from three places:
 //!
 //! - [`load_obj`]: an OBJ file and its MTL libraries, read with `tobj` and validated
 //!   (errors name the file and line, see [`SceneError`]);
+//! - [`load_file`] with a [`SceneFormat`]: STL (`stl.rs`, ASCII and binary, one group per
+//!   `solid`), PLY (`ply.rs`, ASCII and binary, one group) and glTF 2.0 (`gltf.rs`,
+//!   `.gltf` + buffers or `.glb`, one group per node). They share `mesh.rs`: the same
+//!   checks as OBJ (finite corners, repairs as warnings, errors naming the file and the
+//!   facet, face or triangle number) and the materials file `NAME.mtl` beside the mesh
+//!   for formats that have no materials of their own;
 //! - [`builtin`](mod@builtin): scenes written as Rust tables or generated (`cornell`, `cube`,
-//!   `plates`, `perpendicular`, `obstructed`, `room`), used by tests and benchmarks
+//!   `plates`, `perpendicular`, `obstructed`, `room`, `city`), used by tests and benchmarks
 //!   because their form factors are known or their size can be dialled.
 //!
 //! [`write_obj`] writes a scene back as OBJ + MTL; loading that file gives the same
-//! scene. [`open_scene`] takes either kind of name from the command line. Subdivision into patches lives in [`crate::geometry::subdivide`].
+//! scene. [`open_scene`] takes any of these names from the command line (a file by its
+//! extension or `FORMAT:PATH`, or `builtin:NAME[:PARAM]`). Subdivision into patches lives
+//! in [`crate::geometry::subdivide`].
 
 mod builder;
 mod builtin;
 mod city;
 mod duplicates;
 mod error;
+mod gltf;
+mod mesh;
 mod obj;
+mod ply;
 mod polygon;
 mod room;
 mod spec;
+mod stl;
 mod write;
 
 pub use builtin::{builtin, builtin_names, builtin_perpendicular};
@@ -30,7 +42,7 @@ pub use error::SceneError;
 pub use obj::load_obj;
 pub(crate) use polygon::{polygon_area, polygon_normal};
 pub use room::builtin_room;
-pub use spec::open_scene;
+pub use spec::{load_file, open_scene, SceneFormat};
 pub use write::write_obj;
 
 use glam::DVec3;
@@ -62,7 +74,10 @@ pub struct Face {
     pub group: u32,
     /// Index into [`Scene::materials`].
     pub material: u32,
-    /// 1-based line of the `f` statement in the OBJ file; 0 for built-in scenes.
+    /// Where the face came from, 1-based: the line of the `f` statement of an OBJ file,
+    /// the facet of an STL file, the face of a PLY file, the triangle of a glTF file
+    /// (counted over the file's primitives in order; [`Scene::element`] says which);
+    /// 0 for built-in scenes.
     pub line: u32,
 }
 
@@ -98,6 +113,9 @@ pub struct Scene {
     pub source: String,
     /// One line per kind of problem that was repaired or tolerated while loading.
     pub warnings: Vec<String>,
+    /// What [`Face::line`] counts: `line` (OBJ), `facet` (STL), `face` (PLY),
+    /// `triangle` (glTF); empty for built-in scenes.
+    pub element: &'static str,
 }
 
 impl Scene {

@@ -15,11 +15,9 @@ use std::path::{Path, PathBuf};
 
 use glam::DVec3;
 
-use super::polygon::{repair, Repair};
+use super::mesh::{finish, Tally, MAX_COORDINATE};
+use super::polygon::repair;
 use super::{Face, Material, Scene, SceneError};
-
-/// Largest vertex coordinate magnitude accepted (see the `v` statement check).
-const MAX_COORDINATE: f64 = 1e150;
 
 /// One face element (`f`, or `l` which `tobj` also returns as a face) in file order.
 struct Element {
@@ -91,39 +89,8 @@ pub fn load_obj(path: &Path) -> Result<Scene, SceneError> {
     };
     let mut tally = Tally::default();
     add_faces(path, &models, &pre, &mut scene, &mut tally)?;
-
-    let p = path.display();
-    tally.warn(&mut warnings, &p.to_string());
-    if scene.faces.is_empty() {
-        let d = &tally.degenerate;
-        let dropped = if d.n == 0 {
-            String::new()
-        } else {
-            format!(
-                " (dropped {} degenerate face(s): zero area, collinear corners or an area \
-                 too large for f64; first at line {})",
-                d.n, d.first
-            )
-        };
-        return Err(SceneError::Empty {
-            path: path.to_owned(),
-            dropped,
-        });
-    }
-    if !scene.has_emitter() {
-        warnings.push(format!(
-            "{p}: no face uses an emitting material (Ke > 0): a radiosity solve has no light source"
-        ));
-    }
-    let dups = super::duplicates::coincident_duplicates(&scene.faces);
-    if let Some(w) =
-        super::duplicates::duplicates_warning(&p.to_string(), &scene.faces, &scene.groups, &dups)
-    {
-        warnings.push(w);
-    }
     scene.warnings = warnings;
-    debug_assert_eq!(scene.validate(), Ok(()));
-    Ok(scene)
+    finish(path, scene, &tally, "line")
 }
 
 /// The materials of the `mtllib` statements of `pre`, in `mtllib` order, which is the
@@ -197,20 +164,43 @@ fn load_materials(
             },
             other => other,
         })?;
-        let lines = mtl_prepass(&full, &mtl_text)?;
-        let (mats, _) = tobj::load_mtl_buf(&mut Cursor::new(mtl_text.as_bytes())).map_err(|e| {
-            SceneError::Parser {
-                path: full.clone(),
-                message: e.to_string(),
-            }
-        })?;
-        for m in &mats {
-            let at = lines.get(&m.name).cloned().unwrap_or_default();
-            materials.push(convert_material(&full, m, &at, warnings)?);
-        }
+        materials.extend(parse_mtl(&full, &mtl_text, warnings)?);
         mtl_texts.insert(PathBuf::from(lib), mtl_text);
     }
     Ok((materials, mtl_texts))
+}
+
+/// The materials of an MTL file, read (see [`read_text`]) and checked.
+///
+/// # Errors
+/// As [`parse_mtl`], and [`SceneError::Read`] when the file cannot be read.
+pub(super) fn read_mtl(
+    path: &Path,
+    warnings: &mut Vec<String>,
+) -> Result<Vec<Material>, SceneError> {
+    let text = read_text(path, warnings)?;
+    parse_mtl(path, &text, warnings)
+}
+
+/// The materials of the MTL text `text` (from `path`), in file order: each `Kd` in
+/// [0, 1), each `Ke` finite and >= 0, errors naming the line.
+fn parse_mtl(
+    path: &Path,
+    text: &str,
+    warnings: &mut Vec<String>,
+) -> Result<Vec<Material>, SceneError> {
+    let lines = mtl_prepass(path, text)?;
+    let (mats, _) =
+        tobj::load_mtl_buf(&mut Cursor::new(text.as_bytes())).map_err(|e| SceneError::Parser {
+            path: path.to_owned(),
+            message: e.to_string(),
+        })?;
+    mats.iter()
+        .map(|m| {
+            let at = lines.get(&m.name).cloned().unwrap_or_default();
+            convert_material(path, m, &at, warnings)
+        })
+        .collect()
 }
 
 /// The faces of tobj's `models` into `scene`, each named by its line in `pre`:
@@ -309,70 +299,6 @@ fn material_error(path: &Path, pre: &PrePass, el: &Element) -> SceneError {
             path: path.to_owned(),
             line: el.line,
         },
-    }
-}
-
-/// Count and first line of one kind of repair.
-#[derive(Default)]
-struct Count {
-    n: usize,
-    first: u32,
-}
-
-impl Count {
-    fn note(&mut self, line: u32) {
-        if self.n == 0 {
-            self.first = line;
-        }
-        self.n += 1;
-    }
-}
-
-#[derive(Default)]
-struct Tally {
-    degenerate: Count,
-    nonplanar: Count,
-    nonconvex: Count,
-    lines: Count,
-}
-
-impl Tally {
-    fn note(&mut self, what: Repair, line: u32) {
-        match what {
-            Repair::Degenerate => self.degenerate.note(line),
-            Repair::NonPlanar => self.nonplanar.note(line),
-            Repair::NonConvex => self.nonconvex.note(line),
-            Repair::None | Repair::Triangulated => {}
-        }
-    }
-
-    fn warn(&self, out: &mut Vec<String>, p: &str) {
-        let items = [
-            (
-                &self.degenerate,
-                "dropped",
-                "degenerate face(s) (zero area or collinear corners)",
-            ),
-            (
-                &self.nonplanar,
-                "split",
-                "non-planar polygon(s) into triangles",
-            ),
-            (
-                &self.nonconvex,
-                "split",
-                "non-convex quad(s) into triangles",
-            ),
-            (&self.lines, "ignored", "line element(s) (`l`)"),
-        ];
-        for (c, verb, what) in items {
-            if c.n > 0 {
-                out.push(format!(
-                    "{p}: {verb} {} {what}, first at line {}",
-                    c.n, c.first
-                ));
-            }
-        }
     }
 }
 

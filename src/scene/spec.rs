@@ -1,4 +1,5 @@
-//! Naming a scene on the command line: a file path, or a built-in scene as
+//! Naming a scene on the command line: a file path (its format from the extension, or
+//! from a `FORMAT:` prefix such as `stl:mesh.dat`), or a built-in scene as
 //! `builtin:NAME[:PARAM]` (the form [`Scene::source`] records), or `NAME[:PARAM]`
 //! when no file of that name exists.
 
@@ -6,16 +7,74 @@ use std::path::Path;
 
 use super::{builtin, builtin_names, load_obj, Scene, SceneError};
 
-/// Open the scene `spec` names: `builtin:room:200`, `cornell`, `plates:0.5` or a path
-/// to an OBJ file. An existing file always wins over a built-in of the same name.
+/// The mesh file formats a scene can be read from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SceneFormat {
+    /// Wavefront OBJ with MTL materials ([`load_obj`]).
+    Obj,
+    /// STL, ASCII or binary.
+    Stl,
+    /// PLY, ASCII or binary.
+    Ply,
+    /// glTF 2.0, `.gltf` + buffers or `.glb`.
+    Gltf,
+}
+
+impl SceneFormat {
+    /// Names accepted in a `FORMAT:` prefix and by `--format` (`glb` is `gltf`).
+    pub const NAMES: [&'static str; 5] = ["obj", "stl", "ply", "gltf", "glb"];
+
+    /// The format of a name in [`SceneFormat::NAMES`] (any case).
+    pub fn from_name(name: &str) -> Option<SceneFormat> {
+        match name.to_ascii_lowercase().as_str() {
+            "obj" => Some(SceneFormat::Obj),
+            "stl" => Some(SceneFormat::Stl),
+            "ply" => Some(SceneFormat::Ply),
+            "gltf" | "glb" => Some(SceneFormat::Gltf),
+            _ => None,
+        }
+    }
+
+    /// The format of a file by its extension; OBJ for any other extension (files
+    /// without one have always been read as OBJ).
+    pub fn of_path(path: &Path) -> SceneFormat {
+        path.extension()
+            .and_then(|e| e.to_str())
+            .and_then(SceneFormat::from_name)
+            .unwrap_or(SceneFormat::Obj)
+    }
+}
+
+/// Load the mesh file `path` in `format`.
 ///
 /// # Errors
-/// As [`load_obj`] and [`builtin`](fn@builtin); a parameter that is not a number is a
+/// The loader's [`SceneError`], naming the file and the line or element.
+pub fn load_file(path: &Path, format: SceneFormat) -> Result<Scene, SceneError> {
+    match format {
+        SceneFormat::Obj => load_obj(path),
+        SceneFormat::Stl => super::stl::load_stl(path),
+        SceneFormat::Ply => super::ply::load_ply(path),
+        SceneFormat::Gltf => super::gltf::load_gltf(path),
+    }
+}
+
+/// Open the scene `spec` names: `builtin:room:200`, `cornell`, `plates:0.5`, a path to
+/// a mesh file (OBJ, STL, PLY, glTF by extension) or `FORMAT:PATH` (`stl:mesh.dat`).
+/// An existing file always wins over a built-in of the same name.
+///
+/// # Errors
+/// As [`load_file`] and [`builtin`](fn@builtin); a parameter that is not a number is a
 /// [`SceneError::BadParam`].
 pub fn open_scene(spec: &str) -> Result<Scene, SceneError> {
     let explicit = spec.strip_prefix("builtin:");
     if explicit.is_none() && Path::new(spec).exists() {
-        return load_obj(Path::new(spec));
+        let path = Path::new(spec);
+        return load_file(path, SceneFormat::of_path(path));
+    }
+    if let Some((name, path)) = spec.split_once(':') {
+        if let Some(format) = SceneFormat::from_name(name) {
+            return load_file(Path::new(path), format);
+        }
     }
     let body = explicit.unwrap_or(spec);
     let (name, param) = match body.split_once(':') {

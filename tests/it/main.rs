@@ -15,6 +15,7 @@ mod pipeline;
 mod render;
 mod run;
 mod scene;
+mod scene_formats;
 mod service;
 mod solve;
 mod stress_cli;

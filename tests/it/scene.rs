@@ -137,6 +137,7 @@ fn kind(e: &SceneError) -> &'static str {
         SceneError::UnknownBuiltin { .. } => "UnknownBuiltin",
         SceneError::BadParam { .. } => "BadParam",
         SceneError::Write { .. } => "Write",
+        SceneError::Element { .. } => "Element",
     }
 }
 

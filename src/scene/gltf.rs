@@ -1,0 +1,350 @@
+//! Loading a scene from glTF 2.0: `.gltf` (JSON) with its `.bin` buffers, or `.glb`
+//! (binary, buffers inside). The JSON is parsed and validated by the `gltf` crate; the
+//! vertex and index data are read here, after checking that every accessor lies inside
+//! its buffer view and every view inside its buffer (so a short or missing buffer is an
+//! error naming it, never a wrong mesh).
+//!
+//! The nodes of the default scene (else the first) are walked from the roots with their
+//! transforms; every triangle primitive of a node's mesh becomes faces (a transform
+//! that mirrors reverses the corner order, so fronts stay fronts). Groups: the node's
+//! name, else its mesh's, else `node<N>`. Materials: `baseColorFactor` (rgb) is the
+//! reflectance Kd (clamped below 1 with a warning, since a white of exactly 1 keeps all
+//! light), `emissiveFactor` × `KHR_materials_emissive_strength` the exitance Ke, in the
+//! scene's radiosity units; textures are ignored. A materials file beside the file
+//! ([`super::mesh::materials_file`]) overrides by group name. Triangles are numbered
+//! from 1 over the primitives in walk order: errors and warnings name them so.
+
+use std::collections::HashMap;
+use std::path::Path;
+
+use glam::DMat4;
+
+use super::mesh::{check_point, one_line, Assembler};
+use super::{Material, Scene, SceneError};
+
+const UNIT: &str = "triangle";
+
+/// Largest node depth followed (a guard against cycles the JSON could declare).
+const MAX_DEPTH: usize = 256;
+
+/// Largest reflectance a base colour becomes.
+const MAX_KD: f32 = 0.99;
+
+/// Load a `.gltf` or `.glb` file.
+///
+/// # Errors
+/// [`SceneError::Read`] when the file cannot be read; [`SceneError::Element`] naming the
+/// buffer, accessor, primitive or triangle for a file the `gltf` crate refuses, a
+/// missing or short buffer, an accessor outside its data, a primitive that is not
+/// triangles, an index out of range or a coordinate that is not finite;
+/// [`SceneError::Empty`] when no triangle is usable.
+pub(super) fn load_gltf(path: &Path) -> Result<Scene, SceneError> {
+    let bytes = std::fs::read(path).map_err(|cause| SceneError::Read {
+        path: path.to_owned(),
+        cause,
+    })?;
+    let err = |element: String, reason: String| SceneError::Element {
+        path: path.to_owned(),
+        element,
+        reason,
+    };
+    let gltf = ::gltf::Gltf::from_slice(&bytes).map_err(|e| {
+        err(
+            "file".into(),
+            format!("not readable as glTF 2.0: {}", one_line(e)),
+        )
+    })?;
+    let buffers = load_buffers(path, &gltf)?;
+    let doc = &gltf.document;
+
+    let mut load = Load {
+        path,
+        out: Assembler::new(path, UNIT)?,
+        buffers,
+        materials: HashMap::new(),
+        next: 1,
+    };
+    let roots: Vec<::gltf::Node<'_>> = match doc.default_scene().or_else(|| doc.scenes().next()) {
+        Some(s) => s.nodes().collect(),
+        None => Vec::new(),
+    };
+    for node in roots {
+        load.node(&node, DMat4::IDENTITY, 0)?;
+    }
+    load.out.finish()
+}
+
+/// The data of every buffer: the GLB's binary chunk, or a file the URI names relative
+/// to the glTF file; each at least as long as its `byteLength`.
+fn load_buffers(path: &Path, gltf: &::gltf::Gltf) -> Result<Vec<Vec<u8>>, SceneError> {
+    let dir = path.parent().unwrap_or(Path::new(""));
+    let mut out = Vec::new();
+    for b in gltf.document.buffers() {
+        let name = format!("buffer {}", b.index());
+        let err = |reason: String| SceneError::Element {
+            path: path.to_owned(),
+            element: name.clone(),
+            reason,
+        };
+        let data = match b.source() {
+            ::gltf::buffer::Source::Bin => gltf
+                .blob
+                .clone()
+                .ok_or_else(|| err("refers to the GLB binary chunk, which the file does not have".into()))?,
+            ::gltf::buffer::Source::Uri(uri) if uri.starts_with("data:") => {
+                return Err(err(
+                    "embedded (data: URI) buffers are not read: export as .glb or as .gltf with a separate .bin".into(),
+                ))
+            }
+            ::gltf::buffer::Source::Uri(uri) => {
+                let file = dir.join(uri);
+                std::fs::read(&file).map_err(|e| {
+                    err(format!("cannot read {}: {e}", file.display()))
+                })?
+            }
+        };
+        if data.len() < b.length() {
+            return Err(err(format!(
+                "has {} bytes, its byteLength says {}: truncated",
+                data.len(),
+                b.length()
+            )));
+        }
+        out.push(data);
+    }
+    Ok(out)
+}
+
+/// The state of one load: where faces go, the buffers, the glTF materials already
+/// converted, and the number of the next triangle.
+struct Load<'p> {
+    path: &'p Path,
+    out: Assembler<'p>,
+    buffers: Vec<Vec<u8>>,
+    materials: HashMap<usize, u32>,
+    next: u32,
+}
+
+impl Load<'_> {
+    fn err(&self, element: String, reason: String) -> SceneError {
+        SceneError::Element {
+            path: self.path.to_owned(),
+            element,
+            reason,
+        }
+    }
+
+    fn node(
+        &mut self,
+        node: &::gltf::Node<'_>,
+        parent: DMat4,
+        depth: usize,
+    ) -> Result<(), SceneError> {
+        if depth > MAX_DEPTH {
+            return Err(self.err(
+                format!("node {}", node.index()),
+                format!("nodes nested deeper than {MAX_DEPTH} (a cycle?)"),
+            ));
+        }
+        let m = node.transform().matrix().map(|c| c.map(f64::from));
+        let world = parent * DMat4::from_cols_array_2d(&m);
+        if let Some(mesh) = node.mesh() {
+            let group = node
+                .name()
+                .or(mesh.name())
+                .map(str::to_owned)
+                .unwrap_or_else(|| format!("node{}", node.index()));
+            for prim in mesh.primitives() {
+                self.primitive(&prim, &group, world, mesh.index())?;
+            }
+        }
+        for child in node.children() {
+            self.node(&child, world, depth + 1)?;
+        }
+        Ok(())
+    }
+
+    fn primitive(
+        &mut self,
+        prim: &::gltf::Primitive<'_>,
+        group: &str,
+        world: DMat4,
+        mesh: usize,
+    ) -> Result<(), SceneError> {
+        let here = format!("mesh {mesh} primitive {}", prim.index());
+        if prim.mode() != ::gltf::mesh::Mode::Triangles {
+            return Err(self.err(
+                here,
+                format!("mode {:?}: only triangle lists are read", prim.mode()),
+            ));
+        }
+        let pos = prim
+            .get(&::gltf::Semantic::Positions)
+            .ok_or_else(|| self.err(here.clone(), "no POSITION attribute".into()))?;
+        use ::gltf::accessor::{DataType, Dimensions};
+        if pos.data_type() != DataType::F32 || pos.dimensions() != Dimensions::Vec3 {
+            return Err(self.err(
+                format!("accessor {}", pos.index()),
+                "POSITION must be float VEC3".into(),
+            ));
+        }
+        let raw = self.accessor(&pos, 12)?;
+        let positions: Vec<[f64; 3]> = raw
+            .map(|b| {
+                let f =
+                    |k: usize| f64::from(f32::from_le_bytes([b[k], b[k + 1], b[k + 2], b[k + 3]]));
+                [f(0), f(4), f(8)]
+            })
+            .collect();
+        let indices: Vec<u64> = match prim.indices() {
+            None => (0..positions.len() as u64).collect(),
+            Some(acc) => {
+                let size = match (acc.data_type(), acc.dimensions()) {
+                    (DataType::U8, Dimensions::Scalar) => 1,
+                    (DataType::U16, Dimensions::Scalar) => 2,
+                    (DataType::U32, Dimensions::Scalar) => 4,
+                    _ => {
+                        return Err(self.err(
+                            format!("accessor {}", acc.index()),
+                            "indices must be unsigned byte, short or int scalars".into(),
+                        ))
+                    }
+                };
+                self.accessor(&acc, size)?
+                    .map(|b| b.iter().rev().fold(0u64, |v, &x| (v << 8) | u64::from(x)))
+                    .collect()
+            }
+        };
+        if !indices.len().is_multiple_of(3) {
+            return Err(self.err(
+                here,
+                format!("{} indices: not a whole number of triangles", indices.len()),
+            ));
+        }
+        let material = self.material(prim, group)?;
+        let mirror = world.determinant() < 0.0;
+        for tri in indices.chunks_exact(3) {
+            let at = self.next;
+            self.next += 1;
+            let mut corners = Vec::with_capacity(3);
+            for &i in tri {
+                let p = positions.get(i as usize).ok_or_else(|| {
+                    self.err(
+                        format!("{UNIT} {at} ({here})"),
+                        format!(
+                            "vertex index {i} out of range ({} vertices)",
+                            positions.len()
+                        ),
+                    )
+                })?;
+                let p = check_point(self.path, UNIT, at, *p)?;
+                let w = world.transform_point3(p);
+                corners.push(check_point(self.path, UNIT, at, w.to_array())?);
+            }
+            if mirror {
+                corners.reverse();
+            }
+            self.out.polygon(group, material, at, &corners);
+        }
+        Ok(())
+    }
+
+    /// The bytes of each element of `acc` (`size` bytes each), after checking that all
+    /// lie inside its view and the view inside its buffer.
+    fn accessor<'a>(
+        &'a self,
+        acc: &::gltf::Accessor<'_>,
+        size: usize,
+    ) -> Result<impl Iterator<Item = &'a [u8]> + 'a, SceneError> {
+        let name = format!("accessor {}", acc.index());
+        if acc.sparse().is_some() {
+            return Err(self.err(name, "sparse accessors are not read".into()));
+        }
+        let view = acc
+            .view()
+            .ok_or_else(|| self.err(name.clone(), "has no buffer view".into()))?;
+        let data = &self.buffers[view.buffer().index()];
+        let view_end = view.offset().checked_add(view.length());
+        let Some(view_bytes) = view_end.and_then(|end| data.get(view.offset()..end)) else {
+            return Err(self.err(
+                format!("buffer view {}", view.index()),
+                format!(
+                    "bytes {}..+{} lie outside buffer {} ({} bytes)",
+                    view.offset(),
+                    view.length(),
+                    view.buffer().index(),
+                    data.len()
+                ),
+            ));
+        };
+        let stride = view.stride().unwrap_or(size).max(size);
+        let count = acc.count();
+        let need = match count {
+            0 => Some(0),
+            c => (c - 1)
+                .checked_mul(stride)
+                .and_then(|x| x.checked_add(size))
+                .and_then(|x| x.checked_add(acc.offset())),
+        };
+        if need.is_none_or(|n| n > view_bytes.len()) {
+            return Err(self.err(
+                name,
+                format!(
+                    "{count} elements of {size} bytes (stride {stride}, offset {}) do not fit in buffer view {} ({} bytes)",
+                    acc.offset(),
+                    view.index(),
+                    view_bytes.len()
+                ),
+            ));
+        }
+        let start = acc.offset();
+        Ok((0..count).map(move |k| &view_bytes[start + k * stride..start + k * stride + size]))
+    }
+
+    /// The scene material of a primitive (see the module docs for the precedence).
+    fn material(&mut self, prim: &::gltf::Primitive<'_>, group: &str) -> Result<u32, SceneError> {
+        let m = prim.material();
+        let own = match m.index() {
+            None => None,
+            Some(k) => Some(match self.materials.get(&k) {
+                Some(&id) => id,
+                None => self.convert(&m, k)?,
+            }),
+        };
+        Ok(self.out.material_for(group, own))
+    }
+
+    /// A glTF material as a scene material (added to the scene).
+    fn convert(&mut self, m: &::gltf::Material<'_>, k: usize) -> Result<u32, SceneError> {
+        {
+            let name = m
+                .name()
+                .map(str::to_owned)
+                .unwrap_or_else(|| format!("material{k}"));
+            let base = m.pbr_metallic_roughness().base_color_factor();
+            let mut rho = [base[0], base[1], base[2]].map(|x| x.max(0.0));
+            if rho.iter().any(|&x| x > MAX_KD) {
+                self.out.warn(format!(
+                    "{}: material `{name}`: baseColorFactor above {MAX_KD} read as {MAX_KD} (a reflectance of 1 keeps all light)",
+                    self.path.display()
+                ));
+                rho = rho.map(|x| x.min(MAX_KD));
+            }
+            let strength = m.emissive_strength().unwrap_or(1.0);
+            let emission = m.emissive_factor().map(|e| (e * strength).max(0.0));
+            if emission.iter().any(|e| !e.is_finite()) {
+                return Err(self.err(
+                    format!("material {k}"),
+                    format!("emissiveFactor × emissive strength {strength} is not finite"),
+                ));
+            }
+            let id = self.out.own_material(Material {
+                name,
+                rho,
+                emission,
+            });
+            self.materials.insert(k, id);
+            Ok(id)
+        }
+    }
+}
