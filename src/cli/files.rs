@@ -19,6 +19,18 @@ pub(crate) struct VerifyArgs {
     /// largest difference, and rows present in only one of them.
     #[arg(long, value_name = "OTHER.ffz")]
     pub against: Option<PathBuf>,
+    /// A row whose sum (stored + dropped mass) exceeds 1 + TOL fails the file (exit 3):
+    /// more light would leave a patch towards the others than leaves it. A finite
+    /// number ≥ 0.
+    #[arg(long, value_name = "TOL", default_value_t = ffstream::ffz::ROW_SUM_TOL, value_parser = super::choices::number::non_negative)]
+    pub row_sum_tol: f64,
+    /// Also check every stored entry against its unoccluded form factor F0, recomputed
+    /// from the patch table (contour kernel, no occluders): an entry above F0 (1 + TOL)
+    /// fails the file, since visibility can only lower a form factor. Costs about a
+    /// compute without visibility, on every core. TOL (default 1e-3) covers the float32
+    /// rounding and the kernel error of the file's method.
+    #[arg(long, value_name = "TOL", num_args = 0..=1, default_missing_value = "1e-3", value_parser = super::choices::number::non_negative)]
+    pub unoccluded: Option<f64>,
 }
 
 #[derive(Args, Debug)]
@@ -33,7 +45,13 @@ pub(crate) struct ExportArgs {
     /// order.
     #[arg(long, value_name = "F.txt")]
     pub sparse: Option<PathBuf>,
-    /// Leave entries below EPS out of --matrix and --sparse (uDALES keeps F ≥ 5e-7);
+    /// Write the matrix as a NumPy .npz of CSR arrays (data float32, indices, indptr,
+    /// shape, format), the archive `scipy.sparse.save_npz` writes:
+    /// `scipy.sparse.load_npz("F.npz")` opens it without ffstream's reader. Goes
+    /// through a spill file of 8 bytes per entry beside it (removed afterwards).
+    #[arg(long, value_name = "F.npz")]
+    pub npz: Option<PathBuf>,
+    /// Leave entries below EPS out of --matrix, --sparse and --npz (uDALES keeps F ≥ 5e-7);
     /// default 0: every non-zero entry. A finite number ≥ 0.
     #[arg(long, value_name = "EPS", default_value_t = 0.0, value_parser = super::choices::number::non_negative)]
     pub min_ff: f64,
@@ -51,7 +69,12 @@ pub(super) fn info(a: InfoArgs) -> anyhow::Result<ExitCode> {
 
 pub(super) fn verify(a: VerifyArgs) -> anyhow::Result<ExitCode> {
     let mut out = std::io::stdout().lock();
-    let ok = ffstream::ffz::tools::verify(&a.file, a.against.as_deref(), &mut out)?;
+    let checks = ffstream::ffz::tools::VerifyChecks {
+        against: a.against.as_deref(),
+        row_sum_tol: a.row_sum_tol,
+        unoccluded_tol: a.unoccluded,
+    };
+    let ok = ffstream::ffz::tools::verify_with(&a.file, checks, &mut out)?;
     Ok(if ok {
         ExitCode::SUCCESS
     } else {
@@ -60,14 +83,15 @@ pub(super) fn verify(a: VerifyArgs) -> anyhow::Result<ExitCode> {
 }
 
 pub(super) fn export(a: ExportArgs) -> anyhow::Result<ExitCode> {
-    if a.matrix.is_none() && a.sparse.is_none() && a.patches_csv.is_none() {
+    if a.matrix.is_none() && a.sparse.is_none() && a.npz.is_none() && a.patches_csv.is_none() {
         anyhow::bail!(
-            "nothing to export: give --matrix F.mtx, --sparse F.txt and/or --patches-csv patches.csv"
+            "nothing to export: give --matrix F.mtx, --sparse F.txt, --npz F.npz and/or --patches-csv patches.csv"
         );
     }
     let targets = ffstream::ffz::tools::ExportTargets {
         matrix: a.matrix.as_deref(),
         sparse: a.sparse.as_deref(),
+        npz: a.npz.as_deref(),
         min_ff: a.min_ff as f32,
         patches_csv: a.patches_csv.as_deref(),
     };

@@ -13,6 +13,8 @@
 //! | `recover.rs` | the recovery scan for files without a usable index |
 //! | `reader.rs` | [`FfzReader`]: open, random row access, sequential scan |
 //! | `verify.rs` | [`FfzReader::verify`] and [`compare`] |
+//! | `unoccluded.rs` | `verify --unoccluded`: entries against their unoccluded form factor |
+//! | `npz.rs` | `export --npz`: the CSR arrays as `scipy.sparse.save_npz` writes them |
 //! | `tools.rs` | `info`, `verify`, `export` for the command line |
 //! | `presence.rs` | [`RowPresence`]: which rows a file holds |
 
@@ -20,12 +22,14 @@ mod chunk;
 mod error;
 mod index;
 mod meta;
+pub mod npz;
 mod presence;
 mod reader;
 mod recover;
 pub mod size;
 pub mod spec;
 pub mod tools;
+mod unoccluded;
 mod verify;
 mod writer;
 
@@ -38,5 +42,6 @@ pub use meta::{FileMeta, Layout};
 pub use presence::{RowPresence, RowState};
 pub use reader::FfzReader;
 pub use recover::{torn_header, BadRegion};
-pub use verify::{compare, BadChunk, CompareReport, VerifyOptions, VerifyReport};
+pub use unoccluded::{unoccluded_excess, UnoccludedReport, UNOCCLUDED_ABS_TOL};
+pub use verify::{compare, BadChunk, CompareReport, VerifyOptions, VerifyReport, ROW_SUM_TOL};
 pub use writer::{FfzWriter, WriterOptions, WriterStats};

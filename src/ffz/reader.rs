@@ -299,8 +299,29 @@ impl FfzReader {
     pub(crate) fn decode_chunk(&self, k: u32) -> Result<DecodedChunk> {
         let (h, _) = self.chunk_record(k)?;
         let start = self.chunk_offsets[k as usize] as usize; // exists: chunk_record checked k
-        chunk::decode_record(h, &self.map[start..], self.header.n, self.meta.layout)
-            .map_err(|(rel, w)| self.chunk_err(k, rel, w))
+        let decoded = chunk::decode_record(h, &self.map[start..], self.header.n, self.meta.layout)
+            .map_err(|(rel, w)| self.chunk_err(k, rel, w));
+        self.release(start, spec::CHUNK_HEADER_LEN + h.compressed_len as usize);
+        decoded
+    }
+
+    /// Let the kernel drop our mapping of bytes `start..start + len` (a chunk just
+    /// decoded into memory of its own): the pages stay in the page cache, but no longer
+    /// count in this process's resident set, so a sweep over a file larger than memory
+    /// has a peak RSS of one chunk, not of the file.
+    fn release(&self, start: usize, len: usize) {
+        let len = len.min(self.map.len().saturating_sub(start));
+        #[cfg(unix)]
+        if len > 0 {
+            // SAFETY: the map is a read-only shared mapping of a file: after
+            // MADV_DONTNEED a read faults the same bytes in again from the page cache
+            // (or the file), so no reader, even one holding a slice of these bytes,
+            // sees anything else. (Only private or anonymous mappings lose data.)
+            let _ = unsafe {
+                self.map
+                    .unchecked_advise_range(memmap2::UncheckedAdvice::DontNeed, start, len)
+            };
+        }
     }
 
     fn cached_chunk(&self, k: u32) -> Result<Arc<DecodedChunk>> {

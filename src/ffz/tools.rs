@@ -5,6 +5,7 @@ use std::io::{BufWriter, Write};
 use std::path::Path;
 
 use super::error::{FfzError, Result};
+use super::npz::Spill;
 use super::reader::FfzReader;
 use super::spec;
 use super::verify::{compare, VerifyOptions};
@@ -15,7 +16,9 @@ fn out_err(path: &Path) -> impl Fn(std::io::Error) -> FfzError + '_ {
 }
 
 /// Print what a file holds: header, layout, n, rows present/skipped/missing, chunks,
-/// bytes on disk against raw bytes, compression ratio, and any recovery warnings.
+/// bytes on disk against raw bytes, compression ratio, the sky view factors (min, max,
+/// mean of 1 − row sum: one decompressing pass, no checksums), and any recovery
+/// warnings.
 ///
 /// # Errors
 /// Opening errors of [`FfzReader::open`]; `Io` when `out` fails.
@@ -106,22 +109,90 @@ pub fn info(path: &Path, out: &mut dyn Write) -> Result<()> {
         }
     )
     .map_err(&e)?;
+    writeln!(out, "{}", sky_view_summary(&r)).map_err(&e)?;
     for w in r.warnings() {
         writeln!(out, "warning: {w}").map_err(&e)?;
     }
     Ok(())
 }
 
-/// Check a file (every chunk, index, row sums, reciprocity) and, with `against`,
-/// compare it row by row with another file. Prints a report; returns `false` when
-/// something failed (bad chunks, unusable index, missing rows, negative or non-finite
-/// entries, or rows that differ from `against`).
+/// The `sky view:` line of `info` and `verify`.
+fn sky_view_line(lo: f64, hi: f64, mean: f64) -> String {
+    format!("sky view:    min {lo:.7} max {hi:.7} mean {mean:.7} (1 - row sum: the share of a patch's hemisphere that sees no surface)")
+}
+
+/// `info`'s sky view factors from one pass over the rows (none for a file without
+/// rows; the chunk error in place of the figures when a chunk is corrupt: `verify`
+/// lists them all).
+fn sky_view_summary(r: &FfzReader) -> String {
+    let (mut lo, mut hi, mut total, mut rows) = (f64::INFINITY, f64::NEG_INFINITY, 0.0, 0u64);
+    let scanned = r.scan(|row| {
+        if !matches!(row.values, crate::rows::RowValues::Skipped) {
+            let sky = 1.0 - row.true_sum();
+            lo = lo.min(sky);
+            hi = hi.max(sky);
+            total += sky;
+            rows += 1;
+        }
+    });
+    match scanned {
+        Err(err) => format!("sky view:    not computed: {err}"),
+        Ok(()) if rows == 0 => "sky view:    no rows".to_string(),
+        Ok(()) => sky_view_line(lo, hi, total / rows as f64),
+    }
+}
+
+/// What `verify` checks beyond the structure of the file.
+#[derive(Clone, Copy, Debug)]
+pub struct VerifyChecks<'a> {
+    /// Compare row by row with this file.
+    pub against: Option<&'a Path>,
+    /// Rows summing above 1 + this fail ([`VerifyOptions::row_sum_tol`]).
+    pub row_sum_tol: f64,
+    /// Check every stored entry against its unoccluded form factor with this relative
+    /// tolerance ([`super::unoccluded_excess`]); `None`: not checked (it costs about an
+    /// unoccluded compute).
+    pub unoccluded_tol: Option<f64>,
+}
+
+impl Default for VerifyChecks<'_> {
+    fn default() -> Self {
+        VerifyChecks {
+            against: None,
+            row_sum_tol: super::ROW_SUM_TOL,
+            unoccluded_tol: None,
+        }
+    }
+}
+
+/// [`verify_with`] with the default checks and `against`.
+///
+/// # Errors
+/// As [`verify_with`].
+pub fn verify(path: &Path, against: Option<&Path>, out: &mut dyn Write) -> Result<bool> {
+    let checks = VerifyChecks {
+        against,
+        ..VerifyChecks::default()
+    };
+    verify_with(path, checks, out)
+}
+
+/// Check a file (every chunk, index, row sums, sky view factors, reciprocity; with
+/// `checks.unoccluded_tol` every entry against its unoccluded bound) and, with
+/// `checks.against`, compare it row by row with another file. Prints a report; returns
+/// `false` when something failed (bad chunks, unusable index, missing rows, negative or
+/// non-finite entries, rows summing above 1 + tolerance, entries above their
+/// unoccluded bound, or rows that differ from `against`).
 ///
 /// # Errors
 /// Opening errors of either file; `Io` when `out` fails.
-pub fn verify(path: &Path, against: Option<&Path>, out: &mut dyn Write) -> Result<bool> {
+pub fn verify_with(path: &Path, checks: VerifyChecks<'_>, out: &mut dyn Write) -> Result<bool> {
+    let against = checks.against;
     let r = FfzReader::open(path)?;
-    let rep = r.verify();
+    let rep = r.verify_with(VerifyOptions {
+        row_sum_tol: checks.row_sum_tol,
+        ..VerifyOptions::default()
+    });
     let e = out_err(path);
     writeln!(out, "file:        {}", path.display()).map_err(&e)?;
     for w in &rep.open_warnings {
@@ -181,6 +252,26 @@ pub fn verify(path: &Path, against: Option<&Path>, out: &mut dyn Write) -> Resul
         rep.row_sum_min, rep.row_sum_max, rep.row_sum_mean, rep.dropped_max
     )
     .map_err(&e)?;
+    if rep.rows_checked > 0 {
+        let (lo, hi, mean) = rep.sky_view();
+        writeln!(out, "{}", sky_view_line(lo, hi, mean)).map_err(&e)?;
+    }
+    if let Some((row, sum)) = rep.worst_above_one {
+        writeln!(
+            out,
+            "FAIL: {} rows sum above 1 + {:e} (largest: row {row}, {sum:.7}): more light would leave those patches towards the others than leaves them (duplicate faces? a kernel fault?)",
+            rep.rows_above_one, rep.row_sum_tol
+        )
+        .map_err(&e)?;
+    }
+    if let Some((row, sum)) = rep.worst_dropped_above_one {
+        writeln!(
+            out,
+            "warning:     {} top-k rows sum above 1 + {:e} only with their dropped mass (largest: row {row}, {sum:.7}): the estimate of what top-k left out is too high there",
+            rep.dropped_above_one, rep.row_sum_tol
+        )
+        .map_err(&e)?;
+    }
     if let Some(rc) = &rep.reciprocity {
         let worst = rc
             .worst
@@ -194,6 +285,24 @@ pub fn verify(path: &Path, against: Option<&Path>, out: &mut dyn Write) -> Resul
         .map_err(&e)?;
     }
     let mut ok = rep.ok();
+    if let Some(tol) = checks.unoccluded_tol {
+        let u = super::unoccluded_excess(&r, tol, 0)?;
+        writeln!(
+            out,
+            "unoccluded:  {} of {} stored entries above their unoccluded form factor F0 (1 + {tol:e}) (F0 from the patch table: contour kernel, no occluders)",
+            u.above, u.entries
+        )
+        .map_err(&e)?;
+        if let Some((i, j, f, f0)) = u.worst {
+            writeln!(
+                out,
+                "FAIL: entry ({i}, {j}) = {f:e} exceeds its unoccluded value {f0:e} by {:.3e} (relative): visibility can only lower a form factor",
+                f64::from(f) / f0 - 1.0
+            )
+            .map_err(&e)?;
+            ok = false;
+        }
+    }
     if let Some(other) = against {
         let b = FfzReader::open(other)?;
         let c = compare(&r, &b, VerifyOptions::default())?;
@@ -229,10 +338,12 @@ pub fn verify(path: &Path, against: Option<&Path>, out: &mut dyn Write) -> Resul
 
 /// Write to each `(path, head)` its head, then `i j F_ij` (1-based) for every entry
 /// `kept` accepts, row by row: one pass over the chunks for all of them.
+/// With `spill`, each row's kept entries go there too (for `--npz`).
 fn write_entries(
     r: &FfzReader,
     outputs: &[(&Path, String)],
     kept: impl Fn(f32) -> bool,
+    mut spill: Option<&mut Spill>,
 ) -> Result<()> {
     let mut sinks = Vec::with_capacity(outputs.len());
     for (out, head) in outputs {
@@ -243,10 +354,18 @@ fn write_entries(
         sinks.push((*out, w));
     }
     let mut werr: Option<(&Path, std::io::Error)> = None;
+    let mut serr: Option<FfzError> = None;
+    let (mut cols, mut vals) = (Vec::new(), Vec::new());
     r.scan(|row| {
         let i = row.index as u64 + 1;
+        cols.clear();
+        vals.clear();
         row.for_each_nonzero(|j, x| {
             if werr.is_none() && kept(x) {
+                if spill.is_some() {
+                    cols.push(j);
+                    vals.push(x);
+                }
                 for (out, w) in sinks.iter_mut() {
                     if let Err(err) = writeln!(w, "{i} {} {x:e}", j as u64 + 1) {
                         werr = Some((out, err));
@@ -255,9 +374,17 @@ fn write_entries(
                 }
             }
         });
+        if let (Some(s), None) = (spill.as_deref_mut(), &serr) {
+            if let Err(e) = s.push(row.index, &cols, &vals) {
+                serr = Some(e);
+            }
+        }
     })?;
     if let Some((out, err)) = werr {
         return Err(FfzError::io(out, "write", err));
+    }
+    if let Some(e) = serr {
+        return Err(e);
     }
     for (out, mut w) in sinks {
         w.flush().map_err(|e| FfzError::io(out, "write", e))?;
@@ -280,16 +407,20 @@ pub struct ExportTargets<'a> {
     /// Sparse text, View3D/uDALES style: `#` header lines, then one `i j F_ij` per line
     /// (1-based).
     pub sparse: Option<&'a Path>,
-    /// Entries below this are left out of both matrix outputs (0: every non-zero).
+    /// NumPy `.npz` of the CSR arrays, as `scipy.sparse.save_npz` writes them
+    /// ([`super::npz`]).
+    pub npz: Option<&'a Path>,
+    /// Entries below this are left out of the matrix outputs (0: every non-zero).
     pub min_ff: f32,
     /// The patch table as CSV (0-based patch ids).
     pub patches_csv: Option<&'a Path>,
 }
 
-/// Export the matrix as Matrix Market and/or sparse text (rows in file order; dense
-/// rows give their entries ≥ `min_ff` and non-zero, top-k rows those of their stored
-/// entries), and/or the patch table as CSV. Streams: at most two passes over the
-/// chunks, never the whole matrix in memory.
+/// Export the matrix as Matrix Market, sparse text (rows in file order) and/or `.npz`
+/// (rows in row order: dense rows give their entries ≥ `min_ff` and non-zero, top-k
+/// rows those of their stored entries), and/or the patch table as CSV. Streams: at
+/// most two passes over the chunks, never the whole matrix in memory (`.npz` goes
+/// through a spill file of 8 bytes per entry beside it).
 ///
 /// # Errors
 /// Opening errors; `Chunk` when a chunk is corrupt; `Io` naming the output file.
@@ -348,8 +479,23 @@ pub fn export(path: &Path, to: ExportTargets<'_>) -> Result<()> {
         );
         outputs.push((txt, head));
     }
-    if !outputs.is_empty() {
-        write_entries(&r, &outputs, kept)?;
+    if !outputs.is_empty() || to.npz.is_some() {
+        let mut spill = match to.npz {
+            Some(npz) => Some(Spill::create(npz, r.n())?),
+            None => None,
+        };
+        let written = write_entries(&r, &outputs, kept, spill.as_mut());
+        if let (Some(s), Some(npz)) = (spill, to.npz) {
+            match written {
+                Ok(()) => s.finish(npz)?,
+                Err(e) => {
+                    s.discard();
+                    return Err(e);
+                }
+            }
+        } else {
+            written?;
+        }
     }
     if let Some(csv) = to.patches_csv {
         let e = |err| FfzError::io(csv, "write", err);

@@ -60,7 +60,8 @@ pub(crate) fn meta(layout: Layout, patches: PatchSet) -> FileMeta {
 }
 
 /// Row i of a random matrix, deterministic in (seed, i): about 1 row in 11 skipped,
-/// 1 in 13 empty (sparse) or all-zero (dense), the rest with random values.
+/// 1 in 13 empty (sparse) or all-zero (dense), the rest with random values, each below
+/// 1 / n (dense) or 0.9 / min(k, n) (sparse) so a row sums below 1 as form factors do.
 pub(crate) fn row(seed: u64, i: u32, n: u32, layout: Layout) -> Row {
     let mut r = SplitMix64::new(seed ^ (i as u64).wrapping_mul(0x2545_F491_4F6C_DD1D));
     if r.below(11) == 0 {
@@ -74,7 +75,7 @@ pub(crate) fn row(seed: u64, i: u32, n: u32, layout: Layout) -> Row {
                     if empty || j == i || r.below(4) == 0 {
                         0.0
                     } else {
-                        r.next_f32() * 1e-2
+                        r.next_f32() / n as f32
                     }
                 })
                 .collect();
@@ -93,7 +94,8 @@ pub(crate) fn row(seed: u64, i: u32, n: u32, layout: Layout) -> Row {
             }
             cols.sort_unstable();
             cols.dedup();
-            let vals = cols.iter().map(|_| r.next_f32() * 0.1).collect();
+            let top = 0.9 / k.min(n).max(1) as f32;
+            let vals = cols.iter().map(|_| r.next_f32() * top).collect();
             Row {
                 index: i,
                 values: RowValues::Sparse { cols, vals },

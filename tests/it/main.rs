@@ -17,6 +17,7 @@ mod run;
 mod scene;
 mod scene_formats;
 mod service;
+mod sky_view;
 mod solve;
 mod stress_cli;
 mod stress_corrupt;

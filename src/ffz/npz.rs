@@ -1,0 +1,206 @@
+//! `export --npz`: the matrix as the NumPy `.npz` archive that `scipy.sparse.save_npz`
+//! writes for a CSR matrix, so `scipy.sparse.load_npz` opens it without our reader.
+//!
+//! The archive (a zip file, entries stored uncompressed, zip64 where an entry passes
+//! 4 GiB) holds five `.npy` arrays, the keys `load_npz` reads: `format` (the bytes
+//! `csr`, dtype `|S3`), `shape` (`<i8`, `[n, n]`), `indptr` (n + 1 offsets), `indices`
+//! (column of each entry, ascending within a row) and `data` (`<f4`, F_ij). `indptr`
+//! and `indices` are `<i4` when every offset fits in 31 bits, else `<i8` (what
+//! scipy picks). The `.npy` header is format version 1.0, padded with spaces so the
+//! data starts on a 64-byte boundary.
+//!
+//! Streaming: a CSR matrix lists rows in order, the file holds them in any order.
+//! The export's entry pass appends each row's kept entries to a spill file beside the
+//! output (its columns, then its values) and notes where each row starts (n numbers);
+//! this module then writes `indices` and `data` by reading the spill file back in
+//! row order (positioned reads, one row at a time). Memory is O(n) whatever the number of entries; disk is the
+//! archive plus a spill of 8 bytes per entry, removed afterwards.
+
+use std::fs::File;
+use std::io::{BufWriter, Write};
+use std::path::{Path, PathBuf};
+
+use super::error::{FfzError, Result};
+
+/// Where each row's entries are in the spill file, and how many it kept.
+#[derive(Debug)]
+pub(crate) struct Spill {
+    path: PathBuf,
+    out: BufWriter<File>,
+    len: u64,
+    /// Byte offset of each row's entries (rows without entries: unused).
+    offsets: Vec<u64>,
+    /// Entries kept of each row.
+    counts: Vec<u64>,
+}
+
+impl Spill {
+    /// A spill file for an `n`-row matrix written to `npz` (`NAME.npz.spill` beside it).
+    pub(crate) fn create(npz: &Path, n: u32) -> Result<Self> {
+        let mut name = npz.as_os_str().to_owned();
+        name.push(".spill");
+        let path = PathBuf::from(name);
+        let f = File::create(&path).map_err(|e| FfzError::io(&path, "create", e))?;
+        Ok(Spill {
+            out: BufWriter::with_capacity(1 << 20, f),
+            path,
+            len: 0,
+            offsets: vec![0; n as usize],
+            counts: vec![0; n as usize],
+        })
+    }
+
+    /// Append row `i`'s kept entries (ascending columns). Each row once.
+    pub(crate) fn push(&mut self, i: u32, cols: &[u32], vals: &[f32]) -> Result<()> {
+        let e = |err| FfzError::io(&self.path, "write", err);
+        self.offsets[i as usize] = self.len;
+        self.counts[i as usize] = cols.len() as u64;
+        for c in cols {
+            self.out.write_all(&c.to_le_bytes()).map_err(e)?;
+        }
+        for v in vals {
+            self.out.write_all(&v.to_le_bytes()).map_err(e)?;
+        }
+        self.len += 8 * cols.len() as u64;
+        Ok(())
+    }
+
+    /// Write the archive to `npz` and remove the spill file.
+    ///
+    /// # Errors
+    /// `Io` naming the archive or the spill file.
+    pub(crate) fn finish(mut self, npz: &Path) -> Result<()> {
+        let result = self.write_archive(npz);
+        let _ = std::fs::remove_file(&self.path);
+        result
+    }
+
+    /// Remove the spill file without writing the archive (the export failed).
+    pub(crate) fn discard(self) {
+        let _ = std::fs::remove_file(&self.path);
+    }
+
+    fn write_archive(&mut self, npz: &Path) -> Result<()> {
+        self.out
+            .flush()
+            .map_err(|e| FfzError::io(&self.path, "write", e))?;
+        let spill = File::open(&self.path).map_err(|e| FfzError::io(&self.path, "open", e))?;
+        // Row i's columns and values, read back with positioned reads (not a map, so
+        // the spill's pages count in the page cache, not in this process's memory).
+        let mut buf = Vec::new();
+        let read_row = |i: usize, buf: &mut Vec<u8>| -> Result<()> {
+            buf.resize(8 * self.counts[i] as usize, 0);
+            std::os::unix::fs::FileExt::read_exact_at(&spill, buf, self.offsets[i])
+                .map_err(|e| FfzError::io(&self.path, "read", e))
+        };
+        let n = self.counts.len() as u64;
+        let nnz: u64 = self.counts.iter().sum();
+        let wide = nnz > i32::MAX as u64 || n > i32::MAX as u64;
+        let index_type = if wide { "<i8" } else { "<i4" };
+        let zerr = |err: zip::result::ZipError| {
+            FfzError::io(npz, "write", std::io::Error::other(err.to_string()))
+        };
+        let ioerr = |err| FfzError::io(npz, "write", err);
+        let f = File::create(npz).map_err(|e| FfzError::io(npz, "create", e))?;
+        let mut zip = zip::ZipWriter::new(BufWriter::with_capacity(1 << 20, f));
+
+        let index_bytes = |count: u64| count * if wide { 8 } else { 4 };
+        let entry = |zip: &mut Zip, name: &str, descr: &str, shape: &str, data_len: u64| {
+            let head = npy_header(descr, shape);
+            let options = zip::write::SimpleFileOptions::default()
+                .compression_method(zip::CompressionMethod::Stored)
+                .large_file(head.len() as u64 + data_len >= u32::MAX as u64 - (1 << 20));
+            zip.start_file(name, options).map_err(zerr)?;
+            zip.write_all(&head).map_err(ioerr)
+        };
+
+        entry(&mut zip, "format.npy", "|S3", "()", 3)?;
+        zip.write_all(b"csr").map_err(ioerr)?;
+        entry(&mut zip, "shape.npy", "<i8", "(2,)", 16)?;
+        for _ in 0..2 {
+            zip.write_all(&(n as i64).to_le_bytes()).map_err(ioerr)?;
+        }
+        let put_index = |zip: &mut Zip, x: u64| {
+            if wide {
+                zip.write_all(&(x as i64).to_le_bytes())
+            } else {
+                zip.write_all(&(x as i32).to_le_bytes())
+            }
+        };
+        entry(
+            &mut zip,
+            "indptr.npy",
+            index_type,
+            &format!("({},)", n + 1),
+            index_bytes(n + 1),
+        )?;
+        let mut at = 0u64;
+        put_index(&mut zip, 0).map_err(ioerr)?;
+        for &c in &self.counts {
+            at += c;
+            put_index(&mut zip, at).map_err(ioerr)?;
+        }
+        // Columns, then values, of each row in row order from the spill.
+        entry(
+            &mut zip,
+            "indices.npy",
+            index_type,
+            &format!("({nnz},)"),
+            index_bytes(nnz),
+        )?;
+        for i in 0..self.counts.len() {
+            read_row(i, &mut buf)?;
+            let c = self.counts[i] as usize;
+            for w in buf[..4 * c].chunks_exact(4) {
+                let c = u32::from_le_bytes(w.try_into().expect("4 bytes"));
+                put_index(&mut zip, u64::from(c)).map_err(ioerr)?;
+            }
+        }
+        entry(&mut zip, "data.npy", "<f4", &format!("({nnz},)"), 4 * nnz)?;
+        for i in 0..self.counts.len() {
+            read_row(i, &mut buf)?;
+            let c = self.counts[i] as usize;
+            zip.write_all(&buf[4 * c..]).map_err(ioerr)?;
+        }
+        let mut inner = zip.finish().map_err(zerr)?;
+        inner.flush().map_err(ioerr)?;
+        inner.get_ref().sync_all().map_err(ioerr)
+    }
+}
+
+type Zip = zip::ZipWriter<BufWriter<File>>;
+
+/// A `.npy` version 1.0 header for an array of dtype `descr` and shape `shape` (a
+/// Python tuple), padded with spaces and a newline to a multiple of 64 bytes.
+fn npy_header(descr: &str, shape: &str) -> Vec<u8> {
+    let dict = format!("{{'descr': '{descr}', 'fortran_order': False, 'shape': {shape}, }}");
+    let unpadded = 10 + dict.len() + 1;
+    let total = unpadded.div_ceil(64) * 64;
+    let mut h = Vec::with_capacity(total);
+    h.extend_from_slice(b"\x93NUMPY\x01\x00");
+    h.extend_from_slice(&((total - 10) as u16).to_le_bytes());
+    h.extend_from_slice(dict.as_bytes());
+    h.resize(total - 1, b' ');
+    h.push(b'\n');
+    h
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn npy_headers_are_padded_to_64_bytes_and_end_in_a_newline() {
+        for (d, s) in [("<f4", "(12345,)"), ("|S3", "()"), ("<i8", "(2,)")] {
+            let h = npy_header(d, s);
+            assert_eq!(h.len() % 64, 0);
+            assert_eq!(&h[..8], b"\x93NUMPY\x01\x00");
+            assert_eq!(u16::from_le_bytes([h[8], h[9]]) as usize, h.len() - 10);
+            assert_eq!(*h.last().unwrap(), b'\n');
+            let text = std::str::from_utf8(&h[10..]).unwrap();
+            assert!(text.starts_with(&format!(
+                "{{'descr': '{d}', 'fortran_order': False, 'shape': {s}, }}"
+            )));
+        }
+    }
+}
