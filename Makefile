@@ -5,14 +5,15 @@
 #
 # Works on a fresh Debian/Ubuntu machine that has only Rust: the `deps` target installs
 # Open MPI (runtime + headers), libclang (rsmpi's bindgen) and the Python packages of the
-# .ffz reader's tests, each only if missing. Uses sudo when not root.
+# .ffz reader's tests, each only if missing (python3-venv: `make test` installs the reader
+# with pip into a fresh virtual environment). Uses sudo when not root.
 
 SHELL := /bin/bash
 CARGO ?= cargo
 PYTHON ?= python3
 SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
-APT_PACKAGES := libopenmpi-dev openmpi-bin libclang-dev pkg-config python3-pip time
-PY_PACKAGES := numpy scipy zstandard pytest matplotlib
+APT_PACKAGES := libopenmpi-dev openmpi-bin libclang-dev pkg-config python3-pip python3-venv time
+PY_PACKAGES := numpy scipy zstandard crc32c pytest matplotlib
 # Open MPI refuses root without these; harmless otherwise. --oversubscribe is passed
 # by the tests and by demo-mpi (this may be a 2-core machine).
 export OMPI_ALLOW_RUN_AS_ROOT := 1
@@ -43,8 +44,11 @@ demo: deps build
 demo-mpi: deps build
 	mpirun -n 3 --oversubscribe ./target/release/ffstream run builtin:cornell --out-dir out/cornell-mpi
 
-# The Python reader is also checked against `ffstream export` of a real computed file
-# (the Cornell box at 300 patches), through FFZ_FILE/FFZ_MTX/FFZ_CSV.
+# The Python reader is tested as users install it: `pip install ./formats` into a fresh
+# virtual environment (the dependencies formats/pyproject.toml declares, plus pytest), then
+# formats/test_ffz.py against that installed module (--import-mode=importlib, FFZ_INSTALLED
+# checks it) and a real computed file (the Cornell box at 300 patches, in 64 KiB chunks so
+# it has several), checked against its `ffstream export` through FFZ_FILE/FFZ_MTX/FFZ_CSV.
 test: deps
 	$(CARGO) fmt --check
 	$(CARGO) clippy --all-targets --quiet -- -D warnings
@@ -56,9 +60,12 @@ test: deps
 	$(CARGO) build --release
 	$(PYTHON) bench/run.py --quick
 	@tmp=$$(mktemp -d) && \
-	./target/debug/ffstream compute builtin:cornell --patches 300 --quiet -o $$tmp/c.ffz && \
+	$(PYTHON) -m venv $$tmp/venv && \
+	$$tmp/venv/bin/python -m pip install -q --disable-pip-version-check ./formats pytest && \
+	./target/debug/ffstream compute builtin:cornell --patches 300 --chunk-kib 64 --quiet -o $$tmp/c.ffz && \
 	./target/debug/ffstream export $$tmp/c.ffz --matrix $$tmp/c.mtx --patches-csv $$tmp/c.csv && \
-	FFZ_FILE=$$tmp/c.ffz FFZ_MTX=$$tmp/c.mtx FFZ_CSV=$$tmp/c.csv $(PYTHON) -m pytest -q -p no:cacheprovider formats; \
+	FFZ_INSTALLED=1 FFZ_FILE=$$tmp/c.ffz FFZ_MTX=$$tmp/c.mtx FFZ_CSV=$$tmp/c.csv \
+	  $$tmp/venv/bin/python -m pytest -q -p no:cacheprovider --import-mode=importlib formats/test_ffz.py; \
 	status=$$?; rm -rf $$tmp; exit $$status
 
 build:
@@ -83,7 +90,7 @@ sys-deps:
 	fi
 
 py-deps:
-	@$(PYTHON) -c "import numpy, scipy, zstandard, pytest, matplotlib" 2>/dev/null || { \
+	@$(PYTHON) -c "import numpy, scipy, zstandard, crc32c, pytest, matplotlib" 2>/dev/null || { \
 	  echo "==> installing Python packages: $(PY_PACKAGES)"; \
 	  $(PYTHON) -m pip install -q $(PY_PACKAGES) || $(PYTHON) -m pip install -q --break-system-packages $(PY_PACKAGES); }
 

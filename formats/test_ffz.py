@@ -2,8 +2,15 @@
 
 - The golden files of spec section 11 decode to the numbers the spec writes down.
 - Damage is detected (errors name the chunk and byte, a cut file is recovered).
+- The lazy reader (`ffz.open`): row(i), chunks() and to_csr() agree with `ffz.read` on
+  the golden files, on files written here from the spec (dense and top-k, shuffled or
+  not, rows of different lengths, rows in random order) and on FFZ_FILE; a damaged
+  chunk fails only its own rows; cut files are recovered at every length.
 - With FFZ_FILE (and optionally FFZ_MTX, FFZ_CSV) set to a file written by the Rust side
   and its `ffstream export` output, the reader agrees with the export exactly.
+- With FFZ_INSTALLED=1 (`make test`, after `pip install ./formats` into a fresh venv,
+  pytest --import-mode=importlib): the module under test is the installed one, with
+  the crc32c package.
 """
 
 import csv
@@ -220,3 +227,324 @@ def test_matches_rust_export():
             assert [float(r[c]) for c in ("nx", "ny", "nz")] == list(f.patches["normal"][i])
             assert np.float32(float(r["rho_g"])) == f.patches["rho"][i][1]
             assert np.float32(float(r["e_b"])) == f.patches["emission"][i][2]
+
+
+# --- The lazy reader (ffz.open) --------------------------------------------------------
+
+GOLDEN = ["tiny-v1.ffz", "tiny-dense-v1.ffz"]
+NEEDS_FFZ_FILE = pytest.mark.skipif(not os.environ.get("FFZ_FILE"), reason="set FFZ_FILE to a Rust-written file")
+FILES = [pytest.param(HERE / "golden" / g, id=g) for g in GOLDEN] + [
+    pytest.param(os.environ.get("FFZ_FILE", ""), id="FFZ_FILE", marks=NEEDS_FFZ_FILE)
+]
+
+
+def bits(a):
+    return np.asarray(a, dtype=np.float32).view(np.uint32)
+
+
+def assert_row_is_csr_row(r, f, i):
+    """ffz.open(...).row(i) against row i of ffz.read(...) (an FfzFile f)."""
+    a, b = f.matrix.indptr[i], f.matrix.indptr[i + 1]
+    if f.presence[i] == ffz.MISSING:
+        assert r is None, f"row {i}"
+        return
+    cols, vals, dropped = r
+    if f.presence[i] == ffz.SKIPPED_STATE:
+        assert len(cols) == 0 and len(vals) == 0 and dropped == 0.0, f"row {i}"
+        return
+    if cols is None:  # dense: all n values, the CSR keeps the non-zero ones
+        assert f.layout == "dense" and len(vals) == f.n, f"row {i}"
+        cols = np.flatnonzero(vals)
+        vals = vals[cols]
+    assert list(cols) == list(f.matrix.indices[a:b]), f"row {i}"
+    assert list(bits(vals)) == list(bits(f.matrix.data[a:b])), f"row {i}"
+    assert bits(dropped) == bits(f.dropped[i]), f"row {i}"
+
+
+def assert_same_csr(a, b):
+    assert a.shape == b.shape
+    for x, y in [(a.indptr, b.indptr), (a.indices, b.indices)]:
+        assert x.dtype == y.dtype and np.array_equal(x, y)
+    assert a.data.dtype == b.data.dtype == np.float32 and np.array_equal(bits(a.data), bits(b.data))
+
+
+@pytest.mark.parametrize("path", FILES)
+def test_lazy_row_is_the_csr_row_of_read(path):
+    full = ffz.read(path)
+    with ffz.open(path) as f:
+        assert (f.n, f.layout, f.k, f.method, f.params, f.groups) == (full.n, full.layout, full.k, full.method, full.params, full.groups)
+        assert list(f.presence) == list(full.presence) and f.indexed == full.indexed
+        for name, arr in full.patches.items():
+            np.testing.assert_array_equal(f.patches[name], arr)
+        for i in range(f.n):
+            assert_row_is_csr_row(f.row(i), full, i)
+        with pytest.raises(IndexError):
+            f.row(f.n)
+    with pytest.raises(ValueError, match="closed"):
+        f.row(0)
+
+
+@pytest.mark.parametrize("path", FILES)
+def test_chunks_cover_every_present_row_once(path):
+    full = ffz.read(path)
+    with ffz.open(path) as f:
+        seen = []
+        for c, ch in enumerate(f.chunks()):
+            assert ch.index == c and ch.offset == f.chunk_offsets[c]
+            for rec in ch:
+                seen.append(rec.row)
+                assert rec.state == full.presence[rec.row]
+                assert_row_is_csr_row(ffz.RowData(rec.cols, rec.vals, rec.dropped), full, rec.row)
+        assert c + 1 == f.n_chunks == full.chunks
+    assert sorted(seen) == list(np.flatnonzero(full.presence != ffz.MISSING))
+
+
+@pytest.mark.parametrize("path", FILES)
+def test_to_csr_is_read_matrix(path):
+    full = ffz.read(path)
+    with ffz.open(path) as f:
+        assert_same_csr(f.to_csr(), full.matrix)
+        assert list(bits(f.dropped)) == list(bits(full.dropped))
+    with ffz.open(path, threads=1) as f:  # the dropped pass without to_csr, one thread
+        assert list(bits(f.dropped)) == list(bits(full.dropped))
+        assert_same_csr(f.to_csr(), full.matrix)
+
+
+def test_corrupt_chunk_fails_only_its_rows(tmp_path):
+    bad = bytearray((HERE / "golden" / "tiny-v1.ffz").read_bytes())
+    bad[0x2C0] ^= 0xFF  # inside chunk 0's zstd frame: chunk 0 holds rows 2 and 1 (skipped)
+    p = tmp_path / "bad.ffz"
+    p.write_bytes(bytes(bad))
+    with ffz.open(p) as f:  # header, meta block and index are intact
+        assert f.indexed and not f.warnings
+        with pytest.raises(ffz.FfzError, match=r"bad\.ffz: chunk 0 at byte 657: compressed payload checksum"):
+            f.row(2)
+        cols, vals, dropped = f.row(0)  # chunk 1
+        assert list(cols) == [2] and list(vals) == [0.5] and dropped == 0.125
+        assert len(f.row(1).vals) == 0  # skipped: the index says so, no chunk is read
+        with pytest.raises(ffz.FfzError, match="chunk 0 at byte 657"):
+            f.to_csr()
+        with pytest.raises(ffz.FfzError, match="chunk 0 at byte 657"):
+            next(f.chunks())
+
+
+@NEEDS_FFZ_FILE
+def test_corrupt_chunk_of_a_computed_file_fails_only_its_rows(tmp_path):
+    path = os.environ["FFZ_FILE"]
+    full = ffz.read(path)
+    with ffz.open(path) as f:
+        assert f.n_chunks >= 2, "FFZ_FILE has one chunk: compute it with e.g. --chunk-kib 64 (as make test does)"
+        c = f.n_chunks // 2
+        victims = set(int(r) for r, s in zip(f.chunk(c).rows, f.chunk(c).state) if s == ffz.PRESENT)
+        off = f.chunk_offsets[c]
+    data = bytearray(pathlib.Path(path).read_bytes())
+    clen = struct.unpack_from("<Q", data, off + 8)[0]
+    data[off + 40 + clen // 2] ^= 0x5A
+    p = tmp_path / "bad.ffz"
+    p.write_bytes(bytes(data))
+    assert victims
+    with ffz.open(p, cache_chunks=2) as f:
+        for i in range(f.n):
+            if i in victims:
+                with pytest.raises(ffz.FfzError, match=rf"bad\.ffz: chunk {c} at byte {off}: compressed payload checksum"):
+                    f.row(i)
+            else:
+                assert_row_is_csr_row(f.row(i), full, i)
+
+
+def test_open_on_a_cut_file_recovers_like_read(tmp_path):
+    good = (HERE / "golden" / "tiny-v1.ffz").read_bytes()
+    p = tmp_path / "cut.ffz"
+    p.write_bytes(good[:760])  # inside chunk 1 (starts at 736): chunk 0 survives
+    with ffz.open(p) as f:
+        assert not f.indexed and "recovered 1 chunks" in f.warnings[0]
+        assert list(f.presence) == [ffz.MISSING, ffz.SKIPPED_STATE, ffz.PRESENT]
+        assert f.row(0) is None
+        assert len(f.row(1).cols) == 0
+        cols, vals, dropped = f.row(2)
+        assert list(cols) == [0] and list(vals) == [0.5] and dropped == 0.125
+        assert f.to_csr()[2, 0] == np.float32(0.5)
+        assert f.warnings == ffz.read(p).warnings
+
+
+def test_open_recovers_complete_chunks_at_every_cut(tmp_path):
+    # tiny-v1.ffz: meta block to 657, chunk 0 (rows 2, 1 skipped) to 736, chunk 1 (row 0)
+    # to 813, index and footer to 909.
+    good = (HERE / "golden" / "tiny-v1.ffz").read_bytes()
+    p = tmp_path / "cut.ffz"
+    for cut in range(657, len(good) + 1):
+        p.write_bytes(good[:cut])
+        with ffz.open(p) as f:
+            assert f.indexed == (cut == len(good)), cut
+            want = [ffz.PRESENT if cut >= 813 else ffz.MISSING, ffz.SKIPPED_STATE, ffz.PRESENT] if cut >= 736 else [ffz.MISSING] * 3
+            assert list(f.presence) == want, cut
+            assert f.to_csr().nnz == int(cut >= 736) + int(cut >= 813), cut
+            assert (f.row(0) is None) == (cut < 813), cut
+
+
+# A writer of version 1 files (spec 3-7), written from the spec, for what the golden files
+# do not have: unshuffled chunks, top-k rows of different lengths in one chunk, rows in
+# random order, several chunks, files without an index holding a row twice.
+
+
+def shuffle_words(a):
+    """Spec 5.5: byte b of every word, b = 0..3."""
+    return np.asarray(a, dtype="<u4").view(np.uint8).reshape(-1, 4).T.tobytes()
+
+
+def write_ffz(path, n, k, chunks, shuffled=True, index=True):
+    """chunks: lists of (row, data), data None (skipped), (vals, dropped) (dense, k = 0)
+    or (cols, vals, dropped) (top-k)."""
+    zstd = __import__("zstandard").ZstdCompressor(level=1)
+    method, params, created = b"point", b"writer=test", b"test_ffz.py"
+    rec = np.zeros(n, dtype=ffz.PATCH_DTYPE)
+    rec["n_corners"] = 4
+    rec["face"] = np.arange(n)
+    rec["area"] = 1.0 + np.arange(n)
+    groups = struct.pack("<I", 2) + b"".join(struct.pack("<I", len(g)) + g for g in (b"floor", b"wall"))
+    body = method + params + created + rec.tobytes() + groups
+    meta_len = 64 + len(body) + 4
+    head = ffz.FILE_MAGIC + struct.pack("<IIIIIiQQIII", 1, 0, n, 1 if k else 0, k, 1, 0x1234, meta_len, len(method), len(params), len(created))
+    out = bytearray(head + struct.pack("<I", ffz.crc32c(head)) + body + struct.pack("<I", ffz.crc32c(body)))
+    words = shuffle_words if shuffled else (lambda a: np.asarray(a, dtype="<u4").tobytes())
+    offsets, table = [], {}
+    for c, rows in enumerate(chunks):
+        directory, data = b"", b""
+        start = 24 * len(rows)
+        for row, d in rows:
+            if d is None:
+                flags, nnz, dropped, blob = ffz.SKIPPED, 0, 0.0, b""
+            elif k:
+                cols, vals, dropped = d
+                flags, nnz = ffz.SPARSE, len(cols)
+                blob = words(np.diff(cols, prepend=0)) + words(np.float32(vals).view(np.uint32))
+            else:
+                vals, dropped = d
+                flags, nnz, blob = 0, n, words(np.float32(vals).view(np.uint32))
+            directory += struct.pack("<IIIfQ", row, flags, nnz, dropped, start + len(data))
+            data += blob
+            table.setdefault(row, (c, ffz.SKIPPED_STATE if d is None else ffz.PRESENT))
+        raw = directory + data
+        z = zstd.compress(raw)
+        h = ffz.CHUNK_MAGIC + struct.pack("<IQQIII", ffz.SHUFFLED if shuffled else 0, len(z), len(raw), len(rows), ffz.crc32c(z), ffz.crc32c(raw))
+        offsets.append(len(out))
+        out += h + struct.pack("<I", ffz.crc32c(h)) + z
+    if index:
+        ix = ffz.INDEX_MAGIC + struct.pack("<IQQ", 0, len(offsets), n) + struct.pack(f"<{len(offsets)}Q", *offsets)
+        ix += b"".join(struct.pack("<II", *table.get(i, (ffz.NO_CHUNK, ffz.MISSING))) for i in range(n))
+        foot = struct.pack("<QQI", len(out), len(ix), ffz.crc32c(ix))
+        out += ix + foot + struct.pack("<I", ffz.crc32c(foot)) + ffz.FOOTER_MAGIC
+    pathlib.Path(path).write_bytes(bytes(out))
+
+
+def random_rows(rng, n, k, uniform):
+    """Rows 0..n-1 in random order, a few missing and skipped; top-k rows of k entries
+    (uniform) or of 0..k entries, dense rows with zeros."""
+    rows = []
+    for i in rng.permutation(n):
+        u = rng.random()
+        if u < 0.1:
+            continue  # missing
+        if u < 0.2:
+            rows.append((int(i), None))
+        elif k:
+            m = k if uniform else int(rng.integers(0, k + 1))
+            cols = np.sort(rng.choice(n, size=m, replace=False))
+            rows.append((int(i), (cols, rng.random(m).astype(np.float32), float(np.float32(rng.random())))))
+        else:
+            vals = rng.random(n).astype(np.float32)
+            vals[rng.random(n) < 0.4] = 0
+            rows.append((int(i), (vals, 0.0)))
+    return rows
+
+
+@pytest.mark.parametrize("copies", ["runs", "gathers"])
+@pytest.mark.parametrize("shuffled", [True, False], ids=["shuffled", "plain"])
+@pytest.mark.parametrize("kind", ["dense", "topk-uniform", "topk-varied"])
+def test_lazy_reader_on_written_files(tmp_path, monkeypatch, kind, shuffled, copies):
+    # The reader copies runs of rows with slices when they are long and gathers elements
+    # otherwise (ffz.MIN_RUN_*): both ways, whatever the sizes here.
+    monkeypatch.setattr(ffz, "MIN_RUN_WORDS", 0 if copies == "runs" else 1 << 60)
+    monkeypatch.setattr(ffz, "MIN_RUN_ENTRIES", 0 if copies == "runs" else 1 << 60)
+    rng = np.random.default_rng(7)
+    n, k = 53, (0 if kind == "dense" else 9)
+    rows = random_rows(rng, n, k, kind == "topk-uniform")
+    if copies == "runs":  # rows ascending in each chunk, so chunks have runs of rows
+        rows = sorted(rows[:20]) + sorted(rows[20:])
+    chunks = [rows[a : a + 7] for a in range(0, len(rows), 7)]
+    p = tmp_path / "w.ffz"
+    write_ffz(p, n, k, chunks, shuffled)
+    want = dict(rows)
+    dense = np.zeros((n, n), dtype=np.float32)
+    for i, d in want.items():
+        if d is not None and k:
+            dense[i, d[0]] = d[1]
+        elif d is not None:
+            dense[i] = d[0]
+    full = ffz.read(p)
+    assert full.indexed and not full.warnings and full.chunks == len(chunks)
+    np.testing.assert_array_equal(full.matrix.toarray(), dense)
+    if k:  # top-k: every stored entry, even a zero one
+        assert full.matrix.nnz == sum(len(d[0]) for d in want.values() if d is not None)
+    for threads in (1, 3):
+        with ffz.open(p, threads=threads, cache_chunks=2) as f:
+            for i in range(n):
+                r = f.row(i)
+                if i not in want:
+                    assert r is None and f.presence[i] == ffz.MISSING
+                elif want[i] is None:
+                    assert len(r.vals) == 0 and f.presence[i] == ffz.SKIPPED_STATE
+                elif k:
+                    assert list(r.cols) == list(want[i][0]) and list(bits(r.vals)) == list(bits(want[i][1]))
+                    assert r.dropped == want[i][2] == f.dropped[i]
+                else:
+                    assert r.cols is None and list(bits(r.vals)) == list(bits(want[i][0]))
+                assert_row_is_csr_row(r, full, i)
+            got = [rec.row for ch in f.chunks() for rec in ch]
+            assert got == [i for i, _ in rows]  # file order, each row once
+            assert_same_csr(f.to_csr(), full.matrix)
+
+
+def test_written_file_with_a_row_in_two_chunks_keeps_the_first(tmp_path):
+    n, k = 6, 2
+    first = ([1, 4], [0.25, 0.5], 0.125)
+    chunks = [[(3, first), (0, None)], [(5, ([0], [0.75], 0.0)), (3, ([2], [1.0], 0.0))]]
+    p = tmp_path / "twice.ffz"
+    write_ffz(p, n, k, chunks, index=False)
+    with ffz.open(p) as f:
+        assert not f.indexed
+        assert f.warnings[1:] == [f"{p}: row 3 repeated in chunk 1; first copy kept"]
+        cols, vals, dropped = f.row(3)
+        assert list(cols) == [1, 4] and list(vals) == [0.25, 0.5] and dropped == 0.125
+        assert [rec.row for ch in f.chunks() for rec in ch] == [3, 0, 5]
+        assert list(f.presence) == [ffz.SKIPPED_STATE, 0, 0, ffz.PRESENT, 0, ffz.PRESENT]
+        m = f.to_csr()
+    assert m.nnz == 3 and m[3, 4] == np.float32(0.5) and m[3, 2] == 0
+    assert ffz.read(p).warnings == f.warnings
+
+
+@pytest.mark.parametrize("damage", ["delta", "column"])
+def test_bad_row_data_names_row_chunk_and_byte(tmp_path, damage):
+    # Chunk 1 holds a top-k row with a column delta of 0 after the first, or a column >= n.
+    cols = [1, 1] if damage == "delta" else [2, 9]
+    chunks = [[(0, ([1], [0.5], 0.0))], [(1, ([0], [0.5], 0.0)), (2, (cols, [0.25, 0.25], 0.0))]]
+    p = tmp_path / "rows.ffz"
+    n = 4
+    write_ffz(p, n, 2, chunks)
+    with ffz.open(p) as f:
+        off = f.chunk_offsets[1]
+        why = "column delta 0" if damage == "delta" else "column >= n"
+        for i in (1, 2):  # the whole chunk is refused, not only the bad row
+            with pytest.raises(ffz.FfzError, match=rf"rows\.ffz: chunk 1 at byte {off}: row 2: {why}"):
+                f.row(i)
+        assert list(f.row(0).cols) == [1]
+
+
+@pytest.mark.skipif(not os.environ.get("FFZ_INSTALLED"), reason="set FFZ_INSTALLED=1 when testing the pip-installed package")
+def test_installed_package_is_tested_with_its_crc32c():
+    # make test runs this file against `pip install ./formats` in a fresh venv.
+    assert not pathlib.Path(ffz.__file__).resolve().is_relative_to(HERE), ffz.__file__
+    assert ffz.CRC_IMPLEMENTATION.startswith("crc32c package"), ffz.CRC_IMPLEMENTATION
+    from importlib.metadata import version
+
+    assert version("ffstream-ffz") == ffz.__version__
