@@ -551,3 +551,84 @@ fn mutated_binary_mesh_files_never_panic() {
     }
     assert_eq!(tried, 4 * 160);
 }
+
+#[test]
+fn ply_polygons_are_repaired_as_obj_faces_are() {
+    // A planar quad (kept), a planar convex pentagon (split), a non-planar quad (split)
+    // and a degenerate triangle (dropped): the same faces from PLY as from OBJ, and
+    // the same warnings apart from what names the element.
+    let dir = tempfile::tempdir().unwrap();
+    let verts = [
+        [0.0, 0.0, 0.0],
+        [1.0, 0.0, 0.0],
+        [1.0, 1.0, 0.0],
+        [0.0, 1.0, 0.0],
+        [2.0, 0.0, 0.0],
+        [3.0, 0.0, 0.0],
+        [3.5, 0.5, 0.0],
+        [3.0, 1.0, 0.0],
+        [2.0, 1.0, 0.0],
+        [4.0, 0.0, 0.0],
+        [5.0, 0.0, 0.0],
+        [5.0, 1.0, 0.3],
+        [4.0, 1.0, 0.0],
+        [6.0, 0.0, 0.0],
+        [7.0, 0.0, 0.0],
+        [8.0, 0.0, 0.0],
+    ];
+    let faces: [&[usize]; 4] = [
+        &[0, 1, 2, 3],
+        &[4, 5, 6, 7, 8],
+        &[9, 10, 11, 12],
+        &[13, 14, 15],
+    ];
+    let mut ply = format!(
+        "ply\nformat ascii 1.0\nelement vertex {}\nproperty double x\nproperty double y\nproperty double z\nelement face {}\nproperty list uchar int vertex_indices\nend_header\n",
+        verts.len(),
+        faces.len()
+    );
+    let mut obj = String::from("mtllib poly.mtl\n");
+    for v in verts {
+        writeln!(ply, "{} {} {}", v[0], v[1], v[2]).unwrap();
+        writeln!(obj, "v {} {} {}", v[0], v[1], v[2]).unwrap();
+    }
+    obj.push_str("g poly\nusemtl default\n");
+    for f in faces {
+        let ids: Vec<String> = f.iter().map(|i| i.to_string()).collect();
+        writeln!(ply, "{} {}", f.len(), ids.join(" ")).unwrap();
+        let ids: Vec<String> = f.iter().map(|i| (i + 1).to_string()).collect();
+        writeln!(obj, "f {}", ids.join(" ")).unwrap();
+    }
+    // The materials file of the PLY is also the OBJ's library: `default` for both.
+    std::fs::write(
+        dir.path().join("poly.mtl"),
+        "newmtl default\nKd 0.5 0.5 0.5\nKe 1 1 1\n",
+    )
+    .unwrap();
+    std::fs::write(dir.path().join("poly.ply"), ply).unwrap();
+    std::fs::write(dir.path().join("poly.obj"), obj).unwrap();
+    let from_obj = load_file(&dir.path().join("poly.obj"), SceneFormat::Obj).unwrap();
+    let from_ply = load_file(&dir.path().join("poly.ply"), SceneFormat::Ply).unwrap();
+    assert_same_faces(&from_obj, &from_ply, true, "poly.ply");
+    // 1 quad + 3 triangles of the pentagon + 2 of the bent quad; the sliver dropped.
+    assert_eq!(from_ply.faces.len(), 6, "{:?}", from_ply.warnings);
+    assert_eq!(
+        from_obj.warnings.len(),
+        from_ply.warnings.len(),
+        "{:?} vs {:?}",
+        from_obj.warnings,
+        from_ply.warnings
+    );
+    // The repairs name PLY faces (1-based), as OBJ warnings name lines: the bent quad
+    // is face 3 and the sliver face 4 (the planar pentagon is split without a word).
+    for (what, at) in [("non-planar", "face 3"), ("degenerate", "face 4")] {
+        assert!(
+            from_ply
+                .warnings
+                .iter()
+                .any(|w| w.contains(what) && w.contains(at)),
+            "no {what} warning at {at}: {:?}",
+            from_ply.warnings
+        );
+    }
+}
