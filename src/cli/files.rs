@@ -55,7 +55,8 @@ pub(crate) struct ExportArgs {
     /// default 0: every non-zero entry. A finite number ≥ 0.
     #[arg(long, value_name = "EPS", default_value_t = 0.0, value_parser = super::choices::number::non_negative)]
     pub min_ff: f64,
-    /// Write the patch table as CSV (patch,group,area,cx,cy,cz,nx,ny,nz,rho_*,e_*).
+    /// Write the patch table as CSV (patch,group,area,cx,cy,cz,nx,ny,nz,rho_*,e_*,row_sum,sky_view;
+    /// row_sum is the stored entries plus any top-k dropped mass, sky_view is 1 - row_sum).
     /// (`--patches` is the old spelling, kept for one release.)
     #[arg(long, alias = "patches", value_name = "patches.csv")]
     pub patches_csv: Option<PathBuf>,
