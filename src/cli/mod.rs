@@ -24,8 +24,10 @@ use clap::{Args, Parser, Subcommand};
 (threads, or MPI ranks under mpirun with rank 0 as a pure I/O master), streamed into a \
 chunked zstd-compressed .ffz file, solved out of core and rendered.\n\n\
 Run without mpirun for one process (embedded mode); under `mpirun -n P` rank 0 writes the \
-file and ranks 1..P-1 compute. Scenes are OBJ+MTL files (Kd = reflectance, Ke = emitted \
-exitance) or built-in scenes written as builtin:NAME (see `ffstream scene --help`)."
+file and ranks 1..P-1 compute. Scenes are OBJ+MTL (Kd = reflectance, Ke = emitted \
+exitance), STL, PLY or glTF/GLB files (the format from the extension, or FORMAT:PATH; \
+STL and PLY take their materials from NAME.mtl beside them), or built-in scenes written \
+as builtin:NAME (see `ffstream scene --help`)."
 )]
 pub(crate) struct Cli {
     /// More log output (-v: info, -vv: debug). RUST_LOG overrides.
@@ -43,7 +45,8 @@ pub(crate) struct Cli {
 #[allow(clippy::large_enum_variant)]
 #[derive(Subcommand, Debug)]
 pub(crate) enum Command {
-    /// Write a built-in scene as OBJ + MTL (cornell, cube, plates, perpendicular, obstructed, room).
+    /// Write a built-in scene as OBJ + MTL (cornell, cube, plates, perpendicular, obstructed, room,
+    /// city).
     Scene(scene::SceneArgs),
     /// Compute the form-factor matrix of a scene into an .ffz file.
     Compute(compute::ComputeArgs),
