@@ -56,6 +56,7 @@ pub(crate) fn pair(
         sum += jx * jy * ci * cj / (r2 * r2);
     }
     if need_rays {
+        scratch.counters.pairs_rays += 1;
         scratch.counters.rays_cast += cast;
         scratch.counters.rays_skipped += s as u64 - cast;
     }

@@ -36,6 +36,7 @@ pub(crate) fn pair(
         return f;
     }
     counters.rays_cast += 1;
+    counters.pairs_rays += 1;
     if occ.occluded(gi.centroid, gj.centroid, (gi.face, gj.face)) {
         0.0
     } else {

@@ -21,6 +21,9 @@ pub struct Counters {
     pub pairs_unoccludable: u64,
     /// Shadow rays cast.
     pub rays_cast: u64,
+    /// Pairs whose visibility fraction was estimated by rays (`contour`), counted
+    /// where the estimate is made.
+    pub pairs_rays: u64,
     /// Rays the per-pair budget allowed but that were not cast: all of them for pairs
     /// no occluder can come between, the rest of the budget when the adaptive
     /// estimate stopped after its first batch (`contour`), samples with a
@@ -59,6 +62,7 @@ impl Counters {
         self.tree_tail_samples += o.tree_tail_samples;
         self.pairs_unoccludable += o.pairs_unoccludable;
         self.rays_cast += o.rays_cast;
+        self.pairs_rays += o.pairs_rays;
         self.rays_skipped += o.rays_skipped;
         self.pairs_exact += o.pairs_exact;
         self.exact_points += o.exact_points;

@@ -180,6 +180,7 @@ pub(crate) fn fraction(
     let total = cfg.samples.max(1) as usize;
     let first = (cfg.first_batch.max(1) as usize).min(total);
     let cast_before = scratch.counters.rays_cast;
+    scratch.counters.pairs_rays += 1;
     let mut b = Batch::default();
     run_batch(
         i,

@@ -86,6 +86,8 @@ pub struct PairRoutes {
     pub exact: u64,
     /// Pairs meant for exact visibility that went to rays.
     pub fallback: u64,
+    /// Pairs whose visibility rays estimated (the fallbacks included).
+    pub rays: u64,
 }
 
 impl PairRoutes {
@@ -95,6 +97,7 @@ impl PairRoutes {
             unoccludable: c.pairs_unoccludable,
             exact: c.pairs_exact,
             fallback: c.pairs_exact_fallback,
+            rays: c.pairs_rays,
         }
     }
 
@@ -103,30 +106,42 @@ impl PairRoutes {
         self.unoccludable += o.unoccludable;
         self.exact += o.exact;
         self.fallback += o.fallback;
+        self.rays += o.rays;
     }
 
-    /// Pairs that may be occluded and were not handled exactly: rays decided them
-    /// (or, in top-k rows with a sampled tail, nothing: their F⁰ could not make the row).
-    pub(crate) fn by_rays(&self) -> u64 {
+    /// Evaluated pairs whose visibility neither route worked out because their
+    /// unoccluded value alone decided them: it came out 0 (a sliver of a clipped
+    /// pair), or in top-k rows it kept them out of the row (a sampled tail needs no
+    /// visibility for them).
+    pub(crate) fn undecided(&self) -> u64 {
         self.evaluated
             .saturating_sub(self.unoccludable)
             .saturating_sub(self.exact)
+            .saturating_sub(self.rays)
     }
 
     /// One line for the report.
     pub(crate) fn summary(&self) -> String {
         let share = |x: u64| 100.0 * x as f64 / self.evaluated.max(1) as f64;
-        format!(
+        let mut line = format!(
             "pairs: {} evaluated; visibility: {} ({:.1}%) need none, {} ({:.1}%) exact, {} ({:.1}%) by rays ({} of them fell back from exact)",
             self.evaluated,
             self.unoccludable,
             share(self.unoccludable),
             self.exact,
             share(self.exact),
-            self.by_rays(),
-            share(self.by_rays()),
+            self.rays,
+            share(self.rays),
             self.fallback
-        )
+        );
+        let rest = self.undecided();
+        if rest > 0 {
+            line += &format!(
+                ", {rest} ({:.1}%) decided by their unoccluded value alone (0, or too small for a top-k row)",
+                share(rest)
+            );
+        }
+        line
     }
 }
 

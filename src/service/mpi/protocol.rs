@@ -133,9 +133,9 @@ pub(crate) fn decode_failed(v: &[u8], rank: i32) -> Result<(Option<u32>, String)
     Ok((row, String::from_utf8_lossy(&v[8..]).into_owned()))
 }
 
-/// Length of a DONE message: rows, busy seconds, threads, peak RSS, then the four
+/// Length of a DONE message: rows, busy seconds, threads, peak RSS, then the five
 /// counts of [`PairRoutes`].
-const DONE_LEN: usize = 28 + 4 * 8;
+const DONE_LEN: usize = 28 + 5 * 8;
 
 pub(crate) fn encode_done(s: &WorkerStats) -> Vec<u8> {
     let mut v = Vec::with_capacity(DONE_LEN);
@@ -144,7 +144,7 @@ pub(crate) fn encode_done(s: &WorkerStats) -> Vec<u8> {
     v.extend_from_slice(&s.threads.to_le_bytes());
     v.extend_from_slice(&s.peak_rss.to_le_bytes());
     let p = &s.pairs;
-    for x in [p.evaluated, p.unoccludable, p.exact, p.fallback] {
+    for x in [p.evaluated, p.unoccludable, p.exact, p.fallback, p.rays] {
         v.extend_from_slice(&x.to_le_bytes());
     }
     v
@@ -177,6 +177,7 @@ pub(crate) fn decode_done(v: &[u8], rank: i32) -> Result<WorkerStats, ServiceErr
             unoccludable: u64_at(36),
             exact: u64_at(44),
             fallback: u64_at(52),
+            rays: u64_at(60),
         },
     })
 }
@@ -239,6 +240,7 @@ mod tests {
                 unoccludable: 60,
                 exact: 30,
                 fallback: 2,
+                rays: 7,
             },
         };
         let d = decode_done(&encode_done(&s), 4).unwrap();
