@@ -21,8 +21,8 @@ pub struct Counters {
     pub pairs_unoccludable: u64,
     /// Shadow rays cast.
     pub rays_cast: u64,
-    /// Pairs whose visibility fraction was estimated by rays (`contour`), counted
-    /// where the estimate is made.
+    /// Pairs whose visibility was estimated by rays (`contour`'s ratio estimate,
+    /// `point`'s one ray, `mc`'s samples), counted where the estimate is made.
     pub pairs_rays: u64,
     /// Rays the per-pair budget allowed but that were not cast: all of them for pairs
     /// no occluder can come between, the rest of the budget when the adaptive
