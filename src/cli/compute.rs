@@ -12,6 +12,7 @@ use ffstream::ffz::{FileMeta, Layout, WriterOptions};
 use ffstream::formfactor::{
     FormFactorConfig, Method, RowEngine, TopKSearch, TopKTail, Visibility, MAX_SAMPLES,
 };
+use ffstream::geometry::merge::merge_coplanar;
 use ffstream::geometry::occluders::Occluders;
 use ffstream::geometry::subdivide::{default_max_edge, patch_count, subdivide};
 use ffstream::patch::PatchSet;
@@ -159,6 +160,12 @@ pub(crate) struct ComputeOptions {
     /// scene's own faces. Self-occlusion is then told apart by the patches' planes.
     #[arg(long, value_name = "COARSE.obj")]
     pub occluders: Option<PathBuf>,
+    /// Keep the occluder triangles as given. By default the triangles of each plane
+    /// (a wall or a ground split into facets) are merged into as few as cover the same
+    /// area, which blocks the same segments and makes `--visibility exact` far faster on
+    /// pre-split meshes; needed to resume a file computed before the merge existed.
+    #[arg(long)]
+    pub no_merge_occluders: bool,
 }
 
 /// Load a scene: an OBJ path, or builtin:NAME[:PARAM] (or a bare built-in name when no
@@ -232,7 +239,7 @@ pub(super) fn build_job(
         .check()?;
     }
     let patches = subdivided(input, &scene, max_edge, role != Role::Worker)?;
-    let (engine, description) = engine_for(role, o, &scene, &patches, &cfg)?;
+    let (engine, description) = engine_for(role, o, &scene, &patches, &cfg, role != Role::Worker)?;
     let took = setup_start.elapsed().as_secs_f64();
     match role {
         // Every process that computes does this set-up itself; this is its cost
@@ -422,6 +429,7 @@ fn engine_for(
     scene: &Scene,
     patches: &PatchSet,
     cfg: &FormFactorConfig,
+    announce: bool,
 ) -> anyhow::Result<(Option<Arc<RowEngine>>, String)> {
     let occluder_triangles: Vec<_> = match &o.occluders {
         Some(path) => scene::load_file(path, scene::SceneFormat::of_path(path))?
@@ -438,19 +446,44 @@ fn engine_for(
         ),
         None => String::new(),
     };
+    // Coplanar triangles merged (they then belong to no one face: foreign); the header
+    // keeps the count as given and records the merged count beside it.
+    let merged = (!o.no_merge_occluders)
+        .then(|| {
+            tracing::info_span!("merge_occluders")
+                .in_scope(|| merge_coplanar(occluder_triangles.iter().map(|t| t.1)))
+        })
+        .filter(|m| m.groups > 0);
+    let given = Occluders::count_kept(occluder_triangles.clone());
+    let (occluder_triangles, merged_note) = match merged {
+        Some(m) => {
+            let tris: Vec<_> = (0u32..).zip(m.triangles).collect();
+            let kept = Occluders::count_kept(tris.clone());
+            if announce {
+                eprintln!(
+                    "ffstream: occluders: {given} triangles, those of {} planes merged: {kept} \
+                     triangles block the same (--no-merge-occluders keeps them as given)",
+                    m.groups
+                );
+            }
+            (tris, format!(" occluders_merged={kept}"))
+        }
+        None => (occluder_triangles, String::new()),
+    };
+    let foreign_mesh = o.occluders.is_some() || !merged_note.is_empty();
+    let description = RowEngine::description(cfg, given) + &merged_note + &foreign;
     if role == Role::Master {
-        let kept = Occluders::count_kept(occluder_triangles);
-        return Ok((None, RowEngine::description(cfg, kept) + &foreign));
+        return Ok((None, description));
     }
-    let occluders = Arc::new(
-        tracing::info_span!("build_bvh").in_scope(|| match &o.occluders {
-            Some(_) => Occluders::new_foreign(occluder_triangles),
-            None => Occluders::new(occluder_triangles),
-        }),
-    );
+    let occluders = Arc::new(tracing::info_span!("build_bvh").in_scope(|| {
+        if foreign_mesh {
+            Occluders::new_foreign(occluder_triangles)
+        } else {
+            Occluders::new(occluder_triangles)
+        }
+    }));
     let engine = tracing::info_span!("prepare_engine")
         .in_scope(|| RowEngine::new(patches, occluders, cfg.clone()));
-    let description = engine.describe() + &foreign;
     Ok((Some(Arc::new(engine)), description))
 }
 

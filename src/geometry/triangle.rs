@@ -86,8 +86,6 @@ impl OccluderTriangle {
 
 /// A shadow segment in the normalized frame, ready for [`OccluderTriangle::hit`].
 pub(crate) struct Segment {
-    f: DVec3,
-    dir: DVec3,
     pub(crate) t0: f64,
     pub(crate) t1: f64,
     pub(crate) sheared: ShearedRay,
@@ -101,26 +99,25 @@ impl Segment {
         if len.is_nan() || len <= 2.0 * RAY_EPSILON {
             return None;
         }
-        let dir = d * (1.0 / len);
         Some(Segment {
-            f,
-            dir,
             t0: RAY_EPSILON,
             t1: len - RAY_EPSILON,
             sheared: ShearedRay::new(f, d, len),
         })
     }
 
-    /// Whether a hit at `t` blocks: with foreign occluders, not when the hit point lies
-    /// on the plane of one of the end patches (that is the patch itself, in the coarse
-    /// mesh).
+    /// Whether a hit on `tri` blocks: with foreign occluders, not when the triangle
+    /// lies in the plane of one of the end patches (within [`RAY_EPSILON`]: in a
+    /// coarse or merged mesh that is the patch itself). The triangle decides, not the
+    /// hit point: a wall standing on a floor blocks a floor patch's rays down to its
+    /// foot (an earlier rule ignored hits near the planes, so light under the blocks of
+    /// the Cornell box leaked at grazing angles).
     #[inline]
-    pub(crate) fn counts(&self, t: f64, planes: &Option<[(DVec3, f64); 2]>) -> bool {
+    pub(crate) fn counts(tri: &OccluderTriangle, planes: &Option<[(DVec3, f64); 2]>) -> bool {
         match planes {
-            Some(ps) => {
-                let x = self.f + self.dir * t;
-                !ps.iter().any(|(n, o)| (n.dot(x) - o).abs() <= RAY_EPSILON)
-            }
+            Some(ps) => !ps
+                .iter()
+                .any(|(n, o)| tri.v.iter().all(|v| (n.dot(*v) - o).abs() <= RAY_EPSILON)),
             None => true,
         }
     }

@@ -113,7 +113,10 @@ impl Occluders {
     /// query are disregarded; [`Occluders::occluded_between_planes`] ignores hits on
     /// the planes of the two patches instead, and [`Occluders::any_between`] already
     /// rejects triangles lying on (or behind) them.
+    ///
+    /// The face ids of `tris` must not be `u32::MAX`, which foreign queries ignore.
     pub fn new_foreign(tris: Vec<(u32, [DVec3; 3])>) -> Self {
+        debug_assert!(tris.iter().all(|t| t.0 != u32::MAX), "face id u32::MAX");
         let mut o = Occluders::new(tris);
         o.foreign = true;
         o
@@ -254,9 +257,9 @@ impl Occluders {
     /// As [`Occluders::occluded`] for a segment between two patches with planes
     /// `planes` = ((normal, offset) of the source, of the target), world units, used
     /// when the occluders are foreign ([`Occluders::new_foreign`]): a hit counts only
-    /// if its point lies farther than [`RAY_EPSILON`] × diagonal from both planes (a
-    /// coarse mesh of the same flat faces has triangles on those planes, which the
-    /// face ids of the fine patches cannot name). For native occluders the planes are
+    /// on a triangle that does not lie in either plane (within [`RAY_EPSILON`] ×
+    /// diagonal: a coarse or merged mesh of the same flat faces has triangles on those
+    /// planes, which the face ids of the patches cannot name). For native occluders the planes are
     /// not needed and `ignore` works as in [`Occluders::occluded`].
     pub(crate) fn occluded_between_planes(
         &self,
@@ -298,9 +301,10 @@ impl Occluders {
             return false;
         };
         by_axes!(seg.sheared.axes, |KX, KY, KZ| {
-            self.tris[id]
-                .hit::<KX, KY, KZ>(&seg.sheared, seg.t0, seg.t1)
-                .is_some_and(|t| seg.counts(t, planes))
+            let tri = &self.tris[id];
+            tri.hit::<KX, KY, KZ>(&seg.sheared, seg.t0, seg.t1)
+                .is_some()
+                && Segment::counts(tri, planes)
         })
     }
 
@@ -571,9 +575,10 @@ impl Occluders {
         first: &mut usize,
     ) -> bool {
         let blocks = |k: usize| {
-            self.tris[ids[k] as usize]
-                .hit::<KX, KY, KZ>(&seg.sheared, seg.t0, seg.t1)
-                .is_some_and(|t| seg.counts(t, planes))
+            let tri = &self.tris[ids[k] as usize];
+            tri.hit::<KX, KY, KZ>(&seg.sheared, seg.t0, seg.t1)
+                .is_some()
+                && Segment::counts(tri, planes)
         };
         if *first < ids.len() && blocks(*first) {
             return true;

@@ -120,6 +120,81 @@ fn exact_visibility_matches_the_independent_references() {
     println!("worst error {worst:.1e}");
 }
 
+/// Each triangle cut into 4^levels by its edge midpoints (shared edges are cut at
+/// bit-identical points: (a + b) / 2 does not depend on the order).
+fn split(t: [DVec3; 3], levels: u32) -> Vec<[DVec3; 3]> {
+    let mut tris = vec![t];
+    for _ in 0..levels {
+        tris = tris
+            .into_iter()
+            .flat_map(|[a, b, c]| {
+                let (ab, bc, ca) = ((a + b) * 0.5, (b + c) * 0.5, (c + a) * 0.5);
+                [[a, ab, ca], [ab, b, bc], [ca, bc, c], [ab, bc, ca]]
+            })
+            .collect();
+    }
+    tris
+}
+
+#[test]
+fn split_occluders_merged_again_are_handled_exactly() {
+    // The occluders of every case given as a mesh already split into facets (64 per
+    // triangle, as a mesher would deliver them): more candidates than the exact route
+    // takes, so without the merge pairs get rays; merged, every pair is exact again
+    // and the group factors are within 1e-6 of the independent references.
+    use ffstream::formfactor::RowEngine;
+    use ffstream::geometry::merge::merge_coplanar;
+    use ffstream::geometry::occluders::Occluders;
+    use std::sync::Arc;
+    let mut split_rays = 0;
+    for c in cases() {
+        let mut b = scene(&c, 2);
+        let unsplit = b.tris.len();
+        b.tris = b
+            .tris
+            .iter()
+            .flat_map(|&(f, t)| split(t, 3).into_iter().map(move |s| (f, s)))
+            .collect();
+        let run = |occ: Occluders| {
+            let e = RowEngine::new(&b.patches, Arc::new(occ), exact_cfg());
+            let mut s = Scratch::new();
+            let rows: Vec<_> = (0..e.n() as u32)
+                .map(|i| e.compute_row(i, &mut s))
+                .collect();
+            (rows, s.counters())
+        };
+        if c.name == "obstructed" {
+            // (Once: the split occluders are slow to clip where they are few enough.)
+            let (_, split_counters) = run(Occluders::new(b.tris.clone()));
+            split_rays += split_counters.rays_cast;
+        }
+        let merged = merge_coplanar(b.tris.iter().map(|t| t.1));
+        assert!(
+            merged.triangles.len() <= unsplit,
+            "{}: {} triangles merged into {}, the case has {unsplit} unsplit",
+            c.name,
+            b.tris.len(),
+            merged.triangles.len(),
+        );
+        let foreign: Vec<_> = (0u32..).zip(merged.triangles).collect();
+        let (rows, counters) = run(Occluders::new_foreign(foreign));
+        assert_eq!(counters.pairs_exact_fallback, 0, "{}: {counters:?}", c.name);
+        assert_eq!(counters.rays_cast, 0, "{}: {counters:?}", c.name);
+        let (f_ij, f_ji) = (
+            group_ff(&b.patches, &rows, 0, 1),
+            group_ff(&b.patches, &rows, 1, 0),
+        );
+        assert!(
+            (f_ij - c.f_ij).abs() <= 1e-6 && (f_ji - c.f_ji).abs() <= 1e-6,
+            "{}: F_ij {f_ij} vs {}, F_ji {f_ji} vs {}",
+            c.name,
+            c.f_ij,
+            c.f_ji
+        );
+    }
+    assert!(split_rays > 0, "the split occluders never needed rays");
+}
+
 #[test]
 fn exactly_handled_pairs_use_no_random_numbers() {
     // Every pair of these cases is handled exactly (no fallback to rays), so the rows
@@ -199,5 +274,126 @@ fn compute_reports_the_pairs_handled_each_way_and_exact_rows_ignore_the_seed() {
     assert!(
         exact2 == 0 && rays2 == exact && none2 == none && n2 == n && none2 + rays2 == n2,
         "rays run: {n2} {none2} {exact2} {rays2}"
+    );
+}
+
+/// builtin:obstructed (unit squares 1 apart facing each other, a square blocker
+/// midway seen from both sides) as a mesher would deliver it: the plates in 2 × 2
+/// facets, the blocker in 6 × 6 on each side, one face per facet.
+fn presplit_obstructed(dir: &std::path::Path) -> std::path::PathBuf {
+    use std::fmt::Write;
+    let mut obj = String::from("mtllib split.mtl\n");
+    let mut nv = 0;
+    // Facets of origin + [0,1]·u + [0,1]·v in m × m, counter-clockwise about u × v.
+    let mut grid = |obj: &mut String, o: [f64; 3], u: [f64; 3], v: [f64; 3], m: usize| {
+        let p = |a: f64, b: f64| [0, 1, 2].map(|k| o[k] + a * u[k] + b * v[k]);
+        for i in 0..m {
+            for j in 0..m {
+                let (a0, a1) = (i as f64 / m as f64, (i + 1) as f64 / m as f64);
+                let (b0, b1) = (j as f64 / m as f64, (j + 1) as f64 / m as f64);
+                for q in [p(a0, b0), p(a1, b0), p(a1, b1), p(a0, b1)] {
+                    writeln!(obj, "v {} {} {}", q[0], q[1], q[2]).unwrap();
+                }
+                writeln!(obj, "f {} {} {} {}", nv + 1, nv + 2, nv + 3, nv + 4).unwrap();
+                nv += 4;
+            }
+        }
+    };
+    obj.push_str("g bottom\nusemtl light\n");
+    grid(&mut obj, [0.0; 3], [0.0, 0.0, 1.0], [1.0, 0.0, 0.0], 2);
+    obj.push_str("g top\nusemtl white\n");
+    grid(
+        &mut obj,
+        [0.0, 1.0, 0.0],
+        [1.0, 0.0, 0.0],
+        [0.0, 0.0, 1.0],
+        2,
+    );
+    obj.push_str("g blocker\nusemtl white\n");
+    grid(
+        &mut obj,
+        [0.25, 0.5, 0.25],
+        [0.5, 0.0, 0.0],
+        [0.0, 0.0, 0.5],
+        6,
+    );
+    grid(
+        &mut obj,
+        [0.25, 0.5, 0.25],
+        [0.0, 0.0, 0.5],
+        [0.5, 0.0, 0.0],
+        6,
+    );
+    std::fs::write(
+        dir.join("split.mtl"),
+        "newmtl light\nKd 0.5 0.5 0.5\nKe 1 1 1\nnewmtl white\nKd 0.5 0.5 0.5\n",
+    )
+    .unwrap();
+    let path = dir.join("split.obj");
+    std::fs::write(&path, obj).unwrap();
+    path
+}
+
+#[test]
+fn compute_merges_a_presplit_mesh_and_a_resume_across_the_flag_is_refused() {
+    use crate::common::{ffstream, path_str};
+    let dir = tempfile::tempdir().expect("tempdir");
+    let scene = presplit_obstructed(dir.path());
+    let file = |name: &str| dir.path().join(name);
+    // `compute` of the pre-split scene into `out`, exact visibility.
+    let compute = |out: &str, extra: &[&str]| {
+        let out = file(out);
+        let mut args = vec![
+            "compute",
+            path_str(&scene),
+            "--max-edge",
+            "0.5",
+            "--visibility",
+            "exact",
+            "-q",
+            "-o",
+            path_str(&out),
+        ];
+        args.extend_from_slice(extra);
+        ffstream(&args)
+    };
+    let run = |out: &str, extra: &[&str]| {
+        let o = compute(out, extra);
+        let stderr = String::from_utf8_lossy(&o.stderr).into_owned();
+        assert!(o.status.success(), "compute {extra:?} failed:\n{stderr}");
+        stderr
+    };
+    // 8 plate facets and 72 blocker facets, 160 triangles; merged: the two plates
+    // and the blocker's plane, 2 triangles each.
+    let merged = run("m.ffz", &[]);
+    assert!(
+        merged.contains("occluders: 160 triangles, those of 3 planes merged: 6 triangles"),
+        "{merged}"
+    );
+    let [n, none, exact, rays, _] = pair_routes(&merged);
+    assert!(
+        exact > 0 && rays == 0 && none + exact == n,
+        "merged: {merged}"
+    );
+    let given = run("g.ffz", &["--no-merge-occluders"]);
+    assert!(!given.contains("merged"), "{given}");
+    let [.., rays_given, _] = pair_routes(&given);
+    assert!(
+        rays_given > 0,
+        "the facets as given should need rays:\n{given}"
+    );
+    // The header keeps the count as given and the merged one.
+    let out = ffstream(&["info", path_str(&file("m.ffz"))]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        stdout.contains("occluder_triangles=160 occluders_merged=6"),
+        "{stdout}"
+    );
+    // The file computed without the merge does not resume with it, and says why.
+    let out = compute("g.ffz", &["--resume"]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && stderr.contains("occluders_merged"),
+        "{stderr}"
     );
 }
