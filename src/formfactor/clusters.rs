@@ -63,42 +63,78 @@ struct ClusterRect {
 const NONE: u32 = u32::MAX;
 
 impl Clusters {
-    /// Clusters the valid patches face by face; `None` when clusters would be too
-    /// small to pay off ([`MIN_MEAN_CLUSTER`]). `diag`: the patches' bounding-box
-    /// diagonal (faces must be planar to 1e-12 of it).
-    pub(crate) fn new(geom: &[PatchGeom], valid: &[bool], diag: f64) -> Option<Self> {
-        let mut by_face: HashMap<u32, Vec<usize>> = HashMap::new();
+    /// Clusters the valid patches face by face, or with `by_plane` plane by plane
+    /// (the patches of one plane facing the same way, whatever their face: a mesh
+    /// delivered split into facets has one patch per face, so clusters by face would
+    /// hold one patch each); `None` when clusters would be too small to pay off
+    /// ([`MIN_MEAN_CLUSTER`]). `diag`: the patches' bounding-box diagonal (faces must
+    /// be planar to 1e-12 of it). Clusters by plane are for foreign occluders only,
+    /// whose queries ignore triangles by plane: the face ids of native ones would
+    /// name one face of the cluster.
+    pub(crate) fn new(
+        geom: &[PatchGeom],
+        valid: &[bool],
+        diag: f64,
+        by_plane: bool,
+    ) -> Option<Self> {
+        let mut groups: HashMap<(u32, [i64; 4]), Vec<usize>> = HashMap::new();
         for (i, g) in geom.iter().enumerate() {
             if valid[i] {
-                by_face.entry(g.face).or_default().push(i);
+                let key = if by_plane {
+                    let n = g.normal.normalize_or_zero();
+                    let q = |x: f64, step: f64| (x / step).round() as i64;
+                    let o = n.dot(g.centroid);
+                    (
+                        0,
+                        [q(n.x, 1e-9), q(n.y, 1e-9), q(n.z, 1e-9), q(o, 1e-9 * diag)],
+                    )
+                } else {
+                    (g.face, [0; 4])
+                };
+                groups.entry(key).or_default().push(i);
             }
         }
-        let mut faces: Vec<(u32, Vec<usize>)> = by_face.into_iter().collect();
-        faces.sort_unstable_by_key(|(f, _)| *f);
+        let mut groups: Vec<Vec<usize>> = groups.into_values().collect();
+        // Members are in patch order: order the groups by their first patch.
+        groups.sort_unstable_by_key(|m| m[0]);
         let mut c = Clusters {
             of: vec![NONE; geom.len()],
             rects: Vec::new(),
         };
         let mut clustered = 0usize;
-        for (face, members) in &faces {
-            clustered += c.add_face(*face, members, geom, 1e-12 * diag);
+        for members in &groups {
+            let face = geom[members[0]].face;
+            clustered += c.add_face(face, members, geom, 1e-12 * diag, by_plane);
         }
         let mean = clustered as f64 / c.rects.len().max(1) as f64;
         (mean >= MIN_MEAN_CLUSTER).then_some(c)
     }
 
-    /// Grid cells over one face's patches; returns the number of patches clustered.
-    /// The face is left out (its pairs query the hierarchy themselves) unless all its
-    /// patches have the same normal and every corner lies within `flat` of the plane
-    /// through the first corner: the cluster queries use that plane (an OBJ face may be
-    /// planar only to 1e-6 of its size, far more than the occluder tests' tolerance).
-    fn add_face(&mut self, face: u32, members: &[usize], geom: &[PatchGeom], flat: f64) -> usize {
+    /// Grid cells over one face's (or plane's) patches; returns the number of patches
+    /// clustered. The group is left out (its pairs query the hierarchy themselves)
+    /// unless all its patches have the same normal (with `by_plane`, unit normals
+    /// within 1e-12: facets of one plane have their normals computed apart) and every
+    /// corner lies within `flat` of the plane through the first corner: the cluster
+    /// queries use that plane (an OBJ face may be planar only to 1e-6 of its size, far
+    /// more than the occluder tests' tolerance).
+    fn add_face(
+        &mut self,
+        face: u32,
+        members: &[usize],
+        geom: &[PatchGeom],
+        flat: f64,
+        by_plane: bool,
+    ) -> usize {
         let g0 = &geom[members[0]];
         let normal = g0.normal;
-        if members.iter().any(|&i| geom[i].normal != normal) {
+        let unit = normal.normalize_or_zero();
+        let same = |n: DVec3| match by_plane {
+            true => (n.normalize_or_zero() - unit).length() <= 1e-12,
+            false => n == normal,
+        };
+        if members.iter().any(|&i| !same(geom[i].normal)) {
             return 0;
         }
-        let unit = normal.normalize_or_zero();
         let v = g0.poly.verts();
         let origin = v[0];
         let on_plane = members
@@ -449,7 +485,7 @@ mod tests {
         }
         let geom: Vec<PatchGeom> = patches.iter().map(PatchGeom::new).collect();
         let valid = vec![true; geom.len()];
-        let c = Clusters::new(&geom, &valid, 10.0).expect("face 0 is clustered");
+        let c = Clusters::new(&geom, &valid, 10.0, false).expect("face 0 is clustered");
         for (i, p) in patches.iter().enumerate() {
             assert_eq!(c.of(i as u32).is_some(), p.face == 0, "patch {i}");
         }
@@ -467,7 +503,7 @@ mod tests {
         let occ = Occluders::new(scene.triangles().collect());
         let geom: Vec<PatchGeom> = patches.patches.iter().map(PatchGeom::new).collect();
         let valid: Vec<bool> = geom.iter().map(PatchGeom::is_valid).collect();
-        let c = Clusters::new(&geom, &valid, 20.0).expect("the room's faces are subdivided");
+        let c = Clusters::new(&geom, &valid, 20.0, false).expect("the room's faces are subdivided");
         assert!(c.len() > 2 * CACHED_CLUSTERS && c.len() < geom.len() / 4);
         for (i, g) in geom.iter().enumerate() {
             let r = &c.rects[c.of(i as u32).unwrap() as usize];

@@ -175,7 +175,7 @@ impl RowEngine {
         let clusters = if occluders.is_empty() {
             None
         } else {
-            Clusters::new(&geom, &valid, diag)
+            Clusters::new(&geom, &valid, diag, occluders.is_foreign())
         };
         // Rounding of plane distances grows with the coordinates' magnitude too.
         let magnitude = lo.abs().max(hi.abs()).max_element();

@@ -65,15 +65,29 @@ fn contour_single_pair_matches_howell() {
 fn cluster_lists_change_no_value() {
     use crate::geometry::subdivide::{default_max_edge, subdivide};
     use crate::scene::builtin;
+    // Last: the room as a mesh delivered split into facets (every patch its own face)
+    // with its occluders merged, so foreign: clusters by plane.
     let cases = [
-        ("room", None, 1200, 7),
-        ("room", Some(64.0), 3000, 29),
-        ("cornell", None, 700, 7),
+        ("room", None, 1200, 7, false),
+        ("room", Some(64.0), 3000, 29, false),
+        ("cornell", None, 700, 7, false),
+        ("room", None, 1200, 7, true),
     ];
-    for (name, param, target, step) in cases {
+    for (name, param, target, step, presplit) in cases {
         let scene = builtin(name, param).unwrap();
-        let patches = Arc::new(subdivide(&scene, default_max_edge(&scene, target)));
-        let occ = Arc::new(Occluders::new(scene.triangles().collect()));
+        let mut patches = subdivide(&scene, default_max_edge(&scene, target));
+        let occ = if presplit {
+            for (k, p) in patches.patches.iter_mut().enumerate() {
+                p.face = k as u32;
+            }
+            let merged = crate::geometry::merge::merge_coplanar(scene.triangles().map(|t| t.1));
+            Arc::new(Occluders::new_foreign(
+                (0u32..).zip(merged.triangles).collect(),
+            ))
+        } else {
+            Arc::new(Occluders::new(scene.triangles().collect()))
+        };
+        let patches = Arc::new(patches);
         let cfg = FormFactorConfig::accurate();
         let with = RowEngine::new(&patches, occ.clone(), cfg.clone());
         assert!(with.clusters.is_some(), "{name}: no clusters");
