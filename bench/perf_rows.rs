@@ -28,6 +28,7 @@ use std::time::Instant;
 
 use ffstream::formfactor::sampling::SplitMix64;
 use ffstream::formfactor::{Counters, FormFactorConfig, RowEngine, Scratch, TopKSearch, TopKTail};
+use ffstream::geometry::merge::OccluderMesh;
 use ffstream::geometry::occluders::Occluders;
 use ffstream::geometry::subdivide::{default_max_edge, subdivide};
 use ffstream::patch::PatchSet;
@@ -247,7 +248,11 @@ fn main() {
     let max_edge = default_max_edge(&scene, a.patches);
     let patches: Arc<PatchSet> = Arc::new(subdivide(&scene, max_edge));
     let n = patches.len();
-    let fine = Arc::new(Occluders::new(scene.triangles().collect()));
+    // The scene's triangles as `ffstream compute` uses them by default (coplanar ones
+    // merged: --no-merge-occluders not given).
+    let mesh = OccluderMesh::prepare(scene.triangles().collect(), false, true);
+    let (given, merged_note) = (mesh.given, mesh.header_note());
+    let fine = Arc::new(mesh.build());
     // The engine of the first mode, built here so that the set-up time covers the same
     // steps as `ffstream compute`'s "set-up (load, subdivide, Bvh, engine)" line.
     let first_engine = RowEngine::new(
@@ -371,6 +376,10 @@ fn main() {
         );
         // The engine's parameters as `ffstream compute` writes them into the file header
         // (bench/run.py checks that a sampled mode matches the run it stands in for).
-        println!("  engine: {}", e.describe());
+        let described = match mode.as_str() {
+            "occluders" | "fineocc" => e.describe(),
+            _ => RowEngine::description(&config_of(mode), given) + &merged_note,
+        };
+        println!("  engine: {described}");
     }
 }

@@ -12,8 +12,7 @@ use ffstream::ffz::{FileMeta, Layout, WriterOptions};
 use ffstream::formfactor::{
     FormFactorConfig, Method, RowEngine, TopKSearch, TopKTail, Visibility, MAX_SAMPLES,
 };
-use ffstream::geometry::merge::merge_coplanar;
-use ffstream::geometry::occluders::Occluders;
+use ffstream::geometry::merge::OccluderMesh;
 use ffstream::geometry::subdivide::{default_max_edge, patch_count, subdivide};
 use ffstream::patch::PatchSet;
 use ffstream::scene::{self, Scene};
@@ -448,40 +447,25 @@ fn engine_for(
     };
     // Coplanar triangles merged (they then belong to no one face: foreign); the header
     // keeps the count as given and records the merged count beside it.
-    let merged = (!o.no_merge_occluders)
-        .then(|| {
-            tracing::info_span!("merge_occluders")
-                .in_scope(|| merge_coplanar(occluder_triangles.iter().map(|t| t.1)))
-        })
-        .filter(|m| m.groups > 0);
-    let given = Occluders::count_kept(occluder_triangles.clone());
-    let (occluder_triangles, merged_note) = match merged {
-        Some(m) => {
-            let tris: Vec<_> = (0u32..).zip(m.triangles).collect();
-            let kept = Occluders::count_kept(tris.clone());
-            if announce {
-                eprintln!(
-                    "ffstream: occluders: {given} triangles, those of {} planes merged: {kept} \
-                     triangles block the same (--no-merge-occluders keeps them as given)",
-                    m.groups
-                );
-            }
-            (tris, format!(" occluders_merged={kept}"))
-        }
-        None => (occluder_triangles, String::new()),
-    };
-    let foreign_mesh = o.occluders.is_some() || !merged_note.is_empty();
-    let description = RowEngine::description(cfg, given) + &merged_note + &foreign;
+    let mesh = tracing::info_span!("merge_occluders").in_scope(|| {
+        OccluderMesh::prepare(
+            occluder_triangles,
+            o.occluders.is_some(),
+            !o.no_merge_occluders,
+        )
+    });
+    if let (Some((groups, kept)), true) = (mesh.merged, announce) {
+        eprintln!(
+            "ffstream: occluders: {} triangles, those of {groups} planes merged: {kept} \
+             triangles block the same (--no-merge-occluders keeps them as given)",
+            mesh.given
+        );
+    }
+    let description = RowEngine::description(cfg, mesh.given) + &mesh.header_note() + &foreign;
     if role == Role::Master {
         return Ok((None, description));
     }
-    let occluders = Arc::new(tracing::info_span!("build_bvh").in_scope(|| {
-        if foreign_mesh {
-            Occluders::new_foreign(occluder_triangles)
-        } else {
-            Occluders::new(occluder_triangles)
-        }
-    }));
+    let occluders = Arc::new(tracing::info_span!("build_bvh").in_scope(|| mesh.build()));
     let engine = tracing::info_span!("prepare_engine")
         .in_scope(|| RowEngine::new(patches, occluders, cfg.clone()));
     Ok((Some(Arc::new(engine)), description))

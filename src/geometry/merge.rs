@@ -35,6 +35,8 @@ use i_triangle::i_overlay::core::fill_rule::FillRule;
 use i_triangle::i_overlay::float::simplify::SimplifyShape;
 use i_triangle::int::validation::Validation;
 
+use super::occluders::Occluders;
+
 /// Plane tolerance of the grouping, relative to the diagonal of the triangles'
 /// bounding box: a vertex this close to a group's plane is on it.
 pub const PLANE_TOLERANCE: f64 = 1e-9;
@@ -57,6 +59,68 @@ pub struct Merged {
     pub input: usize,
     /// Planes whose triangles were merged.
     pub groups: usize,
+}
+
+/// The occluder triangles of a job as [`OccluderMesh::prepare`] makes them: as given, or
+/// with each plane's triangles merged ([`merge_coplanar`]). `ffstream compute` and the
+/// row benchmark both build their occluders through it, so that what a benchmark times
+/// is what the product computes.
+#[derive(Clone, Debug)]
+pub struct OccluderMesh {
+    /// The triangles the hierarchy is built over, each with its scene face (merged
+    /// triangles are numbered from 0 and belong to no face: `foreign` is then set).
+    pub triangles: Vec<(u32, [DVec3; 3])>,
+    /// How many of the triangles as given the occluders keep (the header's
+    /// `occluder_triangles=`).
+    pub given: usize,
+    /// Planes merged and the triangles left after merging, when any plane was merged.
+    pub merged: Option<(usize, usize)>,
+    /// Whether the face ids mean nothing to the patches (another mesh, or merged).
+    pub foreign: bool,
+}
+
+impl OccluderMesh {
+    /// `tris` (from the patches' own scene, or from another mesh when `foreign`), merged
+    /// when `merge` is set and some plane gains from it.
+    pub fn prepare(tris: Vec<(u32, [DVec3; 3])>, foreign: bool, merge: bool) -> Self {
+        let given = Occluders::count_kept(tris.clone());
+        let merged = merge
+            .then(|| merge_coplanar(tris.iter().map(|t| t.1)))
+            .filter(|m| m.groups > 0);
+        match merged {
+            Some(m) => {
+                let triangles: Vec<_> = (0u32..).zip(m.triangles).collect();
+                let kept = Occluders::count_kept(triangles.clone());
+                OccluderMesh {
+                    triangles,
+                    given,
+                    merged: Some((m.groups, kept)),
+                    foreign: true,
+                }
+            }
+            None => OccluderMesh {
+                triangles: tris,
+                given,
+                merged: None,
+                foreign,
+            },
+        }
+    }
+
+    /// What the file header adds after `occluder_triangles=`: ` occluders_merged=K`
+    /// when planes were merged, else nothing.
+    pub fn header_note(&self) -> String {
+        self.merged
+            .map_or_else(String::new, |(_, kept)| format!(" occluders_merged={kept}"))
+    }
+
+    /// The hierarchy over the triangles.
+    pub fn build(self) -> Occluders {
+        match self.foreign {
+            true => Occluders::new_foreign(self.triangles),
+            false => Occluders::new(self.triangles),
+        }
+    }
 }
 
 /// The triangles of `tris` (any order; degenerate and non-finite ones are dropped, as
