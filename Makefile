@@ -53,17 +53,17 @@ test: deps
 	$(CARGO) fmt --check
 	$(CARGO) clippy --all-targets --quiet -- -D warnings
 	RUSTDOCFLAGS="-D warnings" $(CARGO) doc --no-deps --document-private-items --quiet
-	$(CARGO) test
-	$(CARGO) bench --no-run --quiet
 	$(CARGO) check --no-default-features --all-targets --quiet
-	$(CARGO) check --manifest-path fuzz/Cargo.toml --quiet
+	$(CARGO) check --manifest-path fuzz/Cargo.toml --target-dir target --no-default-features --quiet
 	$(CARGO) build --release
+	$(CARGO) test --release
+	$(CARGO) bench --no-run --quiet
 	$(PYTHON) bench/run.py --quick
 	@tmp=$$(mktemp -d) && \
 	$(PYTHON) -m venv $$tmp/venv && \
 	$$tmp/venv/bin/python -m pip install -q --disable-pip-version-check ./formats pytest && \
-	./target/debug/ffstream compute builtin:cornell --patches 300 --chunk-kib 64 --quiet -o $$tmp/c.ffz && \
-	./target/debug/ffstream export $$tmp/c.ffz --matrix $$tmp/c.mtx --patches-csv $$tmp/c.csv && \
+	./target/release/ffstream compute builtin:cornell --patches 300 --chunk-kib 64 --quiet -o $$tmp/c.ffz && \
+	./target/release/ffstream export $$tmp/c.ffz --matrix $$tmp/c.mtx --patches-csv $$tmp/c.csv && \
 	FFZ_INSTALLED=1 FFZ_FILE=$$tmp/c.ffz FFZ_MTX=$$tmp/c.mtx FFZ_CSV=$$tmp/c.csv \
 	  $$tmp/venv/bin/python -m pytest -q -p no:cacheprovider --import-mode=importlib formats/test_ffz.py; \
 	status=$$?; rm -rf $$tmp; exit $$status

@@ -128,6 +128,8 @@ proptest! {
         seed in any::<u64>(),
     ) {
         let (a, b, c) = dims;
+        // The scene with `m` × `m` patches per wall of the enclosure.
+        let build = |m: usize| {
         let mut g = Geo::closed_box(a, b, c, m);
         if let Some((x, y, z)) = inner {
             // A box with six outward faces floating inside, touching nothing: the
@@ -141,7 +143,9 @@ proptest! {
                 .para(o + u, v, w, 1, 1); // +x
         }
         let s = 10f64.powf(log_scale);
-        let g = g.transformed(s, rotation(angles), dvec3(shift.0, shift.1, shift.2) * s);
+        g.transformed(s, rotation(angles), dvec3(shift.0, shift.1, shift.2) * s)
+        };
+        let g = build(m);
         let cfg = FormFactorConfig::accurate().with_seed(seed % 1000);
         let f = matrix(&g.engine(cfg.clone()));
         let total: f64 = (0..g.n()).map(|i| g.area(i)).sum();
@@ -171,21 +175,31 @@ proptest! {
             assert_unoccluded_pairs_reciprocal(&g, &f, &cfg)?;
             // Exact visibility: the shadows of the floating box are clipped, not
             // sampled, so rows of the closed box sum to 1 and every pair is reciprocal,
-            // to the quadrature's tolerance. (3 × 3 per wall costs ~40 s a case: only in
-            // the long run.)
-            if m <= 2 || std::env::var_os("FFSTREAM_STRESS_LONG").is_some() {
+            // to the quadrature's tolerance. At 1e-6 this costs about 2 minutes a case
+            // with 2 × 2 patches per wall and 60-75 s with one (the outer rule refines
+            // toward the shadow edges, where the integrand has kinks along curves): the
+            // short run checks the first occluded case only, with one patch per wall
+            // (the same box, scale and placement); the long run every case, with its
+            // own m.
+            let long = std::env::var_os("FFSTREAM_STRESS_LONG").is_some();
+            static EXACT_CASES: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+            if long || EXACT_CASES.fetch_add(1, std::sync::atomic::Ordering::Relaxed) == 0 {
+            let mx = if long { m } else { 1 };
+            let gx = build(mx);
+            let totalx: f64 = (0..gx.n()).map(|i| gx.area(i)).sum();
             let mut xcfg = FormFactorConfig::accurate().with_seed(seed % 1000);
             xcfg.visibility = Visibility::Exact;
             xcfg.shadow_tol = 1e-6;
-            let fx = matrix(&g.engine(xcfg.clone()));
-            let (xs, xrecip) = check_matrix(&g, &fx, 1e-12 * total);
+            let t = std::time::Instant::now();
+            let fx = matrix(&gx.engine(xcfg.clone()));
+            let (xs, xrecip) = check_matrix(&gx, &fx, 1e-12 * totalx);
             let xdev = xs.iter().map(|x| (x - 1.0).abs()).fold(0.0, f64::max);
-            let xweighted = weighted_reciprocity(&g, &fx);
-            println!("occluded closed box, {m}×{m} per wall: max |row sum − 1| accurate {dev:.2e} (over 1: {over:.2e}, reciprocity {recip:.2e}), exact {xdev:.2e} (reciprocity {xrecip:.2e}, weighted {xweighted:.2e})");
-            prop_assert!(xdev <= 1e-5, "occluded box, exact, m={m}: row sum off by {xdev}");
+            let xweighted = weighted_reciprocity(&gx, &fx);
+            println!("occluded closed box, {m}×{m} per wall: max |row sum − 1| accurate {dev:.2e} (over 1: {over:.2e}, reciprocity {recip:.2e}); {mx}×{mx} per wall, exact {xdev:.2e} (reciprocity {xrecip:.2e}, weighted {xweighted:.2e}, {:.1} s)", t.elapsed().as_secs_f64());
+            prop_assert!(xdev <= 1e-5, "occluded box, exact, m={mx}: row sum off by {xdev}");
             // Per pair the error is up to shadow_tol × F⁰_ij, large relative to a
             // mostly hidden F_ij; the share of the exchanged flux is what must be tiny.
-            prop_assert!(xweighted <= 1e-5, "occluded box, exact, m={m}: weighted reciprocity {xweighted}");
+            prop_assert!(xweighted <= 1e-5, "occluded box, exact, m={mx}: weighted reciprocity {xweighted}");
             }
         }
         assert_thread_invariant(g.engine(cfg), seed);
