@@ -36,6 +36,11 @@ manager; close() releases the memory map):
   is kept.
 - Every chunk read checks what spec 9.3 lists. A failure raises FfzError naming the
   file, the chunk and its byte offset; the other chunks still read.
+- to_csr() and read() also check the numbers (spec 10): entries that are negative, not
+  finite or above 1.5, and a dropped mass outside [0, 1.5], cannot be form factors.
+  They are returned as stored, but each kind found adds a line to `warnings` (the count
+  of rows and the first row and column) and raises a RuntimeWarning; `value_faults()`
+  gives the same lines for any matrix and dropped mass, and the command line exits 3.
 - verify=False skips the CRC-32C checks (not the structural ones). `threads`: chunks
   decoded in parallel by to_csr(), chunks() and dropped (default: the CPUs, at most 8).
 
@@ -61,6 +66,7 @@ import os
 import struct
 import sys
 import threading
+import warnings as _warnings
 import weakref
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
@@ -86,6 +92,49 @@ MISSING, PRESENT, SKIPPED_STATE = 0, 1, 2
 # each other in a chunk and in the matrix). Module constants so that tests reach both ways.
 MIN_RUN_WORDS = 64
 MIN_RUN_ENTRIES = 256
+
+# Spec 10: no form factor and no row's total exceeds 1; a stored entry or dropped mass
+# above this (or negative, or not finite) cannot be one. ffstream's `verify` fails such
+# rows and its `solve` refuses them.
+MAX_FORM_FACTOR = 1.5
+
+
+def _rows(k) -> str:
+    return f"{k} row" if k == 1 else f"{k} rows"
+
+
+def value_faults(matrix, dropped) -> list:
+    """Rows whose numbers cannot be form factors (spec 10), one message per kind of
+    fault that occurs: entries not finite, negative or above MAX_FORM_FACTOR, and a
+    dropped mass that is not a finite number in [0, MAX_FORM_FACTOR]. Each message
+    gives the count of rows and names the first row (and column). Empty for a sound
+    file. `matrix` is the CSR matrix of to_csr(), `dropped` the mass per row."""
+    out = []
+    data = matrix.data
+    rows_of = lambda at: np.searchsorted(matrix.indptr, at, side="right") - 1  # noqa: E731
+    kinds = [
+        (~np.isfinite(data), "is not finite"),
+        (np.isfinite(data) & (data < 0), "is negative"),
+        (np.isfinite(data) & (data > MAX_FORM_FACTOR), f"is above {MAX_FORM_FACTOR}: not a form factor"),
+    ]
+    for bad, what in kinds:
+        at = np.flatnonzero(bad)
+        if len(at):
+            r = rows_of(at)
+            k = int(at[0])
+            out.append(
+                f"entries that cannot be form factors in {_rows(len(np.unique(r)))}; "
+                f"first: row {int(r[0])}: value {float(data[k]):g} at column {int(matrix.indices[k])} {what}"
+            )
+    d = np.asarray(dropped)
+    bad = ~(np.isfinite(d) & (d >= 0) & (d <= MAX_FORM_FACTOR))
+    if bad.any():
+        r = np.flatnonzero(bad)
+        out.append(
+            f"a dropped mass that is not a finite number in [0, {MAX_FORM_FACTOR}] in {_rows(len(r))}; "
+            f"first: row {int(r[0])}: {float(d[r[0]]):g}"
+        )
+    return out
 
 # --- CRC-32C (spec 2): reflected polynomial 0x82F63B78 --------------------------------
 
@@ -850,7 +899,19 @@ class FfzReader:
         parts.clear()
         dropped.flags.writeable = False
         self._dropped = dropped
-        return scipy.sparse.csr_matrix((data, indices, indptr.astype(itype)), shape=(n, n), copy=False)
+        m = scipy.sparse.csr_matrix((data, indices, indptr.astype(itype)), shape=(n, n), copy=False)
+        self._note_faults(m, dropped)
+        return m
+
+    def _note_faults(self, matrix, dropped):
+        """Spec 10's value checks on what to_csr() read: each fault becomes a warning in
+        `warnings` (once) and a RuntimeWarning, so a NaN or negative entry is never
+        handed over silently. The numbers themselves are returned as stored."""
+        for msg in value_faults(matrix, dropped):
+            msg = f"{self.path}: {msg}"
+            if msg not in self.warnings:
+                self.warnings.append(msg)
+                _warnings.warn(msg, RuntimeWarning, stacklevel=3)
 
     def read(self) -> FfzFile:
         """The whole file as an FfzFile (what `ffz.read` returns)."""
@@ -967,7 +1028,7 @@ def main(argv) -> int:
         print(f"warning: {w}")
     if len(argv) >= 3 and argv[1] == "--dump":
         dump(f, argv[2])
-    return 0
+    return 3 if value_faults(f.matrix, f.dropped) else 0
 
 
 if __name__ == "__main__":

@@ -548,3 +548,55 @@ def test_installed_package_is_tested_with_its_crc32c():
     from importlib.metadata import version
 
     assert version("ffstream-ffz") == ffz.__version__
+
+
+BAD = HERE.parent / "tests" / "data" / "bad"
+
+
+@pytest.mark.parametrize(
+    "name, fault",
+    [
+        ("ffz_value_inf", r"row 1: value inf at column 1 is not finite"),
+        ("ffz_value_negative", r"row 1: value -0\.25 at column 0 is negative"),
+        ("ffz_value_huge", r"row 1: value 1e\+30 at column 2 is above 1\.5"),
+        ("ffz_value_dropped_nan", r"dropped mass .* first: row 1: nan"),
+        ("ffz_value_dropped_negative", r"dropped mass .* first: row 1: -0\.25"),
+        ("ffz_value_dropped_huge", r"dropped mass .* first: row 1: 1e\+30"),
+    ],
+)
+def test_numbers_that_cannot_be_form_factors_are_named_never_silent(name, fault, capsys):
+    # The bad-value corpus of the Rust tests (tests/it/ffz_bad_values.rs): intact chunks,
+    # row 1 holds the bad number. The reader returns it as stored but says so.
+    path = str(BAD / f"{name}.ffz")
+    with pytest.warns(RuntimeWarning, match=fault):
+        f = ffz.read(path)
+    assert len(f.warnings) == 1 and re.search(fault, f.warnings[0]), f.warnings
+    assert f.warnings[0].startswith(path)
+    dense = f.matrix.toarray()
+    assert np.isfinite(dense[[0, 2, 3]]).all() and np.isfinite(f.dropped[[0, 2, 3]]).all()
+    with pytest.warns(RuntimeWarning):
+        assert ffz.main([path]) == 3
+    assert re.search(fault, capsys.readouterr().out)
+
+
+@pytest.mark.parametrize("name", ["tiny-v1.ffz", "tiny-dense-v1.ffz"])
+def test_sound_files_have_no_value_faults(name):
+    f = ffz.read(str(HERE / "golden" / name))
+    assert f.warnings == [] and ffz.value_faults(f.matrix, f.dropped) == []
+    assert ffz.main([str(HERE / "golden" / name)]) == 0
+
+
+def test_value_faults_counts_rows_and_names_the_first():
+    import scipy.sparse
+
+    m = scipy.sparse.csr_matrix(
+        np.array([[0, 0.5, 0], [-1e-3, 0, -2.0], [0, 0, 0], [np.nan, 1.6, -1.0]], dtype=np.float32)
+    )
+    dropped = np.array([0, 0, np.inf, 1.5], dtype=np.float32)  # 1.5 itself is allowed
+    got = ffz.value_faults(m, dropped)
+    assert got == [
+        "entries that cannot be form factors in 1 row; first: row 3: value nan at column 0 is not finite",
+        "entries that cannot be form factors in 2 rows; first: row 1: value -0.001 at column 0 is negative",
+        "entries that cannot be form factors in 1 row; first: row 3: value 1.6 at column 1 is above 1.5: not a form factor",
+        "a dropped mass that is not a finite number in [0, 1.5] in 1 row; first: row 2: inf",
+    ]
