@@ -43,6 +43,33 @@ pub enum WeatherError {
     File { path: PathBuf, what: String },
 }
 
+impl WeatherError {
+    fn at(path: &Path, line: usize, what: String) -> Self {
+        WeatherError::At {
+            path: path.to_owned(),
+            line,
+            what,
+        }
+    }
+
+    fn file(path: &Path, what: impl Into<String>) -> Self {
+        WeatherError::File {
+            path: path.to_owned(),
+            what: what.into(),
+        }
+    }
+
+    /// A problem with field `col` (0-based) of `rec`, named by its 1-based column
+    /// number and `name`.
+    fn field(path: &Path, rec: &table::Record, col: usize, name: &str, what: String) -> Self {
+        Self::at(
+            path,
+            rec.line,
+            format!("column {} ({name}): {what}", col + 1),
+        )
+    }
+}
+
 /// One hour of weather.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Hour {
@@ -99,9 +126,9 @@ pub fn read(path: &Path) -> Result<Weather, WeatherError> {
     if path.extension().is_some_and(|e| e == "zst") {
         bytes = zstd::decode_all(bytes.as_slice()).map_err(io)?;
     }
-    let text = String::from_utf8(bytes).map_err(|e| WeatherError::File {
-        path: path.to_owned(),
-        what: format!("not UTF-8 text (byte {})", e.utf8_error().valid_up_to()),
+    let text = String::from_utf8(bytes).map_err(|e| {
+        let at = e.utf8_error().valid_up_to();
+        WeatherError::file(path, format!("not UTF-8 text (byte {at})"))
     })?;
     if text.trim_start_matches('\u{feff}').starts_with("LOCATION") {
         parse_epw(path, &text)
@@ -113,13 +140,7 @@ pub fn read(path: &Path) -> Result<Weather, WeatherError> {
 /// The records of `text` with errors naming `path`.
 fn rows(path: &Path, text: &str) -> Result<Vec<table::Record>, WeatherError> {
     table::records(text)
-        .map(|r| {
-            r.map_err(|(line, what)| WeatherError::At {
-                path: path.to_owned(),
-                line,
-                what,
-            })
-        })
+        .map(|r| r.map_err(|(line, what)| WeatherError::at(path, line, what)))
         .collect()
 }
 
@@ -132,11 +153,7 @@ fn number(
     name: &str,
     range: std::ops::RangeInclusive<f64>,
 ) -> Result<f64, WeatherError> {
-    let at = |what: String| WeatherError::At {
-        path: path.to_owned(),
-        line: rec.line,
-        what: format!("column {} ({name}): {what}", col + 1),
-    };
+    let at = |what: String| WeatherError::field(path, rec, col, name, what);
     let field = rec.fields.get(col).ok_or_else(|| {
         at(format!(
             "missing (the line has {} fields)",
@@ -170,11 +187,13 @@ fn whole(
     let v = number(path, rec, col, name, range)?;
     match v.fract() == 0.0 {
         true => Ok(v as u32),
-        false => Err(WeatherError::At {
-            path: path.to_owned(),
-            line: rec.line,
-            what: format!("column {} ({name}): {v} is not a whole number", col + 1),
-        }),
+        false => Err(WeatherError::field(
+            path,
+            rec,
+            col,
+            name,
+            format!("{v} is not a whole number"),
+        )),
     }
 }
 
@@ -191,34 +210,26 @@ fn check_date(
         && (1..=24).contains(&hour);
     match ok {
         true => Ok(()),
-        false => Err(WeatherError::At {
-            path: path.to_owned(),
+        false => Err(WeatherError::at(
+            path,
             line,
-            what: format!("month {month}, day {day}, hour {hour} is not a date and hour 1-24"),
-        }),
+            format!("month {month}, day {day}, hour {hour} is not a date and hour 1-24"),
+        )),
     }
 }
 
 fn parse_epw(path: &Path, text: &str) -> Result<Weather, WeatherError> {
     let recs = rows(path, text)?;
-    let loc = recs.first().ok_or_else(|| WeatherError::File {
-        path: path.to_owned(),
-        what: "empty".into(),
-    })?;
-    let latitude = number(path, loc, 6, "latitude", -90.0..=90.0)?;
-    let longitude = number(path, loc, 7, "longitude", -180.0..=180.0)?;
-    let time_zone = number(path, loc, 8, "time zone", -14.0..=14.0)?;
-    let elevation = number(path, loc, 9, "elevation", -500.0..=9000.0)?;
-    let name = loc.fields.get(1).cloned().unwrap_or_default();
+    let loc = recs
+        .first()
+        .ok_or_else(|| WeatherError::file(path, "empty"))?;
+    let site = site(path, loc, [6, 7, 8, 9])?;
     // The header is eight lines, the last `DATA PERIODS`; every line after it is an hour.
     let periods = recs.iter().find(|r| r.line == 8);
     let periods = periods.and_then(|r| r.fields.first());
     if periods.map(String::as_str) != Some("DATA PERIODS") {
-        return Err(WeatherError::At {
-            path: path.to_owned(),
-            line: 8,
-            what: "not `DATA PERIODS,...`: an EPW file has eight header lines".into(),
-        });
+        let what = "not `DATA PERIODS,...`: an EPW file has eight header lines";
+        return Err(WeatherError::at(path, 8, what.into()));
     }
     let data = recs.iter().filter(|r| r.line > 8);
     let mut hours = Vec::new();
@@ -244,12 +255,7 @@ fn parse_epw(path: &Path, text: &str) -> Result<Weather, WeatherError> {
             dhi: number(path, rec, 15, "diffuse horizontal radiation", IRRADIANCE)?,
         });
     }
-    finish(
-        path,
-        Site::new(latitude, longitude, time_zone, elevation),
-        name,
-        hours,
-    )
+    finish(path, site, name_of(loc), hours)
 }
 
 fn parse_tmy3(path: &Path, text: &str) -> Result<Weather, WeatherError> {
@@ -257,27 +263,19 @@ fn parse_tmy3(path: &Path, text: &str) -> Result<Weather, WeatherError> {
     let (head, names) = match recs.as_slice() {
         [h, n, ..] => (h, n),
         _ => {
-            return Err(WeatherError::File {
-                path: path.to_owned(),
-                what: "not an EPW file (no LOCATION line) and too short for TMY3 (a site line and a line of column names)".into(),
-            })
+            return Err(WeatherError::file(
+                path,
+                "not an EPW file (no LOCATION line) and too short for TMY3 (a site line and a line of column names)",
+            ))
         }
     };
-    let latitude = number(path, head, 4, "latitude", -90.0..=90.0)?;
-    let longitude = number(path, head, 5, "longitude", -180.0..=180.0)?;
-    let time_zone = number(path, head, 3, "time zone", -14.0..=14.0)?;
-    let elevation = number(path, head, 6, "elevation", -500.0..=9000.0)?;
-    let name = head.fields.get(1).cloned().unwrap_or_default();
+    let site = site(path, head, [4, 5, 3, 6])?;
     let col = |want: &str| {
         names
             .fields
             .iter()
             .position(|f| f.eq_ignore_ascii_case(want))
-            .ok_or_else(|| WeatherError::At {
-                path: path.to_owned(),
-                line: names.line,
-                what: format!("no column named {want:?}"),
-            })
+            .ok_or_else(|| WeatherError::at(path, names.line, format!("no column named {want:?}")))
     };
     let (c_date, c_time) = (col("Date (MM/DD/YYYY)")?, col("Time (HH:MM)")?);
     let (c_ghi, c_dni, c_dhi) = (
@@ -288,11 +286,6 @@ fn parse_tmy3(path: &Path, text: &str) -> Result<Weather, WeatherError> {
     let (c_dew, c_p) = (col("Dew-point (C)")?, col("Pressure (mbar)")?);
     let mut hours = Vec::new();
     for rec in &recs[2..] {
-        let bad = |what: String| WeatherError::At {
-            path: path.to_owned(),
-            line: rec.line,
-            what,
-        };
         let date = rec.fields.get(c_date).map(String::as_str).unwrap_or("");
         let time = rec.fields.get(c_time).map(String::as_str).unwrap_or("");
         let md: Vec<u32> = date.split('/').filter_map(|x| x.parse().ok()).collect();
@@ -300,11 +293,15 @@ fn parse_tmy3(path: &Path, text: &str) -> Result<Weather, WeatherError> {
         let (month, day, hour) = match (md.as_slice(), hm.as_slice()) {
             ([m, d, _], [h, 0]) => (*m, *d, *h),
             _ => {
-                return Err(bad(format!(
-                    "column {} ({date:?}) and {} ({time:?}): not MM/DD/YYYY and HH:00",
-                    c_date + 1,
-                    c_time + 1
-                )))
+                return Err(WeatherError::at(
+                    path,
+                    rec.line,
+                    format!(
+                        "column {} ({date:?}) and {} ({time:?}): not MM/DD/YYYY and HH:00",
+                        c_date + 1,
+                        c_time + 1
+                    ),
+                ))
             }
         };
         check_date(path, rec.line, month, day, hour)?;
@@ -319,12 +316,24 @@ fn parse_tmy3(path: &Path, text: &str) -> Result<Weather, WeatherError> {
             pressure: number(path, rec, c_p, "Pressure (mbar)", 310.0..=1200.0)?,
         });
     }
-    finish(
-        path,
-        Site::new(latitude, longitude, time_zone, elevation),
-        name,
-        hours,
-    )
+    finish(path, site, name_of(head), hours)
+}
+
+/// The site of a header line whose fields `cols` hold latitude, longitude, time zone
+/// and elevation (EPW and TMY3 order them differently), with standard air.
+fn site(path: &Path, rec: &table::Record, cols: [usize; 4]) -> Result<Site, WeatherError> {
+    let [lat, lon, tz, elev] = cols;
+    Ok(Site::new(
+        number(path, rec, lat, "latitude", -90.0..=90.0)?,
+        number(path, rec, lon, "longitude", -180.0..=180.0)?,
+        number(path, rec, tz, "time zone", -14.0..=14.0)?,
+        number(path, rec, elev, "elevation", -500.0..=9000.0)?,
+    ))
+}
+
+/// The place's name: the second field of the header line in both formats.
+fn name_of(rec: &table::Record) -> String {
+    rec.fields.get(1).cloned().unwrap_or_default()
 }
 
 /// A year of hours at most, each (month, day, hour) once.
@@ -335,21 +344,16 @@ fn finish(
     hours: Vec<Hour>,
 ) -> Result<Weather, WeatherError> {
     if hours.is_empty() {
-        return Err(WeatherError::File {
-            path: path.to_owned(),
-            what: "no hourly data".into(),
-        });
+        return Err(WeatherError::file(path, "no hourly data"));
     }
     let mut seen = std::collections::HashSet::new();
     for h in &hours {
         if !seen.insert((h.month, h.day, h.hour)) {
-            return Err(WeatherError::File {
-                path: path.to_owned(),
-                what: format!(
-                    "month {}, day {}, hour {} appears twice",
-                    h.month, h.day, h.hour
-                ),
-            });
+            let (m, d, hr) = (h.month, h.day, h.hour);
+            return Err(WeatherError::file(
+                path,
+                format!("month {m}, day {d}, hour {hr} appears twice"),
+            ));
         }
     }
     Ok(Weather { site, name, hours })
