@@ -15,7 +15,7 @@
 //! | [`service`] | the I/O master and its transports (embedded threads, MPI) |
 //! | [`solve`] | out-of-core radiosity solvers |
 //! | [`render`] | software rasterizer for the lit scene |
-//! | [`daylight`] | the sun's position at a place and hour, EPW/TMY3 weather files (the start of `ffstream annual`) |
+//! | [`daylight`] | the sun's position at a place and hour, EPW/TMY3 weather files, the Perez sky on sky patches (the start of `ffstream annual`) |
 
 pub mod daylight;
 pub mod ffz;
