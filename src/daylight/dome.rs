@@ -128,6 +128,11 @@ impl SkyDome {
         self.mf
     }
 
+    /// Cells per patch side in integrals.
+    pub fn cells(&self) -> usize {
+        self.cells
+    }
+
     /// Number of sky patches (the ground not counted).
     pub fn len(&self) -> usize {
         self.patches.len()

@@ -4,8 +4,10 @@
 //! the scene's part and the command itself are not written yet (docs/daylight.md says
 //! what is there).
 
+pub mod annual;
 pub mod dome;
 pub mod perez;
+pub mod scene;
 pub mod sun;
 pub mod weather;
 

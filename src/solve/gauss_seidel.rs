@@ -24,8 +24,7 @@ use tracing::debug;
 use super::check::{final_pass, Mode};
 use super::source::RowSource;
 use super::system::{
-    check_index, column_max_abs, max_of, missing_error, nan_max, relative, skipped_error, Presence,
-    System, FOR_GATHER,
+    column_max_abs, max_of, missing_error, nan_max, relative, Presence, System, FOR_GATHER,
 };
 use super::{HState, Iterate, SolveConfig, SolveError};
 
@@ -53,14 +52,9 @@ pub(crate) fn run(
         let mut coef = vec![0.0f64; m];
         let mut presence = Presence::new(n);
         src.scan(&mut |row| {
-            let i = check_index(row.index, n)?;
-            if !sys.reflects[i] {
+            let Some((i, view)) = sys.gather_view(row, &mut presence, patches)? else {
                 return Ok(());
-            }
-            presence.mark(row.index)?;
-            let view = sys
-                .view(row)?
-                .ok_or_else(|| skipped_error(patches, i, FOR_GATHER))?;
+            };
             let abs_sum = view.gather(&b, m, &mut acc)?;
             for c in 0..m {
                 let k = i * m + c;

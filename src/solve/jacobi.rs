@@ -11,8 +11,7 @@ use tracing::debug;
 
 use super::source::RowSource;
 use super::system::{
-    check_index, column_max_abs, max_of, missing_error, nan_max, relative, skipped_error, Presence,
-    System, FOR_GATHER,
+    column_max_abs, max_of, missing_error, nan_max, relative, Presence, System, FOR_GATHER,
 };
 use super::{HState, Iterate, SolveConfig, SolveError};
 
@@ -39,14 +38,9 @@ pub(crate) fn run(
         let mut change = vec![0.0f64; m];
         let mut presence = Presence::new(n);
         src.scan(&mut |row| {
-            let i = check_index(row.index, n)?;
-            if !sys.reflects[i] {
+            let Some((i, view)) = sys.gather_view(row, &mut presence, patches)? else {
                 return Ok(());
-            }
-            presence.mark(row.index)?;
-            let view = sys
-                .view(row)?
-                .ok_or_else(|| skipped_error(patches, i, FOR_GATHER))?;
+            };
             view.gather(&b, m, &mut acc)?;
             for c in 0..m {
                 let k = i * m + c;

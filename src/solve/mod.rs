@@ -38,6 +38,7 @@
 //! - The lit mesh as PLY is written by the render layer (`render::write_ply`), with
 //!   the vertices, colours and tone map of the picture.
 
+mod adjoint;
 mod cases;
 mod check;
 mod energy;
@@ -55,6 +56,7 @@ use std::fmt;
 
 use tracing::info_span;
 
+pub use adjoint::{solve_adjoint, Adjoint};
 pub use cases::{parse_emission_cases, read_emission_cases, EmissionCases, CASES_HEADER};
 pub(crate) use energy::EnergyReport;
 pub use error::SolveError;

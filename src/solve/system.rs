@@ -286,6 +286,29 @@ impl System {
     ///
     /// # Errors
     /// As [`super::rowview::RowView::new`].
+    /// The view of `row` in a gathering sweep, with its patch index: `None` when the
+    /// patch reflects nothing (its row is not needed). Marks the row in `presence`.
+    ///
+    /// # Errors
+    /// An index out of range, a row seen twice in the sweep, a Skipped row, a malformed
+    /// row.
+    pub(crate) fn gather_view<'r>(
+        &self,
+        row: &'r crate::rows::Row,
+        presence: &mut Presence,
+        patches: &PatchSet,
+    ) -> Result<Option<(usize, super::rowview::RowView<'r>)>, SolveError> {
+        let i = check_index(row.index, self.n)?;
+        if !self.reflects[i] {
+            return Ok(None);
+        }
+        presence.mark(row.index)?;
+        let view = self
+            .view(row)?
+            .ok_or_else(|| skipped_error(patches, i, FOR_GATHER))?;
+        Ok(Some((i, view)))
+    }
+
     pub(crate) fn view<'r>(
         &self,
         row: &'r crate::rows::Row,

@@ -2,6 +2,7 @@
 //! file). Each module holds the tests of one capability.
 mod common;
 mod daylight;
+mod daylight_scene;
 mod ffz_bad_values;
 mod ffz_common;
 mod ffz_corrupt;

@@ -1,0 +1,367 @@
+//! Daylight inside a scene: what each patch and each sensor receives directly from the
+//! sky patches, the ground and the sun, with visibility through the scene's geometry,
+//! and the sensors' view of the patches (for the inter-reflected light).
+//!
+//! Openings are holes in the mesh: a ray that leaves the scene's bounding box without
+//! hitting a triangle sees the sky (upwards) or the ground (downwards; the dome's ground
+//! patch). Every triangle is opaque from both sides.
+//!
+//! Integration rules (deterministic, no random numbers):
+//! - over a patch: each of its triangles is cut into four by its edge midpoints and the
+//!   four centroids carry a quarter of the triangle's area each (`level 1`), or the
+//!   triangle's centroid carries it all (`level 0`);
+//! - over a sky patch: the dome's equal-solid-angle cells, one ray per cell (the ground
+//!   by the same cells mirrored below the horizon);
+//! - sensor to patch: the exact point-to-polygon form factor of the part of the patch in
+//!   front of the sensor (Lambert's formula), times the patch's visible fraction seen from
+//!   the sensor, estimated with the patch's integration points weighted by the
+//!   point-to-point kernel cos θ cos θ' / r².
+
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+use glam::DVec3;
+
+use super::dome::SkyDome;
+use crate::formfactor::polygon::Polygon;
+use crate::formfactor::shadow::point_polygon;
+use crate::geometry::occluders::Occluders;
+use crate::patch::{Patch, PatchSet};
+
+/// A point where illuminance is wanted, with the normal of the surface it lies on.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Sensor {
+    pub name: String,
+    pub point: DVec3,
+    /// Unit normal.
+    pub normal: DVec3,
+}
+
+/// Why a sensors file could not be read.
+#[derive(Debug, thiserror::Error)]
+pub enum SensorError {
+    #[error("{path}: {source}")]
+    Io {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error("{path}: line {line}: {what}")]
+    At {
+        path: PathBuf,
+        line: usize,
+        what: String,
+    },
+}
+
+/// The header a sensors file starts with.
+pub const SENSORS_HEADER: &str = "name,x,y,z,nx,ny,nz";
+
+/// Read sensors from a CSV file with header `name,x,y,z,nx,ny,nz` (the normal need not be
+/// unit length; it is normalised). Blank lines and lines starting with `#` are skipped.
+///
+/// # Errors
+/// The file cannot be read; the header is not the expected one; a line has the wrong
+/// number of fields, a non-number, a non-finite coordinate, a zero normal, or a name
+/// used before (each naming the file and line).
+pub fn read_sensors(path: &Path) -> Result<Vec<Sensor>, SensorError> {
+    let text = std::fs::read_to_string(path).map_err(|source| SensorError::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    let at = |line: usize, what: String| SensorError::At {
+        path: path.to_path_buf(),
+        line,
+        what,
+    };
+    let mut lines = text
+        .lines()
+        .enumerate()
+        .map(|(k, l)| (k + 1, l.trim()))
+        .filter(|(_, l)| !l.is_empty() && !l.starts_with('#'));
+    match lines.next() {
+        Some((_, h)) if h.replace(' ', "") == SENSORS_HEADER => {}
+        Some((k, h)) => return Err(at(k, format!("header `{h}`: expected `{SENSORS_HEADER}`"))),
+        None => {
+            return Err(at(
+                1,
+                format!("empty: expected the header `{SENSORS_HEADER}`"),
+            ))
+        }
+    }
+    let mut out: Vec<Sensor> = Vec::new();
+    for (k, l) in lines {
+        let f: Vec<&str> = l.split(',').map(str::trim).collect();
+        if f.len() != 7 {
+            return Err(at(
+                k,
+                format!("{} fields, expected 7 ({SENSORS_HEADER})", f.len()),
+            ));
+        }
+        let mut v = [0.0; 6];
+        for (c, x) in v.iter_mut().enumerate() {
+            let name = SENSORS_HEADER.split(',').nth(c + 1).unwrap_or("?");
+            *x = f[c + 1]
+                .parse::<f64>()
+                .ok()
+                .filter(|x| x.is_finite())
+                .ok_or_else(|| at(k, format!("{name} `{}` is not a finite number", f[c + 1])))?;
+        }
+        let normal = DVec3::new(v[3], v[4], v[5]);
+        if normal.length_squared() == 0.0 {
+            return Err(at(k, "the normal is zero".into()));
+        }
+        if f[0].is_empty() {
+            return Err(at(k, "empty name".into()));
+        }
+        if out.iter().any(|s| s.name == f[0]) {
+            return Err(at(k, format!("sensor name `{}` used twice", f[0])));
+        }
+        out.push(Sensor {
+            name: f[0].to_string(),
+            point: DVec3::new(v[0], v[1], v[2]),
+            normal: normal.normalize(),
+        });
+    }
+    if out.is_empty() {
+        return Err(at(1, "no sensors".into()));
+    }
+    Ok(out)
+}
+
+/// Integration points of a patch: `(point, area weight)`, weights summing to the area.
+/// Each triangle of the patch is cut `level` times into four by its edge midpoints and
+/// the centroids of the 4^level pieces carry their areas.
+pub fn patch_points(p: &Patch, level: u8) -> Vec<(DVec3, f64)> {
+    fn split(t: [DVec3; 3], area: f64, level: u8, out: &mut Vec<(DVec3, f64)>) {
+        if level == 0 {
+            out.push(((t[0] + t[1] + t[2]) / 3.0, area));
+            return;
+        }
+        let [a, b, d] = t;
+        let (ab, bd, da) = ((a + b) * 0.5, (b + d) * 0.5, (d + a) * 0.5);
+        for q in [[a, ab, da], [ab, b, bd], [da, bd, d], [ab, bd, da]] {
+            split(q, area / 4.0, level - 1, out);
+        }
+    }
+    let c = p.corners();
+    let mut out = Vec::new();
+    for k in 1..c.len() - 1 {
+        let t = [c[0], c[k], c[k + 1]];
+        let area = 0.5 * (t[1] - t[0]).cross(t[2] - t[0]).length();
+        split(t, area, level, &mut out);
+    }
+    out
+}
+
+/// Integration level of the sun on a patch whose first points are partly lit (the sun
+/// patch's edge crosses it): 4^5 = 1024 points per triangle.
+pub const SUN_EDGE_LEVEL: u8 = 5;
+
+/// The scene's geometry as daylight sees it.
+pub struct SceneLight<'a> {
+    pub patches: &'a PatchSet,
+    pub occluders: &'a Occluders,
+    /// Length of a ray that surely leaves the scene.
+    reach: f64,
+    /// Integration level over patches (0 or 1, see the module docs).
+    pub level: u8,
+    /// Threads (≥ 1).
+    pub threads: usize,
+}
+
+/// Map `f` over `0..n` on `threads` threads, results in index order.
+pub(crate) fn par_map<T: Send>(n: usize, threads: usize, f: impl Fn(usize) -> T + Sync) -> Vec<T> {
+    let next = AtomicUsize::new(0);
+    let mut parts: Vec<Vec<(usize, T)>> = std::thread::scope(|s| {
+        let handles: Vec<_> = (0..threads.max(1))
+            .map(|_| {
+                s.spawn(|| {
+                    let mut mine = Vec::new();
+                    loop {
+                        let i = next.fetch_add(1, Ordering::Relaxed);
+                        if i >= n {
+                            break mine;
+                        }
+                        mine.push((i, f(i)));
+                    }
+                })
+            })
+            .collect();
+        handles
+            .into_iter()
+            .map(|h| h.join().expect("a daylight thread panicked"))
+            .collect()
+    });
+    let mut slots: Vec<Option<T>> = (0..n).map(|_| None).collect();
+    for part in parts.drain(..) {
+        for (i, v) in part {
+            slots[i] = Some(v);
+        }
+    }
+    slots
+        .into_iter()
+        .map(|v| v.expect("every index mapped"))
+        .collect()
+}
+
+impl<'a> SceneLight<'a> {
+    /// `triangles`: the scene's triangles (for its extent).
+    pub fn new(
+        patches: &'a PatchSet,
+        occluders: &'a Occluders,
+        extent: (DVec3, DVec3),
+        threads: usize,
+    ) -> Self {
+        let reach = 4.0 * (extent.1 - extent.0).length().max(1e-9);
+        SceneLight {
+            patches,
+            occluders,
+            reach,
+            level: 1,
+            threads: threads.max(1),
+        }
+    }
+
+    /// True when the ray from `x` along `d` leaves the scene (ignoring face `face`).
+    fn escapes(&self, x: DVec3, d: DVec3, face: u32) -> bool {
+        !self.occluders.occluded(x, x + d * self.reach, (face, face))
+    }
+
+    /// Coefficients of one point with normal `n` (face `face` ignored): per sky patch and
+    /// the ground, Σ over visible cells of max(0, n·d) dω.
+    fn point_coefficients(&self, dome: &SkyDome, x: DVec3, n: DVec3, face: u32) -> Vec<f64> {
+        let mut c = vec![0.0; dome.len() + 1];
+        let cells = dome.cells();
+        for (k, p) in dome.patches().iter().enumerate() {
+            for (d, w) in p.cells(cells) {
+                let up = n.dot(d);
+                if up > 0.0 && self.escapes(x, d, face) {
+                    c[k] += up * w;
+                }
+                let down = DVec3::new(d.x, d.y, -d.z);
+                let dn = n.dot(down);
+                if dn > 0.0 && self.escapes(x, down, face) {
+                    c[dome.len()] += dn * w;
+                }
+            }
+        }
+        c
+    }
+
+    /// Per patch, its area-mean sky coefficients (sr) for every sky patch of `dome` and
+    /// the ground: the patch's first-arrival illuminance from the sky is
+    /// Σ_p coefficient × luminance. Row-major `n × (dome.len() + 1)`.
+    pub fn patch_sky(&self, dome: &SkyDome) -> Vec<f32> {
+        let width = dome.len() + 1;
+        let rows = par_map(self.patches.len(), self.threads, |i| {
+            let p = &self.patches.patches[i];
+            let mut acc = vec![0.0; width];
+            for (x, w) in patch_points(p, self.level) {
+                let c = self.point_coefficients(dome, x, p.normal, p.face);
+                for (a, c) in acc.iter_mut().zip(c) {
+                    *a += w * c;
+                }
+            }
+            acc.iter()
+                .map(|a| (a / p.area) as f32)
+                .collect::<Vec<f32>>()
+        });
+        rows.concat()
+    }
+
+    /// Per patch, the area-mean of max(0, n·s) over its sunlit points for the sun in
+    /// direction `s`: first-arrival illuminance from the sun = this × direct normal
+    /// illuminance.
+    pub fn patch_sun(&self, s: DVec3) -> Vec<f32> {
+        par_map(self.patches.len(), self.threads, |i| {
+            let p = &self.patches.patches[i];
+            let cos = p.normal.dot(s);
+            if cos <= 0.0 {
+                return 0.0;
+            }
+            let lit_at = |level: u8| -> (f64, bool, bool) {
+                let (mut lit, mut any_lit, mut any_dark) = (0.0, false, false);
+                for (x, w) in patch_points(p, level) {
+                    if self.escapes(x, s, p.face) {
+                        lit += w;
+                        any_lit = true;
+                    } else {
+                        any_dark = true;
+                    }
+                }
+                (lit, any_lit, any_dark)
+            };
+            let (mut lit, mut any_lit, mut any_dark) = lit_at(self.level);
+            // A sun-patch edge that crosses the patch between its integration points
+            // separates two of its corners (taken 1 % inside, off the neighbours' edges).
+            let centre = p.centroid();
+            for &c in p.corners() {
+                if self.escapes(centre + (c - centre) * 0.99, s, p.face) {
+                    any_lit = true;
+                } else {
+                    any_dark = true;
+                }
+            }
+            if any_lit && any_dark {
+                lit = lit_at(SUN_EDGE_LEVEL.max(self.level)).0;
+            }
+            (cos * lit / p.area) as f32
+        })
+    }
+
+    /// A sensor's sky coefficients on `dome` (and the ground, last), with visibility.
+    pub fn sensor_sky(&self, s: &Sensor, dome: &SkyDome) -> Vec<f64> {
+        self.point_coefficients(dome, s.point, s.normal, u32::MAX)
+    }
+
+    /// Whether a sensor sees the sun in direction `d` (in front of it and unblocked).
+    pub fn sensor_sees(&self, s: &Sensor, d: DVec3) -> bool {
+        s.normal.dot(d) > 0.0 && self.escapes(s.point, d, u32::MAX)
+    }
+
+    /// The sensor's form factors to every patch: F(sensor → patch j) with visibility
+    /// (module docs). A patch facing away from the sensor gets 0.
+    pub fn sensor_form_factors(&self, s: &Sensor) -> Vec<f32> {
+        par_map(self.patches.len(), self.threads, |j| {
+            let p = &self.patches.patches[j];
+            // The patch must face the sensor, and lie (partly) in front of it.
+            if p.normal.dot(s.point - p.corners[0]) <= 0.0 {
+                return 0.0;
+            }
+            let poly = Polygon::new(p.corners());
+            let offset = s.normal.dot(s.point);
+            let front = poly.clip_front(s.normal, offset, 0.0);
+            if front.verts().len() < 3 {
+                return 0.0;
+            }
+            let f0 = point_polygon(s.point, s.normal, front.verts());
+            if f0 <= 0.0 {
+                return 0.0;
+            }
+            let (mut seen, mut all) = (0.0, 0.0);
+            for (y, w) in patch_points(p, self.level) {
+                let r = y - s.point;
+                let d2 = r.length_squared();
+                let k = w * s.normal.dot(r).max(0.0) * p.normal.dot(-r).max(0.0) / (d2 * d2);
+                if k > 0.0 {
+                    all += k;
+                    if !self.occluders.occluded(s.point, y, (u32::MAX, p.face)) {
+                        seen += k;
+                    }
+                }
+            }
+            if all > 0.0 {
+                (f0 * seen / all) as f32
+            } else {
+                // Every integration point lies behind the sensor's plane while a sliver
+                // of the patch is in front: ask the sliver's centre.
+                let c = front.vertex_mean();
+                if self.occluders.occluded(s.point, c, (u32::MAX, p.face)) {
+                    0.0
+                } else {
+                    f0 as f32
+                }
+            }
+        })
+    }
+}
