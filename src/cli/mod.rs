@@ -1,6 +1,7 @@
 //! Command-line layer: clap structures holding raw values, turned into validated
 //! library settings by each subcommand's module. The library never sees clap.
 
+mod annual;
 mod choices;
 mod compute;
 mod files;
@@ -62,6 +63,9 @@ pub(crate) enum Command {
     Render(render::RenderArgs),
     /// The main job: compute + solve + render, with good defaults.
     Run(run::RunArgs),
+    /// Daylight across a year: illuminance at sensor points for every hour of a weather
+    /// file (sun, Perez sky, inter-reflection), with daylight metrics.
+    Annual(annual::AnnualArgs),
 }
 
 /// How the scene is given and cut into patches (shared by compute and run).
@@ -159,6 +163,11 @@ pub(crate) fn dispatch(cli: Cli) -> anyhow::Result<ExitCode> {
             a.compute.quiet = cli.quiet;
             a.input.apply_format();
             run::run(a)
+        }
+        Command::Annual(mut a) => {
+            a.compute.quiet = cli.quiet;
+            a.input.apply_format();
+            annual::run(a)
         }
     }
 }

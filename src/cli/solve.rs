@@ -65,7 +65,7 @@ type Rgb = [f32; 3];
 /// Reflectance and emission of the file's patches taken from `scene` instead: each patch
 /// keeps the index of the face it was cut from, which must exist in `scene`, carry the
 /// same group name and contain the patch.
-fn materials_from_scene(
+pub(super) fn materials_from_scene(
     patches: &PatchSet,
     scene: &Scene,
     spec: &str,

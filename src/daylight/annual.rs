@@ -294,3 +294,67 @@ pub fn sensor_series(
     }
     s
 }
+
+/// Why an annual calculation stopped.
+#[derive(Debug, thiserror::Error)]
+pub enum AnnualError {
+    #[error(transparent)]
+    Sun(#[from] super::SunError),
+    #[error(transparent)]
+    Solve(#[from] SolveError),
+}
+
+/// The hours and every sensor's series.
+pub struct AnnualResult {
+    pub hours: Vec<HourSky>,
+    pub series: Vec<Series>,
+    /// Sun bins used for the inter-reflected sun.
+    pub sun_positions: usize,
+}
+
+/// The whole calculation for `sensors` in the scene `light` over the weather year `w`
+/// (sun for `year`, ground reflectance `ground`), the form factors from `src`; `progress`
+/// hears a line after each stage.
+///
+/// # Errors
+/// A sun position that cannot be computed; the adjoint solve's errors.
+#[allow(clippy::too_many_arguments)]
+pub fn sensors_over_year(
+    light: &SceneLight<'_>,
+    w: &Weather,
+    year: i32,
+    ground: f64,
+    sensors: &[Sensor],
+    src: &dyn RowSource,
+    cfg: &SolveConfig,
+    progress: &mut dyn FnMut(String),
+) -> Result<AnnualResult, AnnualError> {
+    let domes = Domes::default();
+    let hours = hour_skies(w, year, &domes, ground)?;
+    let lit = hours.iter().filter(|h| h.is_lit()).count();
+    progress(format!(
+        "{} hours, {lit} with daylight: skies drawn",
+        hours.len()
+    ));
+    let pl = PatchLight::new(light, &domes, &hours);
+    progress(format!(
+        "{} patches' views of {} sky patches, the ground and {} sun positions",
+        light.patches.len(),
+        domes.coarse.len(),
+        pl.sun.len()
+    ));
+    let models = sensor_models(light, &domes, &pl, sensors, src, cfg)?;
+    progress(format!(
+        "{} sensors' views and inter-reflection (adjoint solve)",
+        sensors.len()
+    ));
+    let series = models
+        .iter()
+        .map(|m| sensor_series(m, light, &hours, &pl.bin_of_hour))
+        .collect();
+    Ok(AnnualResult {
+        hours,
+        series,
+        sun_positions: pl.sun.len(),
+    })
+}

@@ -61,7 +61,11 @@ impl Site {
         }
     }
 
-    fn check(&self) -> Result<(), SunError> {
+    /// Check the site's numbers (ranges, finiteness), naming the bad field.
+    ///
+    /// # Errors
+    /// [`SunError::Site`].
+    pub fn check(&self) -> Result<(), SunError> {
         let bad = |what: &str, v: f64| SunError::Site(format!("{what} {v} is out of range"));
         let finite = [
             self.latitude,

@@ -458,3 +458,145 @@ fn sunlight_through_the_window_lands_on_the_patches() {
         assert_eq!(mismatches, 0);
     }
 }
+
+/// `ffstream annual` end to end on the room with a window: the tables it writes are the
+/// library's numbers for the same form-factor file, hour by hour, and its metrics are
+/// what the hourly table gives when counted here.
+#[test]
+fn annual_command_writes_the_hourly_table_and_the_metrics() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::write(d.join("room.obj"), room_obj(false)).unwrap();
+    std::fs::write(d.join("room.mtl"), MTL).unwrap();
+    std::fs::write(
+        d.join("sensors.csv"),
+        "name,x,y,z,nx,ny,nz\nfront,2,1.5,0.8,0,0,1\nback,2,4,0.8,0,0,1\nwall,0.01,2.5,1.5,1,0,0\n",
+    )
+    .unwrap();
+    let weather = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/data/weather/723170TYA.CSV.zst");
+    let out = d.join("out");
+    let p = |x: &std::path::Path| x.to_str().unwrap().to_string();
+    let run = crate::common::ffstream(&[
+        "annual",
+        &p(&d.join("room.obj")),
+        "--weather",
+        &p(&weather),
+        "--sensors",
+        &p(&d.join("sensors.csv")),
+        "-o",
+        &p(&out),
+        "--patches",
+        "400",
+    ]);
+    let stdout = String::from_utf8_lossy(&run.stdout);
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    assert!(stdout.contains("DA300"), "{stdout}");
+    let table = std::fs::read_to_string(out.join("illuminance.csv")).unwrap();
+    let mut lines = table.lines();
+    assert_eq!(lines.next(), Some("month,day,hour,front,back,wall"));
+    let rows: Vec<Vec<f64>> = lines
+        .map(|l| l.split(',').map(|x| x.parse().unwrap()).collect())
+        .collect();
+    assert_eq!(rows.len(), 8760);
+
+    // The library on the same file.
+    let reader = ffstream::ffz::FfzReader::open(out.join("form_factors.ffz")).unwrap();
+    let patches = ffstream::solve::RowSource::patches(&reader).clone();
+    let scene = ffstream::scene::open_scene(&p(&d.join("room.obj"))).unwrap();
+    let occluders = OccluderMesh::prepare(scene.triangles().collect(), false, false).build();
+    let light = SceneLight::new(&patches, &occluders, scene.bounds(), 2);
+    let sensors = ffstream::daylight::scene::read_sensors(&d.join("sensors.csv")).unwrap();
+    let result = annual::sensors_over_year(
+        &light,
+        &greensboro(),
+        2005,
+        0.2,
+        &sensors,
+        &reader,
+        &SolveConfig::default(),
+        &mut |_| {},
+    )
+    .unwrap();
+    let hours = &result.hours;
+    for (k, s) in result.series.iter().enumerate() {
+        for (t, row) in rows.iter().enumerate() {
+            assert_eq!(
+                (row[0] as u32, row[1] as u32, row[2] as u32),
+                (hours[t].month, hours[t].day, hours[t].hour)
+            );
+            assert!(
+                (row[3 + k] - s.total[t]).abs() <= 0.05 + 1e-9 * s.total[t],
+                "{row:?} vs {}",
+                s.total[t]
+            );
+        }
+    }
+
+    // Metrics counted from the table: occupied hours 8–18 are those ending 9 … 18.
+    let metrics = std::fs::read_to_string(out.join("metrics.csv")).unwrap();
+    let mut ml = metrics.lines();
+    assert!(ml
+        .next()
+        .unwrap()
+        .starts_with("sensor,occupied_hours,da300_percent,"));
+    for (k, line) in ml.enumerate() {
+        let f: Vec<&str> = line.split(',').collect();
+        let occ: Vec<f64> = rows
+            .iter()
+            .filter(|r| r[2] >= 9.0 && r[2] <= 18.0)
+            .map(|r| r[3 + k])
+            .collect();
+        assert_eq!(f[1].parse::<usize>().unwrap(), occ.len());
+        assert_eq!(occ.len(), 3650);
+        let share = |p: &dyn Fn(f64) -> bool| {
+            100.0 * occ.iter().filter(|&&e| p(e)).count() as f64 / occ.len() as f64
+        };
+        // The table rounds to 0.1 lx: hours within 0.05 lx of a threshold may count
+        // either way, at most a few.
+        let close = |x: f64| (f64::from(f[2].parse::<f32>().unwrap()) - x).abs() <= 0.1;
+        assert!(
+            close(share(&|e| e >= 300.0)),
+            "DA300 {} vs {}",
+            f[2],
+            share(&|e| e >= 300.0)
+        );
+        let udi = share(&|e| (100.0..=2000.0).contains(&e));
+        assert!(
+            (f[4].parse::<f64>().unwrap() - udi).abs() <= 0.1,
+            "UDI {} vs {udi}",
+            f[4]
+        );
+    }
+
+    // Bad inputs: one error line naming the file and line, nothing computed.
+    std::fs::write(
+        d.join("bad.csv"),
+        "name,x,y,z,nx,ny,nz\nfront,2,1.5,zero,0,0,1\n",
+    )
+    .unwrap();
+    let o = crate::common::ffstream(&[
+        "annual",
+        &p(&d.join("room.obj")),
+        "--weather",
+        &p(&weather),
+        "--sensors",
+        &p(&d.join("bad.csv")),
+        "-o",
+        &p(&d.join("out2")),
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success());
+    assert!(
+        err.contains("bad.csv: line 2: z `zero` is not a finite number"),
+        "{err}"
+    );
+    assert!(
+        !d.join("out2").exists(),
+        "nothing is written for a bad sensors file"
+    );
+}

@@ -1,0 +1,295 @@
+//! `ffstream annual`: illuminance at sensor points for every hour of a weather year
+//! (docs/daylight.md). Computes the form factors (or reuses a file), then the daylight.
+
+use std::fmt::Write as _;
+use std::io::Write as _;
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::time::Instant;
+
+use anyhow::Context;
+use clap::Args;
+use ffstream::daylight::{
+    annual::{self, HourSky, Series},
+    scene::{read_sensors, SceneLight},
+    weather, Site,
+};
+use ffstream::ffz::FfzReader;
+use ffstream::geometry::merge::OccluderMesh;
+use ffstream::solve::{RowSource, SolveConfig};
+
+use super::choices::RowsArg;
+use super::compute::{execute, ComputeOptions, Outcome};
+use super::SceneInput;
+
+#[derive(Args, Debug)]
+pub(crate) struct AnnualArgs {
+    #[command(flatten)]
+    pub input: SceneInput,
+    /// Weather file: EnergyPlus EPW or NREL TMY3 CSV (a name ending in .zst is
+    /// decompressed). Its hours, in local standard time, drive the sun and the sky.
+    #[arg(long, value_name = "FILE")]
+    pub weather: PathBuf,
+    /// Sensors: a CSV file with header `name,x,y,z,nx,ny,nz` (scene units; the normal is
+    /// the direction the sensor faces, e.g. 0,0,1 for a desk).
+    #[arg(long, value_name = "FILE.csv")]
+    pub sensors: PathBuf,
+    /// The site as LAT,LON,TZ[,ELEV]: degrees north, degrees east, hours from UTC of the
+    /// local standard time, metres. Default: the weather file's.
+    #[arg(long, value_name = "LAT,LON,TZ[,ELEV]", value_parser = location)]
+    pub location: Option<Site>,
+    /// Output directory (default: out/SCENE_NAME-annual). It receives form_factors.ffz
+    /// (unless --ffz), illuminance.csv and metrics.csv.
+    #[arg(long, short = 'o', value_name = "DIR")]
+    pub out_dir: Option<PathBuf>,
+    /// Use this form-factor file of the same scene instead of computing one.
+    #[arg(long, value_name = "FILE.ffz")]
+    pub ffz: Option<PathBuf>,
+    /// The year the sun is computed for. Weather files of typical years mix months of
+    /// different years; any non-leap year gives the same geometry to 0.1°.
+    #[arg(long, default_value_t = 2005, value_name = "YEAR")]
+    pub year: i32,
+    /// Reflectance of the ground outside (below the horizon, seen through openings).
+    #[arg(long, default_value_t = 0.2, value_name = "RHO", value_parser = super::choices::number::open_unit)]
+    pub ground_reflectance: f64,
+    /// Occupied hours for the metrics, START-END in local standard time: an hour of the
+    /// weather file counts when it lies within (default 8-18: the hours ending 9 … 18).
+    #[arg(long, default_value = "8-18", value_name = "START-END", value_parser = occupied)]
+    pub occupied: Occupied,
+    /// Illuminance (lux) that daylight autonomy counts as enough (default 300: DA300).
+    #[arg(long, default_value_t = 300.0, value_name = "LUX", value_parser = super::choices::number::positive)]
+    pub da_threshold: f64,
+    #[command(flatten)]
+    pub compute: ComputeOptions,
+}
+
+/// Occupied hours [start, end) of the day, local standard time.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct Occupied {
+    pub start: u32,
+    pub end: u32,
+}
+
+impl Occupied {
+    /// Whether the weather hour ending at `hour` (1–24) lies within.
+    fn contains(self, hour: u32) -> bool {
+        hour > self.start && hour <= self.end
+    }
+}
+
+fn occupied(s: &str) -> Result<Occupied, String> {
+    let bad = || format!("`{s}`: expected START-END in whole hours, 0 ≤ START < END ≤ 24");
+    let (a, b) = s.split_once('-').ok_or_else(bad)?;
+    let (start, end) = (
+        a.trim().parse::<u32>().map_err(|_| bad())?,
+        b.trim().parse::<u32>().map_err(|_| bad())?,
+    );
+    if start >= end || end > 24 {
+        return Err(bad());
+    }
+    Ok(Occupied { start, end })
+}
+
+fn location(s: &str) -> Result<Site, String> {
+    let v: Vec<f64> = s
+        .split(',')
+        .map(|x| x.trim().parse::<f64>())
+        .collect::<Result<_, _>>()
+        .map_err(|_| format!("`{s}`: expected LAT,LON,TZ[,ELEV] as numbers"))?;
+    let site = match v[..] {
+        [lat, lon, tz] => Site::new(lat, lon, tz, 0.0),
+        [lat, lon, tz, elev] => Site::new(lat, lon, tz, elev),
+        _ => return Err(format!("`{s}`: expected 3 or 4 numbers LAT,LON,TZ[,ELEV]")),
+    };
+    site.check().map_err(|e| e.to_string())?;
+    Ok(site)
+}
+
+/// Metrics of one sensor over the occupied hours.
+#[derive(Clone, Debug, PartialEq)]
+pub(crate) struct Metrics {
+    pub hours: usize,
+    /// Share of occupied hours at or above the threshold, percent.
+    pub da: f64,
+    /// Useful daylight illuminance bins (below 100, 100–2000, above 2000 lux), percent.
+    pub udi: [f64; 3],
+    pub mean: f64,
+    pub max: f64,
+}
+
+pub(crate) fn metrics(total: &[f64], hours: &[HourSky], occ: Occupied, threshold: f64) -> Metrics {
+    let (mut n, mut da, mut udi, mut sum) = (0usize, 0usize, [0usize; 3], 0.0);
+    for (e, h) in total.iter().zip(hours) {
+        if !occ.contains(h.hour) {
+            continue;
+        }
+        n += 1;
+        sum += e;
+        da += usize::from(*e >= threshold);
+        udi[if *e < 100.0 {
+            0
+        } else if *e <= 2000.0 {
+            1
+        } else {
+            2
+        }] += 1;
+    }
+    let pct = |k: usize| 100.0 * k as f64 / n.max(1) as f64;
+    Metrics {
+        hours: n,
+        da: pct(da),
+        udi: udi.map(pct),
+        mean: sum / n.max(1) as f64,
+        max: total.iter().copied().fold(0.0, f64::max),
+    }
+}
+
+pub(super) fn run(mut a: AnnualArgs) -> anyhow::Result<ExitCode> {
+    let dir = a.out_dir.clone().unwrap_or_else(|| {
+        let mut d = super::default_run_dir(&a.input.scene).into_os_string();
+        d.push("-annual");
+        PathBuf::from(d)
+    });
+    // Inputs first: a bad weather or sensors file costs no form factors.
+    let mut w = weather::read(&a.weather)?;
+    if let Some(site) = a.location.clone() {
+        w.site = site;
+    }
+    let sensors = read_sensors(&a.sensors)?;
+    std::fs::create_dir_all(&dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    let ffz = match &a.ffz {
+        Some(f) => f.clone(),
+        None => {
+            let f = dir.join("form_factors.ffz");
+            a.compute.force |= !a.compute.resume;
+            a.compute.rows.get_or_insert(RowsArg::Needed);
+            match execute(&a.input, f.clone(), &a.compute)? {
+                Outcome::Master(r) => eprintln!("{}", r.summary()),
+                Outcome::Worker => return Ok(ExitCode::SUCCESS),
+            }
+            f
+        }
+    };
+    let reader = FfzReader::open(&ffz).with_context(|| format!("{}", ffz.display()))?;
+    let scene = super::compute::load_scene(&a.input.scene)?;
+    let patches = RowSource::patches(&reader).clone();
+    super::solve::materials_from_scene(&patches, &scene, &a.input.scene)?;
+    let threads = a
+        .compute
+        .threads
+        .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |t| t.get()));
+    let start = Instant::now();
+    let step = |what: &str| {
+        eprintln!(
+            "ffstream: annual: {what} ({:.1} s)",
+            start.elapsed().as_secs_f64()
+        )
+    };
+    let tris: Vec<_> = scene.triangles().collect();
+    let occluders = OccluderMesh::prepare(tris, false, false).build();
+    let light = SceneLight::new(&patches, &occluders, scene.bounds(), threads);
+    step(&format!(
+        "site {:.4} N {:.4} E, UTC{:+}, weather {}",
+        w.site.latitude,
+        w.site.longitude,
+        w.site.time_zone,
+        a.weather.display()
+    ));
+    let result = annual::sensors_over_year(
+        &light,
+        &w,
+        a.year,
+        a.ground_reflectance,
+        &sensors,
+        &reader,
+        &SolveConfig::default(),
+        &mut |line| step(&line),
+    )?;
+    let (hours, series) = (result.hours, result.series);
+    let csv = dir.join("illuminance.csv");
+    write_illuminance(
+        &csv,
+        &hours,
+        &sensors.iter().map(|s| s.name.as_str()).collect::<Vec<_>>(),
+        &series,
+    )?;
+    let table: Vec<Metrics> = series
+        .iter()
+        .map(|s| metrics(&s.total, &hours, a.occupied, a.da_threshold))
+        .collect();
+    let mcsv = dir.join("metrics.csv");
+    write_metrics(
+        &mcsv,
+        &sensors.iter().map(|s| s.name.as_str()).collect::<Vec<_>>(),
+        &table,
+        a.da_threshold,
+    )?;
+    step("wrote the tables");
+    println!(
+        "{:<16} {:>8} {:>7} {:>9} {:>9} {:>10} {:>10}",
+        "sensor",
+        format!("DA{}", a.da_threshold),
+        "UDI<100",
+        "UDI100-2k",
+        "UDI>2k",
+        "mean lx",
+        "max lx"
+    );
+    for (s, m) in sensors.iter().zip(&table) {
+        println!(
+            "{:<16} {:>7.1}% {:>6.1}% {:>8.1}% {:>8.1}% {:>10.0} {:>10.0}",
+            s.name, m.da, m.udi[0], m.udi[1], m.udi[2], m.mean, m.max
+        );
+    }
+    println!(
+        "illuminance: {}\nmetrics: {}",
+        csv.display(),
+        mcsv.display()
+    );
+    Ok(ExitCode::SUCCESS)
+}
+
+/// `month,day,hour,<sensor>...`, lux with one decimal.
+fn write_illuminance(
+    path: &Path,
+    hours: &[HourSky],
+    names: &[&str],
+    series: &[Series],
+) -> anyhow::Result<()> {
+    let mut s = String::from("month,day,hour");
+    for n in names {
+        s.push(',');
+        s.push_str(n);
+    }
+    s.push('\n');
+    for (t, h) in hours.iter().enumerate() {
+        let _ = write!(s, "{},{},{}", h.month, h.day, h.hour);
+        for v in series {
+            let _ = write!(s, ",{:.1}", v.total[t]);
+        }
+        s.push('\n');
+    }
+    write_file(path, &s)
+}
+
+fn write_metrics(path: &Path, names: &[&str], m: &[Metrics], threshold: f64) -> anyhow::Result<()> {
+    let mut s = format!(
+        "sensor,occupied_hours,da{threshold}_percent,udi_below_100_percent,udi_100_2000_percent,udi_above_2000_percent,mean_occupied_lux,max_lux\n"
+    );
+    for (n, m) in names.iter().zip(m) {
+        let _ = writeln!(
+            s,
+            "{n},{},{:.2},{:.2},{:.2},{:.2},{:.1},{:.1}",
+            m.hours, m.da, m.udi[0], m.udi[1], m.udi[2], m.mean, m.max
+        );
+    }
+    write_file(path, &s)
+}
+
+fn write_file(path: &Path, text: &str) -> anyhow::Result<()> {
+    let mut f =
+        std::fs::File::create(path).with_context(|| format!("cannot create {}", path.display()))?;
+    f.write_all(text.as_bytes())
+        .and_then(|()| f.sync_all())
+        .with_context(|| format!("cannot write {}", path.display()))
+}
