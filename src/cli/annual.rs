@@ -11,6 +11,7 @@ use anyhow::Context;
 use clap::Args;
 use ffstream::daylight::{
     annual::{self, HourSky, Series},
+    heatmap,
     scene::{read_sensors, SceneLight},
     weather, Site,
 };
@@ -39,7 +40,7 @@ pub(crate) struct AnnualArgs {
     #[arg(long, value_name = "LAT,LON,TZ[,ELEV]", value_parser = location)]
     pub location: Option<Site>,
     /// Output directory (default: out/SCENE_NAME-annual). It receives form_factors.ffz
-    /// (unless --ffz), illuminance.csv and metrics.csv.
+    /// (unless --ffz), illuminance.csv, metrics.csv and heatmap_SENSOR.png per sensor.
     #[arg(long, short = 'o', value_name = "DIR")]
     pub out_dir: Option<PathBuf>,
     /// Use this form-factor file of the same scene instead of computing one.
@@ -224,7 +225,19 @@ pub(super) fn run(mut a: AnnualArgs) -> anyhow::Result<ExitCode> {
         &table,
         a.da_threshold,
     )?;
-    step("wrote the tables");
+    let when: Vec<(u32, u32)> = hours.iter().map(|h| (h.month, h.hour)).collect();
+    let mut pictures = Vec::new();
+    for (s, v) in sensors.iter().zip(&series) {
+        let path = dir.join(format!("heatmap_{}.png", file_safe(&s.name)));
+        let title = format!(
+            "{}: illuminance, {:.2} N {:.2} E UTC{:+}, {}",
+            s.name, w.site.latitude, w.site.longitude, w.site.time_zone, w.name
+        );
+        heatmap::write(&path, &title, &v.total, &when)
+            .with_context(|| format!("cannot write {}", path.display()))?;
+        pictures.push(path);
+    }
+    step("wrote the tables and heat maps");
     println!(
         "{:<16} {:>8} {:>7} {:>9} {:>9} {:>10} {:>10}",
         "sensor",
@@ -246,7 +259,23 @@ pub(super) fn run(mut a: AnnualArgs) -> anyhow::Result<ExitCode> {
         csv.display(),
         mcsv.display()
     );
+    for p in &pictures {
+        println!("heat map: {}", p.display());
+    }
     Ok(ExitCode::SUCCESS)
+}
+
+/// A sensor name as part of a file name: letters, digits, `-` and `_` kept, the rest `_`.
+fn file_safe(name: &str) -> String {
+    name.chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || c == '-' || c == '_' {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect()
 }
 
 /// `month,day,hour,<sensor>...`, lux with one decimal.

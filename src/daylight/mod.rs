@@ -6,6 +6,7 @@
 
 pub mod annual;
 pub mod dome;
+pub mod heatmap;
 pub mod perez;
 pub mod scene;
 pub mod sun;

@@ -573,6 +573,26 @@ fn annual_command_writes_the_hourly_table_and_the_metrics() {
         );
     }
 
+    // One heat map per sensor: each hour's cell has the colour of its value on the
+    // map's scale (values from the table, rounded to 0.1 lx: one level of colour).
+    for (k, name) in ["front", "back", "wall"].iter().enumerate() {
+        let img =
+            ffstream::render::Image::read_png(&out.join(format!("heatmap_{name}.png"))).unwrap();
+        let values: Vec<f64> = rows.iter().map(|r| r[3 + k]).collect();
+        let top = ffstream::daylight::heatmap::scale_top(&values);
+        for t in (0..8760).step_by(97) {
+            let (x, y) = ffstream::daylight::heatmap::cell(t, rows[t][2] as u32);
+            let want = ffstream::daylight::heatmap::colour(values[t] / top);
+            let got = img.pixel(x, y);
+            assert!(
+                (0..3).all(|c| (i16::from(got[c]) - i16::from(want[c])).abs() <= 1),
+                "{name} hour {t}: pixel {got:?}, value {} of {top} is {want:?}",
+                values[t]
+            );
+        }
+    }
+    assert!(stdout.contains("heat map:"), "{stdout}");
+
     // Bad inputs: one error line naming the file and line, nothing computed.
     std::fs::write(
         d.join("bad.csv"),
