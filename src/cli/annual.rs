@@ -12,7 +12,7 @@ use clap::Args;
 use ffstream::daylight::{
     annual::{self, HourSky, Series},
     heatmap,
-    scene::{read_sensors, SceneLight},
+    scene::{read_sensors, scene_frame, SceneLight},
     weather, Site,
 };
 use ffstream::ffz::FfzReader;
@@ -60,8 +60,23 @@ pub(crate) struct AnnualArgs {
     /// Illuminance (lux) that daylight autonomy counts as enough (default 300: DA300).
     #[arg(long, default_value_t = 300.0, value_name = "LUX", value_parser = super::choices::number::positive)]
     pub da_threshold: f64,
+    /// The scene's up axis: z (x east, y north, z up) or y (x east, y up, −z north, as
+    /// glTF and many OBJ exporters write).
+    #[arg(long, value_enum, default_value_t = UpAxis::Z, value_name = "AXIS")]
+    pub up: UpAxis,
+    /// Turn the building: the scene's north axis points this many degrees clockwise from
+    /// true north (90: the scene's north points east).
+    #[arg(long, default_value_t = 0.0, value_name = "DEG", allow_hyphen_values = true, value_parser = super::choices::number::finite)]
+    pub rotate: f64,
     #[command(flatten)]
     pub compute: ComputeOptions,
+}
+
+/// The scene's up axis.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub(crate) enum UpAxis {
+    Z,
+    Y,
 }
 
 /// Occupied hours [start, end) of the day, local standard time.
@@ -188,7 +203,14 @@ pub(super) fn run(mut a: AnnualArgs) -> anyhow::Result<ExitCode> {
     };
     let tris: Vec<_> = scene.triangles().collect();
     let occluders = OccluderMesh::prepare(tris, false, false).build();
-    let light = SceneLight::new(&patches, &occluders, scene.bounds(), threads);
+    let mut light = SceneLight::new(&patches, &occluders, scene.bounds(), threads);
+    light.frame = scene_frame(
+        match a.up {
+            UpAxis::Z => 'z',
+            UpAxis::Y => 'y',
+        },
+        a.rotate,
+    );
     step(&format!(
         "site {:.4} N {:.4} E, UTC{:+}, weather {}",
         w.site.latitude,

@@ -278,8 +278,8 @@ pub fn sensor_series(
     let mut s = Series::default();
     for (t, h) in hours.iter().enumerate() {
         let sky: f64 = h.fine.as_ref().map_or(0.0, |v| dot(&m.direct_sky, v));
-        let sun = if h.direct_normal > 0.0 && light.sensor_sees(&m.sensor, h.sun) {
-            h.direct_normal * m.sensor.normal.dot(h.sun)
+        let sun = if h.direct_normal > 0.0 {
+            h.direct_normal * light.sensor_sun(&m.sensor, h.sun)
         } else {
             0.0
         };

@@ -167,6 +167,24 @@ pub struct SceneLight<'a> {
     pub level: u8,
     /// Threads (≥ 1).
     pub threads: usize,
+    /// Rotation from east–north–up to the scene's axes (identity: x east, y north, z
+    /// up). Sky and sun directions are given in east–north–up.
+    pub frame: glam::DMat3,
+}
+
+/// The rotation taking east–north–up directions into a scene whose up axis is `up`
+/// (`'z'`: x east, y north; `'y'`: x east, y up, −z north, the glTF and OpenGL habit),
+/// and the scene's north axis pointing `rotate` degrees clockwise from true north seen
+/// from above (90: the scene's north axis points east, so a wall facing the scene's
+/// south faces west).
+pub fn scene_frame(up: char, rotate: f64) -> glam::DMat3 {
+    // True azimuth θ along the scene's north axis: a turn by +θ about up takes it there.
+    let turn = glam::DMat3::from_rotation_z(rotate.to_radians());
+    let axes = match up {
+        'y' => glam::DMat3::from_cols(DVec3::X, -DVec3::Z, DVec3::Y),
+        _ => glam::DMat3::IDENTITY,
+    };
+    axes * turn
 }
 
 /// Map `f` over `0..n` on `threads` threads, results in index order.
@@ -219,6 +237,7 @@ impl<'a> SceneLight<'a> {
             reach,
             level: 1,
             threads: threads.max(1),
+            frame: glam::DMat3::IDENTITY,
         }
     }
 
@@ -233,12 +252,13 @@ impl<'a> SceneLight<'a> {
         let mut c = vec![0.0; dome.len() + 1];
         let cells = dome.cells();
         for (k, p) in dome.patches().iter().enumerate() {
-            for (d, w) in p.cells(cells) {
+            for (d_enu, w) in p.cells(cells) {
+                let d = self.frame * d_enu;
                 let up = n.dot(d);
                 if up > 0.0 && self.escapes(x, d, face) {
                     c[k] += up * w;
                 }
-                let down = DVec3::new(d.x, d.y, -d.z);
+                let down = self.frame * DVec3::new(d_enu.x, d_enu.y, -d_enu.z);
                 let dn = n.dot(down);
                 if dn > 0.0 && self.escapes(x, down, face) {
                     c[dome.len()] += dn * w;
@@ -273,6 +293,7 @@ impl<'a> SceneLight<'a> {
     /// direction `s`: first-arrival illuminance from the sun = this × direct normal
     /// illuminance.
     pub fn patch_sun(&self, s: DVec3) -> Vec<f32> {
+        let s = self.frame * s;
         par_map(self.patches.len(), self.threads, |i| {
             let p = &self.patches.patches[i];
             let cos = p.normal.dot(s);
@@ -314,9 +335,16 @@ impl<'a> SceneLight<'a> {
         self.point_coefficients(dome, s.point, s.normal, u32::MAX)
     }
 
-    /// Whether a sensor sees the sun in direction `d` (in front of it and unblocked).
-    pub fn sensor_sees(&self, s: &Sensor, d: DVec3) -> bool {
-        s.normal.dot(d) > 0.0 && self.escapes(s.point, d, u32::MAX)
+    /// The cosine between a sensor's normal and the sun in direction `d` (east, north,
+    /// up) when the sensor sees the sun (in front of it and unblocked), else 0.
+    pub fn sensor_sun(&self, s: &Sensor, d: DVec3) -> f64 {
+        let d = self.frame * d;
+        let cos = s.normal.dot(d);
+        if cos > 0.0 && self.escapes(s.point, d, u32::MAX) {
+            cos
+        } else {
+            0.0
+        }
     }
 
     /// The sensor's form factors to every patch: F(sensor → patch j) with visibility

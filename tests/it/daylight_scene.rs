@@ -6,7 +6,7 @@ use std::sync::Arc;
 
 use ffstream::daylight::{
     annual::{self, Domes, HourSky, PatchLight},
-    scene::{SceneLight, Sensor},
+    scene::{scene_frame, SceneLight, Sensor},
     weather,
 };
 use ffstream::formfactor::{FormFactorConfig, RowEngine, Scratch};
@@ -18,6 +18,11 @@ use glam::DVec3;
 /// Room 4 m (x, east) × 5 m (y, north) × 3 m (z, up), faces facing in; a window
 /// x ∈ [1, 3], z ∈ [1, 2] in the south wall (y = 0) unless `closed`.
 fn room_obj(closed: bool) -> String {
+    room_obj_mapped(closed, |p| p)
+}
+
+/// [`room_obj`] with every vertex moved by `map` (a rotation, to test scene frames).
+fn room_obj_mapped(closed: bool, map: fn([f64; 3]) -> [f64; 3]) -> String {
     let mut v: Vec<[f64; 3]> = Vec::new();
     let mut f: Vec<(String, Vec<usize>)> = Vec::new();
     let mut quad = |g: &str, p: [[f64; 3]; 4]| {
@@ -65,7 +70,7 @@ fn room_obj(closed: bool) -> String {
         quad("south", south(3., 4., 1., 2.));
     }
     let mut s = String::from("mtllib room.mtl\n");
-    for p in &v {
+    for p in v.iter().map(|&p| map(p)) {
         s += &format!("v {} {} {}\n", p[0], p[1], p[2]);
     }
     for (g, idx) in &f {
@@ -93,8 +98,12 @@ struct Room {
 }
 
 fn room(closed: bool, max_edge: f64) -> Room {
+    room_from(room_obj(closed), max_edge)
+}
+
+fn room_from(obj: String, max_edge: f64) -> Room {
     let dir = tempfile::tempdir().unwrap();
-    std::fs::write(dir.path().join("room.obj"), room_obj(closed)).unwrap();
+    std::fs::write(dir.path().join("room.obj"), obj).unwrap();
     std::fs::write(dir.path().join("room.mtl"), MTL).unwrap();
     let scene = ffstream::scene::open_scene(dir.path().join("room.obj").to_str().unwrap()).unwrap();
     let patches = subdivide(&scene, max_edge);
@@ -619,4 +628,64 @@ fn annual_command_writes_the_hourly_table_and_the_metrics() {
         !d.join("out2").exists(),
         "nothing is written for a bad sensors file"
     );
+}
+
+/// The same room given y-up (glTF habit: x east, y up, −z north) and read with the 'y'
+/// frame, or turned 90° about the vertical (its window facing west) and read with
+/// `rotate` 90, receives the same light as the z-up room: scene frames only relabel
+/// axes.
+#[test]
+fn scene_frames_relabel_axes_and_turn_the_building() {
+    let w = greensboro();
+    let run = |r: &Room, frame: glam::DMat3, map: fn([f64; 3]) -> [f64; 3]| {
+        let mut light = SceneLight::new(&r.patches, &r.occluders, r.extent, 2);
+        light.frame = frame;
+        let sensors: Vec<Sensor> = sensors()
+            .into_iter()
+            .map(|s| Sensor {
+                point: DVec3::from(map(s.point.into())),
+                normal: DVec3::from(map(s.normal.into())),
+                ..s
+            })
+            .collect();
+        annual::sensors_over_year(
+            &light,
+            &w,
+            2005,
+            0.2,
+            &sensors,
+            &r.rows,
+            &tight(),
+            &mut |_| {},
+        )
+        .unwrap()
+        .series
+    };
+    let base = run(&room(false, 0.75), glam::DMat3::IDENTITY, |p| p);
+    let y_up: fn([f64; 3]) -> [f64; 3] = |p| [p[0], p[2], -p[1]];
+    // Turned so the scene's north axis (+y) points east: scene = Rz(+90°) · east-north-up,
+    // i.e. (x, y) → (−y, x).
+    let turned: fn([f64; 3]) -> [f64; 3] = |p| [-p[1], p[0], p[2]];
+    for (name, r, frame, map) in [
+        (
+            "y up",
+            room_from(room_obj_mapped(false, y_up), 0.75),
+            scene_frame('y', 0.0),
+            y_up,
+        ),
+        (
+            "turned",
+            room_from(room_obj_mapped(false, turned), 0.75),
+            scene_frame('z', 90.0),
+            turned,
+        ),
+    ] {
+        let other = run(&r, frame, map);
+        for (a, b) in base.iter().zip(&other) {
+            let peak = a.total.iter().copied().fold(0.0, f64::max);
+            for (x, y) in a.total.iter().zip(&b.total) {
+                assert!((x - y).abs() <= 1e-6 * peak, "{name}: {x} vs {y} lx");
+            }
+        }
+    }
 }
