@@ -12,7 +12,7 @@ use clap::Args;
 use ffstream::daylight::{
     annual::{self, HourSky, Series},
     heatmap,
-    scene::{read_sensors, scene_frame, SceneLight},
+    scene::{grid_sensors, read_sensors, scene_frame, SceneLight},
     weather, Site,
 };
 use ffstream::ffz::FfzReader;
@@ -33,8 +33,18 @@ pub(crate) struct AnnualArgs {
     pub weather: PathBuf,
     /// Sensors: a CSV file with header `name,x,y,z,nx,ny,nz` (scene units; the normal is
     /// the direction the sensor faces, e.g. 0,0,1 for a desk).
-    #[arg(long, value_name = "FILE.csv")]
-    pub sensors: PathBuf,
+    #[arg(
+        long,
+        value_name = "FILE.csv",
+        required_unless_present = "grid",
+        conflicts_with = "grid"
+    )]
+    pub sensors: Option<PathBuf>,
+    /// Sensors on a grid over the faces of a group instead: pitch SPACING (scene units),
+    /// lifted OFFSET along the faces' normal (default 0.8: a work plane over a floor),
+    /// facing along it, named GROUP_0, GROUP_1, ...
+    #[arg(long, value_name = "GROUP:SPACING[:OFFSET]", value_parser = grid)]
+    pub grid: Option<Grid>,
     /// The site as LAT,LON,TZ[,ELEV]: degrees north, degrees east, hours from UTC of the
     /// local standard time, metres. Default: the weather file's.
     #[arg(long, value_name = "LAT,LON,TZ[,ELEV]", value_parser = location)]
@@ -77,6 +87,33 @@ pub(crate) struct AnnualArgs {
 pub(crate) enum UpAxis {
     Z,
     Y,
+}
+
+/// A sensor grid: group, pitch, offset along the normal.
+#[derive(Clone, Debug, PartialEq)]
+pub(crate) struct Grid {
+    pub group: String,
+    pub spacing: f64,
+    pub offset: f64,
+}
+
+fn grid(s: &str) -> Result<Grid, String> {
+    let bad = || format!("`{s}`: expected GROUP:SPACING[:OFFSET], SPACING > 0");
+    let num = |x: &str| x.trim().parse::<f64>().ok().filter(|v| v.is_finite());
+    let parts: Vec<&str> = s.split(':').collect();
+    let (group, spacing, offset) = match parts[..] {
+        [g, sp] => (g, num(sp), Some(0.8)),
+        [g, sp, off] => (g, num(sp), num(off)),
+        _ => return Err(bad()),
+    };
+    match (spacing, offset) {
+        (Some(spacing), Some(offset)) if spacing > 0.0 && !group.is_empty() => Ok(Grid {
+            group: group.to_string(),
+            spacing,
+            offset,
+        }),
+        _ => Err(bad()),
+    }
 }
 
 /// Occupied hours [start, end) of the day, local standard time.
@@ -171,7 +208,13 @@ pub(super) fn run(mut a: AnnualArgs) -> anyhow::Result<ExitCode> {
     if let Some(site) = a.location.clone() {
         w.site = site;
     }
-    let sensors = read_sensors(&a.sensors)?;
+    let scene = super::compute::load_scene(&a.input.scene)?;
+    let sensors = match (&a.sensors, &a.grid) {
+        (Some(path), _) => read_sensors(path)?,
+        (None, Some(g)) => grid_sensors(&scene, &g.group, g.spacing, g.offset)
+            .map_err(|e| anyhow::anyhow!("--grid {}: {e}", g.group))?,
+        (None, None) => anyhow::bail!("give --sensors FILE.csv or --grid GROUP:SPACING"),
+    };
     std::fs::create_dir_all(&dir).with_context(|| format!("cannot create {}", dir.display()))?;
     let ffz = match &a.ffz {
         Some(f) => f.clone(),
@@ -187,7 +230,6 @@ pub(super) fn run(mut a: AnnualArgs) -> anyhow::Result<ExitCode> {
         }
     };
     let reader = FfzReader::open(&ffz).with_context(|| format!("{}", ffz.display()))?;
-    let scene = super::compute::load_scene(&a.input.scene)?;
     let patches = RowSource::patches(&reader).clone();
     super::solve::materials_from_scene(&patches, &scene, &a.input.scene)?;
     let threads = a
@@ -281,8 +323,16 @@ pub(super) fn run(mut a: AnnualArgs) -> anyhow::Result<ExitCode> {
         csv.display(),
         mcsv.display()
     );
-    for p in &pictures {
-        println!("heat map: {}", p.display());
+    if pictures.len() <= 8 {
+        for p in &pictures {
+            println!("heat map: {}", p.display());
+        }
+    } else {
+        println!(
+            "heat maps: {} files {}/heatmap_*.png",
+            pictures.len(),
+            dir.display()
+        );
     }
     Ok(ExitCode::SUCCESS)
 }

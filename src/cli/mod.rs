@@ -47,7 +47,7 @@ pub(crate) struct Cli {
 #[derive(Subcommand, Debug)]
 pub(crate) enum Command {
     /// Write a built-in scene as OBJ + MTL (cornell, cube, plates, perpendicular, obstructed, room,
-    /// city).
+    /// city, office).
     Scene(scene::SceneArgs),
     /// Compute the form-factor matrix of a scene into an .ffz file.
     Compute(compute::ComputeArgs),
@@ -74,7 +74,7 @@ pub(crate) struct SceneInput {
     /// Mesh file: OBJ (with its MTL), STL or PLY (materials from NAME.mtl beside it),
     /// glTF (.gltf or .glb), by extension (or FORMAT:PATH, or --format); or
     /// builtin:NAME[:PARAM] for a built-in scene (NAME one of cornell, cube, plates,
-    /// perpendicular, obstructed, room, city; see `ffstream scene --help`).
+    /// perpendicular, obstructed, room, city, office; see `ffstream scene --help`).
     #[arg(value_parser = scene_spec)]
     pub scene: String,
     /// Read the scene file in this format whatever its extension (recorded in the file

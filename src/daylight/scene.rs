@@ -128,6 +128,88 @@ pub fn read_sensors(path: &Path) -> Result<Vec<Sensor>, SensorError> {
     Ok(out)
 }
 
+/// Sensors on a grid over the faces of group `group` of `scene`: on each face, the
+/// points of a square lattice of pitch `spacing` (aligned with the face's first edge,
+/// starting half a pitch in from the corner of the face's bounding rectangle) that lie
+/// inside the face, lifted `offset` along the face's normal and facing along it. Named
+/// `GROUP_k`, k from 0 in face order.
+///
+/// # Errors
+/// No group of that name (the message lists the groups), a spacing that is not a
+/// positive finite number, or no point on the group.
+pub fn grid_sensors(
+    scene: &crate::scene::Scene,
+    group: &str,
+    spacing: f64,
+    offset: f64,
+) -> Result<Vec<Sensor>, String> {
+    if !(spacing.is_finite() && spacing > 0.0 && offset.is_finite()) {
+        return Err(format!(
+            "grid spacing {spacing} and offset {offset} must be finite, the spacing > 0"
+        ));
+    }
+    let Some(g) = scene.groups.iter().position(|n| n == group) else {
+        return Err(format!(
+            "no group `{group}` in the scene (groups: {})",
+            scene.groups.join(", ")
+        ));
+    };
+    let mut out = Vec::new();
+    for f in scene.faces.iter().filter(|f| f.group as usize == g) {
+        let n = f.normal();
+        let o = f.corners[0];
+        let u = (f.corners[1] - o).normalize();
+        let v = n.cross(u);
+        let flat: Vec<(f64, f64)> = f
+            .corners
+            .iter()
+            .map(|&c| ((c - o).dot(u), (c - o).dot(v)))
+            .collect();
+        let (mut lo, mut hi) = ((f64::MAX, f64::MAX), (f64::MIN, f64::MIN));
+        for &(a, b) in &flat {
+            lo = (lo.0.min(a), lo.1.min(b));
+            hi = (hi.0.max(a), hi.1.max(b));
+        }
+        let (na, nb) = (
+            ((hi.0 - lo.0) / spacing).floor() as usize + 1,
+            ((hi.1 - lo.1) / spacing).floor() as usize + 1,
+        );
+        for i in 0..na {
+            for j in 0..nb {
+                let (a, b) = (
+                    lo.0 + (i as f64 + 0.5) * spacing,
+                    lo.1 + (j as f64 + 0.5) * spacing,
+                );
+                if inside(&flat, a, b) {
+                    out.push(Sensor {
+                        name: format!("{group}_{}", out.len()),
+                        point: o + u * a + v * b + n * offset,
+                        normal: n,
+                    });
+                }
+            }
+        }
+    }
+    if out.is_empty() {
+        return Err(format!(
+            "no grid point falls on group `{group}` at spacing {spacing}"
+        ));
+    }
+    Ok(out)
+}
+
+/// Even-odd test of the point (a, b) against a polygon in its plane.
+fn inside(poly: &[(f64, f64)], a: f64, b: f64) -> bool {
+    let mut inside = false;
+    for k in 0..poly.len() {
+        let (p, q) = (poly[k], poly[(k + 1) % poly.len()]);
+        if (p.1 > b) != (q.1 > b) && a < p.0 + (b - p.1) / (q.1 - p.1) * (q.0 - p.0) {
+            inside = !inside;
+        }
+    }
+    inside
+}
+
 /// Integration points of a patch: `(point, area weight)`, weights summing to the area.
 /// Each triangle of the patch is cut `level` times into four by its edge midpoints and
 /// the centroids of the 4^level pieces carry their areas.
@@ -391,5 +473,31 @@ impl<'a> SceneLight<'a> {
                 }
             }
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_grid_covers_the_office_floor_at_its_pitch() {
+        let s = crate::scene::builtin("office", None).unwrap();
+        let g = grid_sensors(&s, "floor", 0.5, 0.8).unwrap();
+        // 4 m × 6 m at 0.5 m: 8 × 12 points, 0.8 m up, facing up.
+        assert_eq!(g.len(), 96);
+        for p in &g {
+            assert!((p.point.z - 0.8).abs() < 1e-12 && p.normal == DVec3::Z);
+            assert!(p.point.x > 0.0 && p.point.x < 4.0 && p.point.y > 0.0 && p.point.y < 6.0);
+        }
+        // The south wall's points avoid the window hole.
+        let w = grid_sensors(&s, "wall_south", 0.3, 0.0).unwrap();
+        assert!(w
+            .iter()
+            .all(|p| !(p.point.x > 1.0 && p.point.x < 3.0 && p.point.z > 0.9 && p.point.z < 2.1)));
+        assert!(grid_sensors(&s, "nope", 0.5, 0.8)
+            .unwrap_err()
+            .contains("groups: floor"));
+        assert!(grid_sensors(&s, "floor", 0.0, 0.8).is_err());
     }
 }

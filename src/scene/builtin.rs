@@ -9,6 +9,7 @@
 //! | `obstructed` | `plates` at distance 1 with a two-sided 0.5 × 0.5 `blocker` midway | none |
 //! | `room` | closed room, ceiling light, many boxes (see [`super::room`]) | boxes (16) |
 //! | `city` | city blocks open to the sky, one building each, the ground emits 1 (see [`super::city`]) | blocks per side (4) |
+//! | `office` | 4 × 6 × 3 m room with a south window opening, z up, no light source, for `annual` (see [`super::office`]) | window width, m (2; at most 3.8) |
 //!
 //! The small scenes have analytic form factors (docs/known-answers.md §2, §3), e.g. between the two
 //! `plates` at distance 1: 0.19982; `perpendicular` with h = 1: 0.20004.
@@ -16,7 +17,7 @@
 use glam::DVec3;
 
 use super::builder::Builder;
-use super::{city, room, Scene, SceneError};
+use super::{city, office, room, Scene, SceneError};
 
 /// Names accepted by [`builtin`].
 pub fn builtin_names() -> &'static [&'static str] {
@@ -28,6 +29,7 @@ pub fn builtin_names() -> &'static [&'static str] {
         "obstructed",
         "room",
         "city",
+        "office",
     ]
 }
 
@@ -82,6 +84,16 @@ pub fn builtin(name: &str, param: Option<f64>) -> Result<Scene, SceneError> {
                 });
             }
             Ok(city::builtin_city(p as usize))
+        }
+        "office" => {
+            let p = param.unwrap_or(office::DEFAULT_WINDOW);
+            if !(p > 0.0 && p <= office::SIZE[0] - 0.2) {
+                return Err(SceneError::BadParam {
+                    name: name.to_owned(),
+                    reason: format!("window width must be in (0, 3.8] m, got {p}"),
+                });
+            }
+            Ok(office::builtin_office(p))
         }
         _ => Err(SceneError::UnknownBuiltin {
             name: name.to_owned(),

@@ -30,6 +30,7 @@ mod error;
 mod gltf;
 mod mesh;
 mod obj;
+mod office;
 mod ply;
 mod polygon;
 mod room;

@@ -689,3 +689,67 @@ fn scene_frames_relabel_axes_and_turn_the_building() {
         }
     }
 }
+
+/// `annual builtin:office --grid floor:1`: a sensor per square metre of the floor, 0.8 m
+/// up; daylight autonomy falls from the window row to the back row (the light comes in
+/// through the south window only).
+#[test]
+fn annual_on_the_office_with_a_floor_grid() {
+    let dir = tempfile::tempdir().unwrap();
+    let weather = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/data/weather/723170TYA.CSV.zst");
+    let out = dir.path().join("office");
+    let run = crate::common::ffstream(&[
+        "annual",
+        "builtin:office",
+        "--weather",
+        weather.to_str().unwrap(),
+        "--grid",
+        "floor:1",
+        "-o",
+        out.to_str().unwrap(),
+        "--patches",
+        "300",
+    ]);
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let metrics = std::fs::read_to_string(out.join("metrics.csv")).unwrap();
+    // 4 × 6 points; the lattice runs along the floor's first edge (x) fastest in y.
+    let da: Vec<(String, f64)> = metrics
+        .lines()
+        .skip(1)
+        .map(|l| {
+            let f: Vec<&str> = l.split(',').collect();
+            (f[0].to_string(), f[2].parse().unwrap())
+        })
+        .collect();
+    assert_eq!(da.len(), 24);
+    let sensors = ffstream::daylight::scene::grid_sensors(
+        &ffstream::scene::builtin("office", None).unwrap(),
+        "floor",
+        1.0,
+        0.8,
+    )
+    .unwrap();
+    let row_mean = |y: f64| {
+        let v: Vec<f64> = sensors
+            .iter()
+            .zip(&da)
+            .filter(|(s, _)| (s.point.y - y).abs() < 1e-9)
+            .map(|(_, d)| d.1)
+            .collect();
+        assert_eq!(v.len(), 4);
+        v.iter().sum::<f64>() / 4.0
+    };
+    let rows: Vec<f64> = (0..6).map(|k| row_mean(0.5 + k as f64)).collect();
+    for k in 1..6 {
+        assert!(
+            rows[k] <= rows[k - 1] + 1e-9,
+            "DA300 by row from the window: {rows:?}"
+        );
+    }
+    assert!(rows[0] > rows[5] + 10.0, "{rows:?}");
+}

@@ -103,7 +103,12 @@ fn write_then_load_round_trips() {
         let path = dir.path().join(format!("s{i}.obj"));
         write_obj(s, &path).unwrap();
         assert!(path.with_extension("mtl").exists());
-        let back = load_obj(&path).unwrap();
+        let mut back = load_obj(&path).unwrap();
+        // A scene lit only from outside (the daylight `office`) has no emitter, which the
+        // loader rightly points out; that warning is the scene's, not the round trip's.
+        let unlit = s.materials.iter().all(|m| m.emission == [0.0; 3]);
+        back.warnings
+            .retain(|w| !(unlit && w.contains("no face uses an emitting material")));
         assert!(
             back.warnings.is_empty(),
             "{}: {:?}",
