@@ -1,17 +1,15 @@
 //! `ffstream annual`: illuminance at sensor points for every hour of a weather year
 //! (docs/daylight.md). Computes the form factors (or reuses a file), then the daylight.
 
-use std::fmt::Write as _;
-use std::io::Write as _;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Instant;
 
 use anyhow::Context;
 use clap::Args;
 use ffstream::daylight::{
-    annual::{self, HourSky, Series},
-    heatmap,
+    annual, heatmap,
+    report::{self, Metrics, Occupied},
     scene::{grid_sensors, read_sensors, scene_frame, SceneLight},
     weather, Site,
 };
@@ -116,20 +114,6 @@ fn grid(s: &str) -> Result<Grid, String> {
     }
 }
 
-/// Occupied hours [start, end) of the day, local standard time.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub(crate) struct Occupied {
-    pub start: u32,
-    pub end: u32,
-}
-
-impl Occupied {
-    /// Whether the weather hour ending at `hour` (1–24) lies within.
-    fn contains(self, hour: u32) -> bool {
-        hour > self.start && hour <= self.end
-    }
-}
-
 fn occupied(s: &str) -> Result<Occupied, String> {
     let bad = || format!("`{s}`: expected START-END in whole hours, 0 ≤ START < END ≤ 24");
     let (a, b) = s.split_once('-').ok_or_else(bad)?;
@@ -156,45 +140,6 @@ fn location(s: &str) -> Result<Site, String> {
     };
     site.check().map_err(|e| e.to_string())?;
     Ok(site)
-}
-
-/// Metrics of one sensor over the occupied hours.
-#[derive(Clone, Debug, PartialEq)]
-pub(crate) struct Metrics {
-    pub hours: usize,
-    /// Share of occupied hours at or above the threshold, percent.
-    pub da: f64,
-    /// Useful daylight illuminance bins (below 100, 100–2000, above 2000 lux), percent.
-    pub udi: [f64; 3],
-    pub mean: f64,
-    pub max: f64,
-}
-
-pub(crate) fn metrics(total: &[f64], hours: &[HourSky], occ: Occupied, threshold: f64) -> Metrics {
-    let (mut n, mut da, mut udi, mut sum) = (0usize, 0usize, [0usize; 3], 0.0);
-    for (e, h) in total.iter().zip(hours) {
-        if !occ.contains(h.hour) {
-            continue;
-        }
-        n += 1;
-        sum += e;
-        da += usize::from(*e >= threshold);
-        udi[if *e < 100.0 {
-            0
-        } else if *e <= 2000.0 {
-            1
-        } else {
-            2
-        }] += 1;
-    }
-    let pct = |k: usize| 100.0 * k as f64 / n.max(1) as f64;
-    Metrics {
-        hours: n,
-        da: pct(da),
-        udi: udi.map(pct),
-        mean: sum / n.max(1) as f64,
-        max: total.iter().copied().fold(0.0, f64::max),
-    }
 }
 
 pub(super) fn run(mut a: AnnualArgs) -> anyhow::Result<ExitCode> {
@@ -271,24 +216,17 @@ pub(super) fn run(mut a: AnnualArgs) -> anyhow::Result<ExitCode> {
         &mut |line| step(&line),
     )?;
     let (hours, series) = (result.hours, result.series);
+    let names: Vec<&str> = sensors.iter().map(|s| s.name.as_str()).collect();
     let csv = dir.join("illuminance.csv");
-    write_illuminance(
-        &csv,
-        &hours,
-        &sensors.iter().map(|s| s.name.as_str()).collect::<Vec<_>>(),
-        &series,
-    )?;
+    report::write_illuminance(&csv, &hours, &names, &series)
+        .with_context(|| format!("cannot write {}", csv.display()))?;
     let table: Vec<Metrics> = series
         .iter()
-        .map(|s| metrics(&s.total, &hours, a.occupied, a.da_threshold))
+        .map(|s| report::metrics(&s.total, &hours, a.occupied, a.da_threshold))
         .collect();
     let mcsv = dir.join("metrics.csv");
-    write_metrics(
-        &mcsv,
-        &sensors.iter().map(|s| s.name.as_str()).collect::<Vec<_>>(),
-        &table,
-        a.da_threshold,
-    )?;
+    report::write_metrics(&mcsv, &names, &table, a.da_threshold)
+        .with_context(|| format!("cannot write {}", mcsv.display()))?;
     let when: Vec<(u32, u32)> = hours.iter().map(|h| (h.month, h.hour)).collect();
     let mut pictures = Vec::new();
     for (s, v) in sensors.iter().zip(&series) {
@@ -348,49 +286,4 @@ fn file_safe(name: &str) -> String {
             }
         })
         .collect()
-}
-
-/// `month,day,hour,<sensor>...`, lux with one decimal.
-fn write_illuminance(
-    path: &Path,
-    hours: &[HourSky],
-    names: &[&str],
-    series: &[Series],
-) -> anyhow::Result<()> {
-    let mut s = String::from("month,day,hour");
-    for n in names {
-        s.push(',');
-        s.push_str(n);
-    }
-    s.push('\n');
-    for (t, h) in hours.iter().enumerate() {
-        let _ = write!(s, "{},{},{}", h.month, h.day, h.hour);
-        for v in series {
-            let _ = write!(s, ",{:.1}", v.total[t]);
-        }
-        s.push('\n');
-    }
-    write_file(path, &s)
-}
-
-fn write_metrics(path: &Path, names: &[&str], m: &[Metrics], threshold: f64) -> anyhow::Result<()> {
-    let mut s = format!(
-        "sensor,occupied_hours,da{threshold}_percent,udi_below_100_percent,udi_100_2000_percent,udi_above_2000_percent,mean_occupied_lux,max_lux\n"
-    );
-    for (n, m) in names.iter().zip(m) {
-        let _ = writeln!(
-            s,
-            "{n},{},{:.2},{:.2},{:.2},{:.2},{:.1},{:.1}",
-            m.hours, m.da, m.udi[0], m.udi[1], m.udi[2], m.mean, m.max
-        );
-    }
-    write_file(path, &s)
-}
-
-fn write_file(path: &Path, text: &str) -> anyhow::Result<()> {
-    let mut f =
-        std::fs::File::create(path).with_context(|| format!("cannot create {}", path.display()))?;
-    f.write_all(text.as_bytes())
-        .and_then(|()| f.sync_all())
-        .with_context(|| format!("cannot write {}", path.display()))
 }

@@ -8,6 +8,7 @@ pub mod annual;
 pub mod dome;
 pub mod heatmap;
 pub mod perez;
+pub mod report;
 pub mod scene;
 pub mod sun;
 pub mod weather;

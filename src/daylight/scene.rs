@@ -73,14 +73,19 @@ pub fn read_sensors(path: &Path) -> Result<Vec<Sensor>, SensorError> {
         line,
         what,
     };
-    let mut lines = text
-        .lines()
-        .enumerate()
-        .map(|(k, l)| (k + 1, l.trim()))
-        .filter(|(_, l)| !l.is_empty() && !l.starts_with('#'));
-    match lines.next() {
-        Some((_, h)) if h.replace(' ', "") == SENSORS_HEADER => {}
-        Some((k, h)) => return Err(at(k, format!("header `{h}`: expected `{SENSORS_HEADER}`"))),
+    let mut records = crate::table::records(&text);
+    match records.next() {
+        Some(Ok(h)) if h.fields.join(",") == SENSORS_HEADER => {}
+        Some(Ok(h)) => {
+            return Err(at(
+                h.line,
+                format!(
+                    "header `{}`: expected `{SENSORS_HEADER}`",
+                    h.fields.join(",")
+                ),
+            ))
+        }
+        Some(Err((line, e))) => return Err(at(line, e)),
         None => {
             return Err(at(
                 1,
@@ -89,8 +94,8 @@ pub fn read_sensors(path: &Path) -> Result<Vec<Sensor>, SensorError> {
         }
     }
     let mut out: Vec<Sensor> = Vec::new();
-    for (k, l) in lines {
-        let f: Vec<&str> = l.split(',').map(str::trim).collect();
+    for r in records {
+        let crate::table::Record { line: k, fields: f } = r.map_err(|(l, e)| at(l, e))?;
         if f.len() != 7 {
             return Err(at(
                 k,
@@ -117,7 +122,7 @@ pub fn read_sensors(path: &Path) -> Result<Vec<Sensor>, SensorError> {
             return Err(at(k, format!("sensor name `{}` used twice", f[0])));
         }
         out.push(Sensor {
-            name: f[0].to_string(),
+            name: f[0].clone(),
             point: DVec3::new(v[0], v[1], v[2]),
             normal: normal.normalize(),
         });
