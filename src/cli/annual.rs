@@ -239,7 +239,10 @@ pub(super) fn run(mut a: AnnualArgs) -> anyhow::Result<ExitCode> {
             .with_context(|| format!("cannot write {}", path.display()))?;
         pictures.push(path);
     }
-    step("wrote the tables and heat maps");
+    step(&format!(
+        "wrote the tables and heat maps; peak RSS {:.0} MB",
+        ffstream::service::rss::peak_rss_bytes() as f64 / 1e6
+    ));
     println!(
         "{:<16} {:>8} {:>7} {:>9} {:>9} {:>10} {:>10}",
         "sensor",

@@ -45,17 +45,31 @@ pub struct HourSky {
     pub hour: u32,
     /// Unit vector to the sun (east, north, up) at the hour's middle.
     pub sun: DVec3,
-    /// Direct normal illuminance, lux (0 with the sun down).
-    pub direct_normal: f64,
-    /// The sky on the fine and on the coarse dome (`None`: no sky this hour).
-    pub fine: Option<SkyVector>,
-    pub coarse: Option<SkyVector>,
+    /// The hour's sky (`None`: no light at all). Drawn on the domes only when needed
+    /// ([`HourSky::vectors`]), so memory does not grow with the hours beyond the output.
+    pub sky: Option<PerezSky>,
 }
 
 impl HourSky {
     /// Whether the hour has any light.
     pub fn is_lit(&self) -> bool {
-        self.fine.is_some() || self.direct_normal > 0.0
+        self.sky.is_some()
+    }
+
+    /// Direct normal illuminance, lux (0 with the sun down or no light).
+    pub fn direct_normal(&self) -> f64 {
+        self.sky.as_ref().map_or(0.0, |s| s.direct_normal)
+    }
+
+    /// The sky on the fine and on the coarse dome, with the ground for reflectance
+    /// `ground` (`None`: no sky this hour).
+    pub fn vectors(&self, domes: &Domes, ground: f64) -> Option<(SkyVector, SkyVector)> {
+        self.sky.as_ref().map(|s| {
+            (
+                domes.fine.sky_vector(s, ground),
+                domes.coarse.sky_vector(s, ground),
+            )
+        })
     }
 }
 
@@ -86,30 +100,18 @@ pub fn day_of_year(year: i32, month: u32, day: u32) -> u32 {
 ///
 /// # Errors
 /// A sun position that cannot be computed (a bad site in the file).
-pub fn hour_skies(
-    w: &Weather,
-    year: i32,
-    domes: &Domes,
-    ground_reflectance: f64,
-) -> Result<Vec<HourSky>, super::SunError> {
+pub fn hour_skies(w: &Weather, year: i32) -> Result<Vec<HourSky>, super::SunError> {
     w.hours
         .iter()
         .map(|h| {
             let sun = SunPosition::at(&w.site, h.mid(year))?.enu();
             let doy = day_of_year(year, h.month, h.day);
-            let sky = PerezSky::new(h.dni, h.dhi, sun, doy, h.dew_point);
             Ok(HourSky {
                 month: h.month,
                 day: h.day,
                 hour: h.hour,
                 sun,
-                direct_normal: sky.as_ref().map_or(0.0, |s| s.direct_normal),
-                fine: sky
-                    .as_ref()
-                    .map(|s| domes.fine.sky_vector(s, ground_reflectance)),
-                coarse: sky
-                    .as_ref()
-                    .map(|s| domes.coarse.sky_vector(s, ground_reflectance)),
+                sky: PerezSky::new(h.dni, h.dhi, sun, doy, h.dew_point),
             })
         })
         .collect()
@@ -123,7 +125,7 @@ pub fn sun_bins(hours: &[HourSky], fine: &SkyDome) -> (Vec<Option<usize>>, Vec<D
     let of_hour = hours
         .iter()
         .map(|h| {
-            if h.direct_normal <= 0.0 {
+            if h.direct_normal() <= 0.0 {
                 return None;
             }
             let p = fine.find(h.sun)?;
@@ -164,13 +166,20 @@ impl PatchLight {
 
 /// First-arrival illuminance E⁰_i (lux) of every patch in hour `t`: the right-hand side of
 /// a forward solve for that hour (used to check the adjoint route, and for pictures).
-pub fn first_arrival(pl: &PatchLight, hours: &[HourSky], t: usize) -> Vec<f64> {
+pub fn first_arrival(
+    pl: &PatchLight,
+    hours: &[HourSky],
+    t: usize,
+    domes: &Domes,
+    ground: f64,
+) -> Vec<f64> {
     let n = pl.sky.len() / pl.width;
     let h = &hours[t];
+    let coarse = h.vectors(domes, ground).map(|v| v.1);
     (0..n)
         .map(|i| {
             let mut e = 0.0;
-            if let Some(v) = &h.coarse {
+            if let Some(v) = &coarse {
                 let row = &pl.sky[i * pl.width..(i + 1) * pl.width];
                 e += row
                     .iter()
@@ -179,7 +188,7 @@ pub fn first_arrival(pl: &PatchLight, hours: &[HourSky], t: usize) -> Vec<f64> {
                     .sum::<f64>();
             }
             if let Some(b) = pl.bin_of_hour[t] {
-                e += h.direct_normal * f64::from(pl.sun[b][i]);
+                e += h.direct_normal() * f64::from(pl.sun[b][i]);
             }
             e
         })
@@ -267,32 +276,53 @@ pub struct Series {
     pub reflected: Vec<f64>,
 }
 
-/// The hourly illuminance of one sensor.
-pub fn sensor_series(
-    m: &SensorModel,
+/// Every sensor's hourly illuminance. Hours are spread over `threads` threads; each
+/// hour's sky is drawn once for all sensors and dropped.
+pub fn series(
+    models: &[SensorModel],
     light: &SceneLight<'_>,
     hours: &[HourSky],
     bin_of_hour: &[Option<usize>],
-) -> Series {
+    domes: &Domes,
+    ground: f64,
+) -> Vec<Series> {
     let dot = |c: &[f64], v: &SkyVector| c.iter().zip(&v.luminance).map(|(c, l)| c * l).sum();
-    let mut s = Series::default();
-    for (t, h) in hours.iter().enumerate() {
-        let sky: f64 = h.fine.as_ref().map_or(0.0, |v| dot(&m.direct_sky, v));
-        let sun = if h.direct_normal > 0.0 {
-            h.direct_normal * light.sensor_sun(&m.sensor, h.sun)
-        } else {
-            0.0
+    let per_hour: Vec<Vec<[f64; 3]>> = super::scene::par_map(hours.len(), light.threads, |t| {
+        let h = &hours[t];
+        let Some((fine, coarse)) = h.vectors(domes, ground) else {
+            return vec![[0.0; 3]; models.len()];
         };
-        let mut refl: f64 = h.coarse.as_ref().map_or(0.0, |v| dot(&m.reflected_sky, v));
-        if let Some(b) = bin_of_hour[t] {
-            refl += h.direct_normal * m.reflected_sun[b];
-        }
-        s.direct_sky.push(sky);
-        s.direct_sun.push(sun);
-        s.reflected.push(refl);
-        s.total.push(sky + sun + refl);
-    }
-    s
+        let e_bn = h.direct_normal();
+        models
+            .iter()
+            .map(|m| {
+                let sky: f64 = dot(&m.direct_sky, &fine);
+                let sun = if e_bn > 0.0 {
+                    e_bn * light.sensor_sun(&m.sensor, h.sun)
+                } else {
+                    0.0
+                };
+                let mut refl: f64 = dot(&m.reflected_sky, &coarse);
+                if let Some(b) = bin_of_hour[t] {
+                    refl += e_bn * m.reflected_sun[b];
+                }
+                [sky, sun, refl]
+            })
+            .collect()
+    });
+    (0..models.len())
+        .map(|k| {
+            let mut s = Series::default();
+            for h in &per_hour {
+                let [sky, sun, refl] = h[k];
+                s.direct_sky.push(sky);
+                s.direct_sun.push(sun);
+                s.reflected.push(refl);
+                s.total.push(sky + sun + refl);
+            }
+            s
+        })
+        .collect()
 }
 
 /// Why an annual calculation stopped.
@@ -330,10 +360,10 @@ pub fn sensors_over_year(
     progress: &mut dyn FnMut(String),
 ) -> Result<AnnualResult, AnnualError> {
     let domes = Domes::default();
-    let hours = hour_skies(w, year, &domes, ground)?;
+    let hours = hour_skies(w, year)?;
     let lit = hours.iter().filter(|h| h.is_lit()).count();
     progress(format!(
-        "{} hours, {lit} with daylight: skies drawn",
+        "{} hours, {lit} with daylight: suns and sky conditions",
         hours.len()
     ));
     let pl = PatchLight::new(light, &domes, &hours);
@@ -348,10 +378,8 @@ pub fn sensors_over_year(
         "{} sensors' views and inter-reflection (adjoint solve)",
         sensors.len()
     ));
-    let series = models
-        .iter()
-        .map(|m| sensor_series(m, light, &hours, &pl.bin_of_hour))
-        .collect();
+    let series = series(&models, light, &hours, &pl.bin_of_hour, &domes, ground);
+    progress(format!("{} hours at every sensor", hours.len()));
     Ok(AnnualResult {
         hours,
         series,

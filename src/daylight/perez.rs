@@ -256,6 +256,8 @@ impl PerezSky {
     /// The sky for irradiances `dni`, `dhi` (W/m²), the sun at `sun` (unit vector, east,
     /// north, up), day of the year and dew point (°C). `None` when the hour has no light
     /// at all (no diffuse irradiance and no direct light from a sun above the horizon).
+    /// An hour with direct light but no diffuse gets a dark sky and keeps its sun, with
+    /// the clearest category's efficacy.
     pub fn new(dni: f64, dhi: f64, sun: DVec3, day_of_year: u32, dew_point: f64) -> Option<Self> {
         let up = sun.z > 0.0;
         let zenith_deg = sun.z.clamp(-1.0, 1.0).acos().to_degrees();
@@ -269,10 +271,24 @@ impl PerezSky {
                 DVec3::X
             }
         };
-        Condition::new(dni, dhi, zenith_deg, day_of_year, dew_point).map(|condition| PerezSky {
+        let condition = match Condition::new(dni, dhi, zenith_deg, day_of_year, dew_point) {
+            Some(c) => c,
+            // Direct light without diffuse (measured data can say so): the sky is dark,
+            // the sun keeps its light with the clearest category's efficacy.
+            None if up && dni > 0.0 => Condition {
+                clearness: f64::INFINITY,
+                brightness: 0.01,
+                category: CLEARNESS_BOUNDS.len(),
+                zenith: zenith_deg.to_radians(),
+                water: precipitable_water(dew_point),
+            },
+            None => return None,
+        };
+        let diffuse = if dhi > 0.0 { dhi } else { 0.0 };
+        Some(PerezSky {
             coefficients: condition.distribution(),
             sun: shape_sun,
-            diffuse_horizontal: dhi * condition.diffuse_efficacy(),
+            diffuse_horizontal: diffuse * condition.diffuse_efficacy(),
             direct_normal: if up {
                 dni.max(0.0) * condition.direct_efficacy()
             } else {
@@ -343,6 +359,12 @@ mod tests {
         let near = clear.relative((sun + DVec3::new(0.05, 0.0, 0.0)).normalize());
         let away = clear.relative(DVec3::new(0.0, 0.7, 0.7).normalize());
         assert!(near > 5.0 * away, "circumsolar {near} vs opposite {away}");
+        // Direct light without diffuse keeps its sun; no light at all is no sky.
+        let bare = PerezSky::new(800.0, 0.0, sun, 172, 10.0).unwrap();
+        assert_eq!(bare.diffuse_horizontal, 0.0);
+        assert!(bare.direct_normal > 800.0 * 90.0, "{}", bare.direct_normal);
+        assert!(PerezSky::new(0.0, 0.0, sun, 172, 10.0).is_none());
+        assert!(PerezSky::new(800.0, 0.0, -sun, 172, 10.0).is_none());
         let overcast = PerezSky::new(0.0, 150.0, sun, 172, 10.0).unwrap();
         assert_eq!(overcast.condition.category, 0);
         let zen = overcast.relative(DVec3::Z);

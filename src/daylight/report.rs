@@ -157,9 +157,7 @@ mod tests {
                 day: 1,
                 hour: h,
                 sun: glam::DVec3::Z,
-                direct_normal: 0.0,
-                fine: None,
-                coarse: None,
+                sky: None,
             })
             .collect();
         let total: Vec<f64> = (1..=24).map(|h| 100.0 * f64::from(h)).collect();

@@ -23,7 +23,7 @@ pub mod master;
 #[cfg(feature = "mpi")]
 pub mod mpi;
 pub(crate) mod progress;
-pub(crate) mod rss;
+pub mod rss;
 pub mod schedule;
 pub mod symmetric;
 pub(crate) mod worker;

@@ -1,7 +1,7 @@
 //! Peak resident set size of this process, for the end-of-run report.
 
 /// Peak RSS in bytes (`VmHWM` from `/proc/self/status`), or 0 where unavailable.
-pub(crate) fn peak_rss_bytes() -> u64 {
+pub fn peak_rss_bytes() -> u64 {
     let Ok(text) = std::fs::read_to_string("/proc/self/status") else {
         return 0;
     };

@@ -166,7 +166,7 @@ fn tight() -> SolveConfig {
 /// The forward solve of hour `t`: B = ρ∘E⁰ + ρ F B per channel, and E⁰.
 fn forward(r: &Room, pl: &PatchLight, hours: &[HourSky], t: usize) -> (Vec<f64>, solve::Solution) {
     let rho = solve::scene_reflectance(&r.patches);
-    let e0 = annual::first_arrival(pl, hours, t);
+    let e0 = annual::first_arrival(pl, hours, t, &Domes::default(), 0.2);
     let emission: Vec<[f32; 3]> = e0
         .iter()
         .zip(&rho)
@@ -179,13 +179,19 @@ fn forward(r: &Room, pl: &PatchLight, hours: &[HourSky], t: usize) -> (Vec<f64>,
 /// Hours used by the per-hour checks: a bright sunny noon, an overcast noon, a low sun.
 fn some_hours(hours: &[HourSky]) -> Vec<usize> {
     let best = (0..hours.len())
-        .max_by(|&a, &b| hours[a].direct_normal.total_cmp(&hours[b].direct_normal))
+        .max_by(|&a, &b| {
+            hours[a]
+                .direct_normal()
+                .total_cmp(&hours[b].direct_normal())
+        })
         .unwrap();
     let overcast = (0..hours.len())
-        .find(|&t| hours[t].fine.is_some() && hours[t].direct_normal == 0.0 && hours[t].hour == 13)
+        .find(|&t| hours[t].sky.is_some() && hours[t].direct_normal() == 0.0 && hours[t].hour == 13)
         .unwrap();
     let low = (0..hours.len())
-        .find(|&t| hours[t].direct_normal > 1000.0 && hours[t].sun.z < 0.2 && hours[t].sun.z > 0.05)
+        .find(|&t| {
+            hours[t].direct_normal() > 1000.0 && hours[t].sun.z < 0.2 && hours[t].sun.z > 0.05
+        })
         .unwrap();
     vec![best, overcast, low]
 }
@@ -196,14 +202,11 @@ fn sensors_adjoint_route_equals_forward_solves_per_hour() {
     let light = SceneLight::new(&r.patches, &r.occluders, r.extent, 2);
     let domes = Domes::default();
     let w = greensboro();
-    let hours = annual::hour_skies(&w, 2005, &domes, 0.2).unwrap();
+    let hours = annual::hour_skies(&w, 2005).unwrap();
     let pl = PatchLight::new(&light, &domes, &hours);
     let sensors = sensors();
     let models = annual::sensor_models(&light, &domes, &pl, &sensors, &r.rows, &tight()).unwrap();
-    let series: Vec<_> = models
-        .iter()
-        .map(|m| annual::sensor_series(m, &light, &hours, &pl.bin_of_hour))
-        .collect();
+    let series = annual::series(&models, &light, &hours, &pl.bin_of_hour, &domes, 0.2);
     let g: Vec<Vec<f32>> = sensors
         .iter()
         .map(|s| light.sensor_form_factors(s))
@@ -237,7 +240,7 @@ fn a_closed_room_is_dark_all_year() {
     let r = room(true, 0.75);
     let light = SceneLight::new(&r.patches, &r.occluders, r.extent, 2);
     let domes = Domes::default();
-    let hours = annual::hour_skies(&greensboro(), 2005, &domes, 0.2).unwrap();
+    let hours = annual::hour_skies(&greensboro(), 2005).unwrap();
     let pl = PatchLight::new(&light, &domes, &hours);
     assert!(pl.sky.iter().all(|&c| c == 0.0), "a patch sees the sky");
     assert!(
@@ -245,8 +248,8 @@ fn a_closed_room_is_dark_all_year() {
         "a patch sees the sun"
     );
     let models = annual::sensor_models(&light, &domes, &pl, &sensors(), &r.rows, &tight()).unwrap();
-    for m in &models {
-        let s = annual::sensor_series(m, &light, &hours, &pl.bin_of_hour);
+    let all = annual::series(&models, &light, &hours, &pl.bin_of_hour, &domes, 0.2);
+    for (m, s) in models.iter().zip(&all) {
         assert!(
             s.total.iter().all(|&e| e == 0.0),
             "{}: light in a closed room",
@@ -264,14 +267,14 @@ fn doubling_the_light_doubles_every_result() {
     let r = room(false, 0.75);
     let light = SceneLight::new(&r.patches, &r.occluders, r.extent, 2);
     let domes = Domes::default();
-    let hours = annual::hour_skies(&greensboro(), 2005, &domes, 0.2).unwrap();
+    let hours = annual::hour_skies(&greensboro(), 2005).unwrap();
     let double: Vec<HourSky> = hours
         .iter()
         .map(|h| {
             let mut h = h.clone();
-            h.direct_normal *= 2.0;
-            for v in [&mut h.fine, &mut h.coarse].into_iter().flatten() {
-                v.luminance.iter_mut().for_each(|l| *l *= 2.0);
+            if let Some(s) = &mut h.sky {
+                s.diffuse_horizontal *= 2.0;
+                s.direct_normal *= 2.0;
             }
             h
         })
@@ -279,9 +282,9 @@ fn doubling_the_light_doubles_every_result() {
     let pl = PatchLight::new(&light, &domes, &hours);
     let models = annual::sensor_models(&light, &domes, &pl, &sensors(), &r.rows, &tight()).unwrap();
     let mut lit = 0;
-    for m in &models {
-        let a = annual::sensor_series(m, &light, &hours, &pl.bin_of_hour);
-        let b = annual::sensor_series(m, &light, &double, &pl.bin_of_hour);
+    let once = annual::series(&models, &light, &hours, &pl.bin_of_hour, &domes, 0.2);
+    let twice = annual::series(&models, &light, &double, &pl.bin_of_hour, &domes, 0.2);
+    for (a, b) in once.iter().zip(&twice) {
         for (x, y) in a.total.iter().zip(&b.total) {
             assert!((y - 2.0 * x).abs() <= 1e-12 * x.abs(), "{x} → {y}");
             lit += usize::from(*x > 0.0);
@@ -300,7 +303,7 @@ fn light_through_the_window_is_absorbed_or_leaves_again() {
     let r = room(false, 0.5);
     let light = SceneLight::new(&r.patches, &r.occluders, r.extent, 2);
     let domes = Domes::default();
-    let hours = annual::hour_skies(&greensboro(), 2005, &domes, 0.2).unwrap();
+    let hours = annual::hour_skies(&greensboro(), 2005).unwrap();
     let pl = PatchLight::new(&light, &domes, &hours);
     let rho = solve::scene_reflectance(&r.patches);
     let outward = domes.fine.coefficients(-DVec3::Y);
@@ -336,15 +339,16 @@ fn light_through_the_window_is_absorbed_or_leaves_again() {
             );
             assert!(gap <= 1e-4, "hour {t} channel {c}: gap {gap:.2e}");
         }
-        let sky = h.fine.as_ref().map_or(0.0, |v| {
+        let fine = h.sky.as_ref().map(|s| domes.fine.sky_vector(s, 0.2));
+        let sky = fine.as_ref().map_or(0.0, |v| {
             outward.iter().zip(&v.luminance).map(|(c, l)| c * l).sum()
         });
-        let window = window_area * (sky + h.direct_normal * (-h.sun.y).max(0.0));
+        let window = window_area * (sky + h.direct_normal() * (-h.sun.y).max(0.0));
         // The sky's part: what the patches' views of sky and ground let in against the
         // window's view, within 1 % (coarse dome cells against the fine dome).
         let sun_in: f64 = match pl.bin_of_hour[t] {
             Some(b) => {
-                h.direct_normal
+                h.direct_normal()
                     * r.patches
                         .patches
                         .iter()
