@@ -10,7 +10,7 @@ use clap::Args;
 use ffstream::daylight::{
     annual, heatmap,
     report::{self, Metrics, Occupied},
-    scene::{grid_sensors, read_sensors, scene_frame, SceneLight},
+    scene::{grid_sensors, group_plane, read_sensors, scene_frame, SceneLight},
     weather, Site,
 };
 use ffstream::ffz::FfzReader;
@@ -238,6 +238,35 @@ pub(super) fn run(mut a: AnnualArgs) -> anyhow::Result<ExitCode> {
         heatmap::write(&path, &title, &v.total, &when)
             .with_context(|| format!("cannot write {}", path.display()))?;
         pictures.push(path);
+    }
+    if let Some(g) = &a.grid {
+        let da_map = dir.join("da_map.png");
+        match group_plane(&scene, &g.group) {
+            Some((o, u, v)) => {
+                let at: Vec<(f64, f64)> = sensors
+                    .iter()
+                    .map(|s| ((s.point - o).dot(u), (s.point - o).dot(v)))
+                    .collect();
+                let da: Vec<f64> = table.iter().map(|m| m.da).collect();
+                let title = format!(
+                    "DA{} over {}: share of hours {}-{} h with >= {} lux, {}",
+                    a.da_threshold,
+                    g.group,
+                    a.occupied.start,
+                    a.occupied.end,
+                    a.da_threshold,
+                    w.name
+                );
+                heatmap::write_grid_map(&da_map, &title, &at, &da, g.spacing, 100.0, "%")
+                    .with_context(|| format!("cannot write {}", da_map.display()))?;
+                println!("daylight autonomy map: {}", da_map.display());
+            }
+            None => eprintln!(
+                "ffstream: annual: group {} is not planar: no DA map (the metrics table has \
+                 every sensor)",
+                g.group
+            ),
+        }
     }
     step(&format!(
         "wrote the tables and heat maps; peak RSS {:.0} MB",

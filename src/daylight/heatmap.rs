@@ -203,3 +203,97 @@ mod tests {
         assert_eq!(scale_top(&many), 1000.0);
     }
 }
+
+/// How a grid map is laid out: the lattice's corner positions, its size in cells and the
+/// cell's size in pixels.
+struct GridLayout {
+    lo: (f64, f64),
+    hi: (f64, f64),
+    cols: u32,
+    rows: u32,
+    cell: u32,
+    spacing: f64,
+}
+
+impl GridLayout {
+    fn new(points: &[(f64, f64)], spacing: f64) -> Self {
+        let (mut lo, mut hi) = ((f64::MAX, f64::MAX), (f64::MIN, f64::MIN));
+        for &(a, b) in points {
+            lo = (lo.0.min(a), lo.1.min(b));
+            hi = (hi.0.max(a), hi.1.max(b));
+        }
+        let cols = ((hi.0 - lo.0) / spacing).round() as u32 + 1;
+        let rows = ((hi.1 - lo.1) / spacing).round() as u32 + 1;
+        GridLayout {
+            lo,
+            hi,
+            cols,
+            rows,
+            cell: (480 / cols.max(rows)).clamp(2, 48),
+            spacing,
+        }
+    }
+
+    /// Top-left pixel of the cell of the sensor at `(a, b)`.
+    fn corner(&self, (a, b): (f64, f64)) -> (u32, u32) {
+        let i = ((a - self.lo.0) / self.spacing).round() as u32;
+        let j = ((self.hi.1 - b) / self.spacing).round() as u32;
+        (LEFT + i * self.cell, TOP + j * self.cell)
+    }
+}
+
+/// A map of one value per grid sensor (daylight autonomy, percent): each sensor a square
+/// cell at its position `(a, b)` in the grid's plane (scene units, `spacing` apart),
+/// coloured on a 0…`top` scale, with a colour bar, `unit` over it and `title`. Columns
+/// run along a, rows along −b (b up).
+///
+/// # Errors
+/// The PNG cannot be written.
+pub fn write_grid_map(
+    path: &Path,
+    title: &str,
+    points: &[(f64, f64)],
+    values: &[f64],
+    spacing: f64,
+    top: f64,
+    unit: &str,
+) -> Result<(), RenderError> {
+    let g = GridLayout::new(points, spacing);
+    let (pw, ph) = (g.cols * g.cell, (g.rows * g.cell).max(160));
+    let width = (LEFT + pw + RIGHT).max(LEFT + 8 * title.len() as u32 + 16);
+    let mut c = Canvas::new(width, TOP + ph + BOTTOM);
+    for (&p, &v) in points.iter().zip(values) {
+        let (x, y) = g.corner(p);
+        c.rect(x, y, g.cell, g.cell, colour(v / top));
+    }
+    c.text(LEFT, 8, title);
+    c.text(
+        LEFT,
+        TOP + g.rows * g.cell + 8,
+        &format!("{} x {} sensors, {spacing} apart", g.cols, g.rows),
+    );
+    let bx = LEFT + pw + 16;
+    for y in 0..ph {
+        let f = 1.0 - f64::from(y) / f64::from(ph - 1);
+        c.rect(bx, TOP + y, 14, 1, colour(f));
+    }
+    for k in 0..=4u32 {
+        let y = TOP + ph - 1 - k * (ph - 1) / 4;
+        c.rect(bx + 14, y, 4, 1, [0, 0, 0]);
+        c.text(
+            bx + 21,
+            y.saturating_sub(4),
+            &format!("{:.0}", top * f64::from(k) / 4.0),
+        );
+    }
+    c.text(bx, TOP - 14, unit);
+    c.img.write_png(path)
+}
+
+/// The centre pixel of the cell of the sensor at `at` on the map [`write_grid_map`]
+/// draws of `points` (for tests).
+pub fn grid_map_pixel(points: &[(f64, f64)], spacing: f64, at: (f64, f64)) -> (u32, u32) {
+    let g = GridLayout::new(points, spacing);
+    let (x, y) = g.corner(at);
+    (x + g.cell / 2, y + g.cell / 2)
+}

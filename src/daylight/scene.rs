@@ -203,6 +203,27 @@ pub fn grid_sensors(
     Ok(out)
 }
 
+/// The plane of group `group` when all its faces lie in one plane: an origin and two
+/// unit axes in it (the first face's first edge, and normal × that), for maps of a grid.
+/// `None` for a group that is not planar or does not exist.
+pub fn group_plane(scene: &crate::scene::Scene, group: &str) -> Option<(DVec3, DVec3, DVec3)> {
+    let g = scene.groups.iter().position(|n| n == group)?;
+    let mut faces = scene.faces.iter().filter(|f| f.group as usize == g);
+    let first = faces.next()?;
+    let n = first.normal();
+    let o = first.corners[0];
+    let (lo, hi) = scene.bounds();
+    let tol = 1e-9 * (hi - lo).length().max(f64::MIN_POSITIVE);
+    let planar = faces.all(|f| {
+        f.normal().dot(n) > 1.0 - 1e-9 && f.corners.iter().all(|&c| (c - o).dot(n).abs() <= tol)
+    });
+    if !planar {
+        return None;
+    }
+    let u = (first.corners[1] - o).normalize();
+    Some((o, u, n.cross(u)))
+}
+
 /// Even-odd test of the point (a, b) against a polygon in its plane.
 fn inside(poly: &[(f64, f64)], a: f64, b: f64) -> bool {
     let mut inside = false;

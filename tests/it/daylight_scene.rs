@@ -756,4 +756,20 @@ fn annual_on_the_office_with_a_floor_grid() {
         );
     }
     assert!(rows[0] > rows[5] + 10.0, "{rows:?}");
+    // The DA map: each sensor's cell in its value's colour, the window's row at the
+    // bottom (b = y up on the floor).
+    let img = ffstream::render::Image::read_png(&out.join("da_map.png")).unwrap();
+    let at: Vec<(f64, f64)> = sensors.iter().map(|s| (s.point.x, s.point.y)).collect();
+    for (p, (_, d)) in at.iter().zip(&da) {
+        let (x, y) = ffstream::daylight::heatmap::grid_map_pixel(&at, 1.0, *p);
+        let want = ffstream::daylight::heatmap::colour(d / 100.0);
+        let got = img.pixel(x, y);
+        assert!(
+            (0..3).all(|c| (i16::from(got[c]) - i16::from(want[c])).abs() <= 1),
+            "sensor at {p:?}: pixel {got:?}, DA {d} is {want:?}"
+        );
+    }
+    let (_, y_front) = ffstream::daylight::heatmap::grid_map_pixel(&at, 1.0, (0.5, 0.5));
+    let (_, y_back) = ffstream::daylight::heatmap::grid_map_pixel(&at, 1.0, (0.5, 5.5));
+    assert!(y_front > y_back);
 }
