@@ -105,6 +105,27 @@ impl Canvas {
         }
     }
 
+    /// A vertical colour bar at x = `bx` from `TOP`, `height` pixels, ticks at 0, ¼, …, 1 of
+    /// `top` (the last labelled `>=` when `open_top`), `unit` above it.
+    fn colour_bar(&mut self, bx: u32, height: u32, top: f64, open_top: bool, unit: &str) {
+        for y in 0..height {
+            let f = 1.0 - f64::from(y) / f64::from(height - 1);
+            self.rect(bx, TOP + y, 14, 1, colour(f));
+        }
+        for k in 0..=4u32 {
+            let y = TOP + height - 1 - k * (height - 1) / 4;
+            self.rect(bx + 14, y, 4, 1, [0, 0, 0]);
+            let v = top * f64::from(k) / 4.0;
+            let label = if k == 4 && open_top {
+                format!(">={v:.0}")
+            } else {
+                format!("{v:.0}")
+            };
+            self.text(bx + 21, y.saturating_sub(4), &label);
+        }
+        self.text(bx, TOP - 14, unit);
+    }
+
     /// Text right-aligned to end at x.
     fn text_right(&mut self, x: u32, y: u32, s: &str) {
         self.text(x.saturating_sub(8 * s.len() as u32), y, s);
@@ -165,43 +186,9 @@ pub fn write(
     }
     c.text(LEFT, TOP + ph + 24, "day of the year (local standard time)");
     c.text(LEFT, 8, title);
-    // Colour bar.
-    let bx = LEFT + pw + 16;
-    for y in 0..ph {
-        let f = 1.0 - f64::from(y) / f64::from(ph - 1);
-        c.rect(bx, TOP + y, 14, 1, colour(f));
-    }
-    for k in 0..=4u32 {
-        let y = TOP + ph - 1 - k * (ph - 1) / 4;
-        c.rect(bx + 14, y, 4, 1, black);
-        let v = top * f64::from(k) / 4.0;
-        let label = if k == 4 {
-            format!(">={v:.0}")
-        } else {
-            format!("{v:.0}")
-        };
-        c.text(bx + 21, y.saturating_sub(4), &label);
-    }
-    c.text(bx, TOP - 14, "lux");
+    c.colour_bar(LEFT + pw + 16, ph, top, true, "lux");
     c.img.write_png(path)?;
     Ok(top)
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn ramp_ends_and_scale() {
-        assert_eq!(colour(0.0), [68, 1, 84]);
-        assert_eq!(colour(1.0), [253, 231, 37]);
-        assert_eq!(colour(7.0), colour(1.0));
-        assert_eq!(scale_top(&[0.0, 120.0, 80.0]), 80.0);
-        assert_eq!(scale_top(&[2200.0; 10]), 2500.0);
-        assert_eq!(scale_top(&[0.0; 4]), 1.0);
-        let many: Vec<f64> = (1..=1000).map(f64::from).collect();
-        assert_eq!(scale_top(&many), 1000.0);
-    }
 }
 
 /// How a grid map is laid out: the lattice's corner positions, its size in cells and the
@@ -272,21 +259,7 @@ pub fn write_grid_map(
         TOP + g.rows * g.cell + 8,
         &format!("{} x {} sensors, {spacing} apart", g.cols, g.rows),
     );
-    let bx = LEFT + pw + 16;
-    for y in 0..ph {
-        let f = 1.0 - f64::from(y) / f64::from(ph - 1);
-        c.rect(bx, TOP + y, 14, 1, colour(f));
-    }
-    for k in 0..=4u32 {
-        let y = TOP + ph - 1 - k * (ph - 1) / 4;
-        c.rect(bx + 14, y, 4, 1, [0, 0, 0]);
-        c.text(
-            bx + 21,
-            y.saturating_sub(4),
-            &format!("{:.0}", top * f64::from(k) / 4.0),
-        );
-    }
-    c.text(bx, TOP - 14, unit);
+    c.colour_bar(LEFT + pw + 16, ph, top, false, unit);
     c.img.write_png(path)
 }
 
@@ -296,4 +269,21 @@ pub fn grid_map_pixel(points: &[(f64, f64)], spacing: f64, at: (f64, f64)) -> (u
     let g = GridLayout::new(points, spacing);
     let (x, y) = g.corner(at);
     (x + g.cell / 2, y + g.cell / 2)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn ramp_ends_and_scale() {
+        assert_eq!(colour(0.0), [68, 1, 84]);
+        assert_eq!(colour(1.0), [253, 231, 37]);
+        assert_eq!(colour(7.0), colour(1.0));
+        assert_eq!(scale_top(&[0.0, 120.0, 80.0]), 80.0);
+        assert_eq!(scale_top(&[2200.0; 10]), 2500.0);
+        assert_eq!(scale_top(&[0.0; 4]), 1.0);
+        let many: Vec<f64> = (1..=1000).map(f64::from).collect();
+        assert_eq!(scale_top(&many), 1000.0);
+    }
 }
