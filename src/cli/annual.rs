@@ -87,6 +87,15 @@ pub(crate) enum UpAxis {
     Y,
 }
 
+impl From<UpAxis> for ffstream::daylight::scene::UpAxis {
+    fn from(a: UpAxis) -> Self {
+        match a {
+            UpAxis::Z => Self::Z,
+            UpAxis::Y => Self::Y,
+        }
+    }
+}
+
 /// A sensor grid: group, pitch, offset along the normal.
 #[derive(Clone, Debug, PartialEq)]
 pub(crate) struct Grid {
@@ -177,10 +186,7 @@ pub(super) fn run(mut a: AnnualArgs) -> anyhow::Result<ExitCode> {
     let reader = FfzReader::open(&ffz).with_context(|| format!("{}", ffz.display()))?;
     let patches = RowSource::patches(&reader).clone();
     super::solve::materials_from_scene(&patches, &scene, &a.input.scene)?;
-    let threads = a
-        .compute
-        .threads
-        .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |t| t.get()));
+    let threads = a.compute.threads_or_all();
     let start = Instant::now();
     let step = |what: &str| {
         eprintln!(
@@ -191,13 +197,7 @@ pub(super) fn run(mut a: AnnualArgs) -> anyhow::Result<ExitCode> {
     let tris: Vec<_> = scene.triangles().collect();
     let occluders = OccluderMesh::prepare(tris, false, false).build();
     let mut light = SceneLight::new(&patches, &occluders, scene.bounds(), threads);
-    light.frame = scene_frame(
-        match a.up {
-            UpAxis::Z => 'z',
-            UpAxis::Y => 'y',
-        },
-        a.rotate,
-    );
+    light.frame = scene_frame(a.up.into(), a.rotate);
     step(&format!(
         "site {:.4} N {:.4} E, UTC{:+}, weather {}",
         w.site.latitude,

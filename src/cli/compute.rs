@@ -167,6 +167,14 @@ pub(crate) struct ComputeOptions {
     pub no_merge_occluders: bool,
 }
 
+impl ComputeOptions {
+    /// `--threads`, or one per core.
+    pub(super) fn threads_or_all(&self) -> usize {
+        self.threads
+            .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()))
+    }
+}
+
 /// Load a scene: an OBJ path, or builtin:NAME[:PARAM] (or a bare built-in name when no
 /// file of that name exists).
 pub(super) fn load_scene(spec: &str) -> anyhow::Result<Scene> {
@@ -213,9 +221,7 @@ pub(super) fn build_job(
         }
     }
     let symmetric = symmetric_mode(o, &cfg)?;
-    let threads = o
-        .threads
-        .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
+    let threads = o.threads_or_all();
     let (count, max_edge) = patch_budget(input, &scene)?;
     if role != Role::Worker {
         // Printed and checked before subdividing: a file the disk cannot hold costs no

@@ -175,7 +175,7 @@ pub fn first_arrival(
 ) -> Vec<f64> {
     let n = pl.sky.len() / pl.width;
     let h = &hours[t];
-    let coarse = h.vectors(domes, ground).map(|v| v.1);
+    let coarse = h.sky.as_ref().map(|s| domes.coarse.sky_vector(s, ground));
     (0..n)
         .map(|i| {
             let mut e = 0.0;
@@ -233,10 +233,16 @@ pub fn sensor_models(
             adj.iterations, adj.residual, cfg.tolerance
         )));
     }
+    // Each sensor's view of the sky is one ray per cell: spread the sensors over the
+    // threads (the form factors above are spread over the patches).
+    let direct = super::scene::par_map(sensors.len(), light.threads, |k| {
+        light.sensor_sky(&sensors[k], &domes.fine)
+    });
     Ok(sensors
         .iter()
         .zip(&adj.u)
-        .map(|(s, u)| {
+        .zip(direct)
+        .map(|((s, u), direct_sky)| {
             let big_u: Vec<f64> = u
                 .iter()
                 .map(|c| c.iter().zip(PHOTOPIC).map(|(x, w)| x * w).sum())
@@ -257,7 +263,7 @@ pub fn sensor_models(
                 .map(|z| z.iter().zip(&big_u).map(|(&z, u)| f64::from(z) * u).sum())
                 .collect();
             SensorModel {
-                direct_sky: light.sensor_sky(s, &domes.fine),
+                direct_sky,
                 reflected_sky,
                 reflected_sun,
                 sensor: s.clone(),

@@ -84,6 +84,10 @@ pub fn direction(alt: f64, az: f64) -> DVec3 {
 pub struct SkyDome {
     mf: u32,
     patches: Vec<Patch>,
+    /// Per band, horizon first: its first patch and its patch count (the cap last, 1).
+    bands: Vec<(usize, u32)>,
+    /// Height of a band, radians.
+    band_height: f64,
     /// Cells per patch side for integrals.
     cells: usize,
 }
@@ -102,8 +106,10 @@ impl SkyDome {
         let bands = 7 * mf;
         let h = FRAC_PI_2 / (f64::from(bands) + 0.5);
         let mut patches = Vec::new();
+        let mut rows = Vec::new();
         for r in 0..bands {
             let n = TREGENZA[(r / mf) as usize] * mf;
+            rows.push((patches.len(), n));
             let width = TAU / f64::from(n);
             for j in 0..n {
                 patches.push(Patch {
@@ -114,13 +120,20 @@ impl SkyDome {
                 });
             }
         }
+        rows.push((patches.len(), 1));
         patches.push(Patch {
             alt0: f64::from(bands) * h,
             alt1: FRAC_PI_2,
             az0: 0.0,
             az1: TAU,
         });
-        SkyDome { mf, patches, cells }
+        SkyDome {
+            mf,
+            patches,
+            bands: rows,
+            band_height: h,
+            cells,
+        }
     }
 
     /// The refinement factor.
@@ -155,19 +168,11 @@ impl SkyDome {
             return None;
         }
         let alt = dir.z.clamp(-1.0, 1.0).asin();
-        let bands = 7 * self.mf;
-        let h = FRAC_PI_2 / (f64::from(bands) + 0.5);
-        let r = ((alt / h) as u32).min(bands);
-        let first: u32 = (0..r)
-            .map(|b| TREGENZA[(b / self.mf) as usize] * self.mf)
-            .sum();
-        if r == bands {
-            return Some(first as usize);
-        }
-        let n = TREGENZA[(r / self.mf) as usize] * self.mf;
+        let r = ((alt / self.band_height) as usize).min(self.bands.len() - 1);
+        let (first, n) = self.bands[r];
         let az = dir.x.atan2(dir.y).rem_euclid(TAU);
         let j = ((az / (TAU / f64::from(n)) + 0.5).floor() as u32) % n;
-        Some((first + j) as usize)
+        Some(first + j as usize)
     }
 
     /// The hour's sky vector: each patch's mean luminance, normalised so that the sky's

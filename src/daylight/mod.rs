@@ -1,12 +1,13 @@
 //! Daylight (issue 22, "light across the year"): where the sun is at a place and an
 //! hour, the hourly weather files that drive the sky, the sky of each hour (Perez's
-//! models) and the sky divided into patches. The first pieces of `ffstream annual`;
-//! the scene's part and the command itself are not written yet (docs/daylight.md says
-//! what is there).
+//! models) on sky patches, what a scene's patches and sensors receive, the year at each
+//! sensor, its metrics and pictures: the library of `ffstream annual`
+//! (docs/daylight.md).
 
 pub mod annual;
 pub mod dome;
 pub mod heatmap;
+pub mod input;
 pub mod perez;
 pub mod report;
 pub mod scene;
@@ -14,6 +15,7 @@ pub mod sun;
 pub mod weather;
 
 pub use dome::{SkyDome, SkyVector};
+pub use input::InputError;
 pub use perez::PerezSky;
 pub use sun::{LocalTime, Site, SunError, SunPosition};
-pub use weather::{Hour, Weather, WeatherError};
+pub use weather::{Hour, Weather};

@@ -17,12 +17,13 @@
 //!   the sensor, estimated with the patch's integration points weighted by the
 //!   point-to-point kernel cos θ cos θ' / r².
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 use glam::DVec3;
 
 use super::dome::SkyDome;
+use super::input::InputError;
 use crate::formfactor::polygon::Polygon;
 use crate::formfactor::shadow::point_polygon;
 use crate::geometry::occluders::Occluders;
@@ -37,22 +38,6 @@ pub struct Sensor {
     pub normal: DVec3,
 }
 
-/// Why a sensors file could not be read.
-#[derive(Debug, thiserror::Error)]
-pub enum SensorError {
-    #[error("{path}: {source}")]
-    Io {
-        path: PathBuf,
-        source: std::io::Error,
-    },
-    #[error("{path}: line {line}: {what}")]
-    At {
-        path: PathBuf,
-        line: usize,
-        what: String,
-    },
-}
-
 /// The header a sensors file starts with.
 pub const SENSORS_HEADER: &str = "name,x,y,z,nx,ny,nz";
 
@@ -63,16 +48,9 @@ pub const SENSORS_HEADER: &str = "name,x,y,z,nx,ny,nz";
 /// The file cannot be read; the header is not the expected one; a line has the wrong
 /// number of fields, a non-number, a non-finite coordinate, a zero normal, or a name
 /// used before (each naming the file and line).
-pub fn read_sensors(path: &Path) -> Result<Vec<Sensor>, SensorError> {
-    let text = std::fs::read_to_string(path).map_err(|source| SensorError::Io {
-        path: path.to_path_buf(),
-        source,
-    })?;
-    let at = |line: usize, what: String| SensorError::At {
-        path: path.to_path_buf(),
-        line,
-        what,
-    };
+pub fn read_sensors(path: &Path) -> Result<Vec<Sensor>, InputError> {
+    let text = std::fs::read_to_string(path).map_err(|e| InputError::io(path, e))?;
+    let at = |line: usize, what: String| InputError::at(path, line, what);
     let mut records = crate::table::records(&text);
     match records.next() {
         Some(Ok(h)) if h.fields.join(",") == SENSORS_HEADER => {}
@@ -271,7 +249,7 @@ pub struct SceneLight<'a> {
     pub occluders: &'a Occluders,
     /// Length of a ray that surely leaves the scene.
     reach: f64,
-    /// Integration level over patches (0 or 1, see the module docs).
+    /// Integration level over patches: 4^level points per triangle (module docs).
     pub level: u8,
     /// Threads (≥ 1).
     pub threads: usize,
@@ -280,17 +258,26 @@ pub struct SceneLight<'a> {
     pub frame: glam::DMat3,
 }
 
-/// The rotation taking east–north–up directions into a scene whose up axis is `up`
-/// (`'z'`: x east, y north; `'y'`: x east, y up, −z north, the glTF and OpenGL habit),
-/// and the scene's north axis pointing `rotate` degrees clockwise from true north seen
-/// from above (90: the scene's north axis points east, so a wall facing the scene's
-/// south faces west).
-pub fn scene_frame(up: char, rotate: f64) -> glam::DMat3 {
+/// Which of the scene's axes points up.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum UpAxis {
+    /// x east, y north, z up.
+    #[default]
+    Z,
+    /// x east, y up, −z north (the glTF and OpenGL habit).
+    Y,
+}
+
+/// The rotation taking east–north–up directions into a scene whose up axis is `up`, with
+/// the scene's north axis pointing `rotate` degrees clockwise from true north seen from
+/// above (90: the scene's north axis points east, so a wall facing the scene's south
+/// faces west).
+pub fn scene_frame(up: UpAxis, rotate: f64) -> glam::DMat3 {
     // True azimuth θ along the scene's north axis: a turn by +θ about up takes it there.
     let turn = glam::DMat3::from_rotation_z(rotate.to_radians());
     let axes = match up {
-        'y' => glam::DMat3::from_cols(DVec3::X, -DVec3::Z, DVec3::Y),
-        _ => glam::DMat3::IDENTITY,
+        UpAxis::Y => glam::DMat3::from_cols(DVec3::X, -DVec3::Z, DVec3::Y),
+        UpAxis::Z => glam::DMat3::IDENTITY,
     };
     axes * turn
 }
@@ -331,7 +318,7 @@ pub(crate) fn par_map<T: Send>(n: usize, threads: usize, f: impl Fn(usize) -> T 
 }
 
 impl<'a> SceneLight<'a> {
-    /// `triangles`: the scene's triangles (for its extent).
+    /// `extent`: the scene's bounding box (a ray of 4 diagonals leaves it).
     pub fn new(
         patches: &'a PatchSet,
         occluders: &'a Occluders,

@@ -18,57 +18,11 @@
 //! Data Sets", NREL/TP-581-43156 (2008): a line `USAF,name,state,tz,lat,lon,elev`, a
 //! line of column names, then `MM/DD/YYYY,HH:MM,...` per hour; columns found by name.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
+use super::input::InputError;
 use super::sun::{LocalTime, Site};
 use crate::table;
-
-/// Why a weather file could not be read.
-#[derive(Debug, thiserror::Error)]
-pub enum WeatherError {
-    #[error("{path}: {source}")]
-    Io {
-        path: PathBuf,
-        source: std::io::Error,
-    },
-    /// Something wrong at a place in the file.
-    #[error("{path}: line {line}: {what}")]
-    At {
-        path: PathBuf,
-        line: usize,
-        what: String,
-    },
-    /// Something wrong with the file as a whole.
-    #[error("{path}: {what}")]
-    File { path: PathBuf, what: String },
-}
-
-impl WeatherError {
-    fn at(path: &Path, line: usize, what: String) -> Self {
-        WeatherError::At {
-            path: path.to_owned(),
-            line,
-            what,
-        }
-    }
-
-    fn file(path: &Path, what: impl Into<String>) -> Self {
-        WeatherError::File {
-            path: path.to_owned(),
-            what: what.into(),
-        }
-    }
-
-    /// A problem with field `col` (0-based) of `rec`, named by its 1-based column
-    /// number and `name`.
-    fn field(path: &Path, rec: &table::Record, col: usize, name: &str, what: String) -> Self {
-        Self::at(
-            path,
-            rec.line,
-            format!("column {} ({name}): {what}", col + 1),
-        )
-    }
-}
 
 /// One hour of weather.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -117,18 +71,15 @@ pub struct Weather {
 
 /// The weather in `path`: EPW when its first line starts with `LOCATION`, TMY3
 /// otherwise; a name ending in `.zst` is decompressed first (zstd).
-pub fn read(path: &Path) -> Result<Weather, WeatherError> {
-    let io = |source| WeatherError::Io {
-        path: path.to_owned(),
-        source,
-    };
+pub fn read(path: &Path) -> Result<Weather, InputError> {
+    let io = |e| InputError::io(path, e);
     let mut bytes = std::fs::read(path).map_err(io)?;
     if path.extension().is_some_and(|e| e == "zst") {
         bytes = zstd::decode_all(bytes.as_slice()).map_err(io)?;
     }
     let text = String::from_utf8(bytes).map_err(|e| {
         let at = e.utf8_error().valid_up_to();
-        WeatherError::file(path, format!("not UTF-8 text (byte {at})"))
+        InputError::file(path, format!("not UTF-8 text (byte {at})"))
     })?;
     if text.trim_start_matches('\u{feff}').starts_with("LOCATION") {
         parse_epw(path, &text)
@@ -138,9 +89,9 @@ pub fn read(path: &Path) -> Result<Weather, WeatherError> {
 }
 
 /// The records of `text` with errors naming `path`.
-fn rows(path: &Path, text: &str) -> Result<Vec<table::Record>, WeatherError> {
+fn rows(path: &Path, text: &str) -> Result<Vec<table::Record>, InputError> {
     table::records(text)
-        .map(|r| r.map_err(|(line, what)| WeatherError::at(path, line, what)))
+        .map(|r| r.map_err(|(line, what)| InputError::at(path, line, what)))
         .collect()
 }
 
@@ -152,8 +103,8 @@ fn number(
     col: usize,
     name: &str,
     range: std::ops::RangeInclusive<f64>,
-) -> Result<f64, WeatherError> {
-    let at = |what: String| WeatherError::field(path, rec, col, name, what);
+) -> Result<f64, InputError> {
+    let at = |what: String| InputError::field(path, rec, col, name, what);
     let field = rec.fields.get(col).ok_or_else(|| {
         at(format!(
             "missing (the line has {} fields)",
@@ -183,11 +134,11 @@ fn whole(
     col: usize,
     name: &str,
     range: std::ops::RangeInclusive<f64>,
-) -> Result<u32, WeatherError> {
+) -> Result<u32, InputError> {
     let v = number(path, rec, col, name, range)?;
     match v.fract() == 0.0 {
         true => Ok(v as u32),
-        false => Err(WeatherError::field(
+        false => Err(InputError::field(
             path,
             rec,
             col,
@@ -197,20 +148,14 @@ fn whole(
     }
 }
 
-fn check_date(
-    path: &Path,
-    line: usize,
-    month: u32,
-    day: u32,
-    hour: u32,
-) -> Result<(), WeatherError> {
+fn check_date(path: &Path, line: usize, month: u32, day: u32, hour: u32) -> Result<(), InputError> {
     let ok = (1..=12).contains(&month)
         && day >= 1
         && day <= super::sun::days_in_month(2024, month) // leap years allowed
         && (1..=24).contains(&hour);
     match ok {
         true => Ok(()),
-        false => Err(WeatherError::at(
+        false => Err(InputError::at(
             path,
             line,
             format!("month {month}, day {day}, hour {hour} is not a date and hour 1-24"),
@@ -218,18 +163,18 @@ fn check_date(
     }
 }
 
-fn parse_epw(path: &Path, text: &str) -> Result<Weather, WeatherError> {
+fn parse_epw(path: &Path, text: &str) -> Result<Weather, InputError> {
     let recs = rows(path, text)?;
     let loc = recs
         .first()
-        .ok_or_else(|| WeatherError::file(path, "empty"))?;
+        .ok_or_else(|| InputError::file(path, "empty"))?;
     let site = site(path, loc, [6, 7, 8, 9])?;
     // The header is eight lines, the last `DATA PERIODS`; every line after it is an hour.
     let periods = recs.iter().find(|r| r.line == 8);
     let periods = periods.and_then(|r| r.fields.first());
     if periods.map(String::as_str) != Some("DATA PERIODS") {
         let what = "not `DATA PERIODS,...`: an EPW file has eight header lines";
-        return Err(WeatherError::at(path, 8, what.into()));
+        return Err(InputError::at(path, 8, what.into()));
     }
     let data = recs.iter().filter(|r| r.line > 8);
     let mut hours = Vec::new();
@@ -258,12 +203,12 @@ fn parse_epw(path: &Path, text: &str) -> Result<Weather, WeatherError> {
     finish(path, site, name_of(loc), hours)
 }
 
-fn parse_tmy3(path: &Path, text: &str) -> Result<Weather, WeatherError> {
+fn parse_tmy3(path: &Path, text: &str) -> Result<Weather, InputError> {
     let recs = rows(path, text)?;
     let (head, names) = match recs.as_slice() {
         [h, n, ..] => (h, n),
         _ => {
-            return Err(WeatherError::file(
+            return Err(InputError::file(
                 path,
                 "not an EPW file (no LOCATION line) and too short for TMY3 (a site line and a line of column names)",
             ))
@@ -275,7 +220,7 @@ fn parse_tmy3(path: &Path, text: &str) -> Result<Weather, WeatherError> {
             .fields
             .iter()
             .position(|f| f.eq_ignore_ascii_case(want))
-            .ok_or_else(|| WeatherError::at(path, names.line, format!("no column named {want:?}")))
+            .ok_or_else(|| InputError::at(path, names.line, format!("no column named {want:?}")))
     };
     let (c_date, c_time) = (col("Date (MM/DD/YYYY)")?, col("Time (HH:MM)")?);
     let (c_ghi, c_dni, c_dhi) = (
@@ -293,7 +238,7 @@ fn parse_tmy3(path: &Path, text: &str) -> Result<Weather, WeatherError> {
         let (month, day, hour) = match (md.as_slice(), hm.as_slice()) {
             ([m, d, _], [h, 0]) => (*m, *d, *h),
             _ => {
-                return Err(WeatherError::at(
+                return Err(InputError::at(
                     path,
                     rec.line,
                     format!(
@@ -321,7 +266,7 @@ fn parse_tmy3(path: &Path, text: &str) -> Result<Weather, WeatherError> {
 
 /// The site of a header line whose fields `cols` hold latitude, longitude, time zone
 /// and elevation (EPW and TMY3 order them differently), with standard air.
-fn site(path: &Path, rec: &table::Record, cols: [usize; 4]) -> Result<Site, WeatherError> {
+fn site(path: &Path, rec: &table::Record, cols: [usize; 4]) -> Result<Site, InputError> {
     let [lat, lon, tz, elev] = cols;
     Ok(Site::new(
         number(path, rec, lat, "latitude", -90.0..=90.0)?,
@@ -337,20 +282,15 @@ fn name_of(rec: &table::Record) -> String {
 }
 
 /// A year of hours at most, each (month, day, hour) once.
-fn finish(
-    path: &Path,
-    site: Site,
-    name: String,
-    hours: Vec<Hour>,
-) -> Result<Weather, WeatherError> {
+fn finish(path: &Path, site: Site, name: String, hours: Vec<Hour>) -> Result<Weather, InputError> {
     if hours.is_empty() {
-        return Err(WeatherError::file(path, "no hourly data"));
+        return Err(InputError::file(path, "no hourly data"));
     }
     let mut seen = std::collections::HashSet::new();
     for h in &hours {
         if !seen.insert((h.month, h.day, h.hour)) {
             let (m, d, hr) = (h.month, h.day, h.hour);
-            return Err(WeatherError::file(
+            return Err(InputError::file(
                 path,
                 format!("month {m}, day {d}, hour {hr} appears twice"),
             ));
@@ -362,6 +302,7 @@ fn finish(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::path::PathBuf;
 
     /// An EPW text: the eight header lines, then `data` lines.
     fn epw(data: &[String]) -> String {

@@ -6,7 +6,7 @@ use std::sync::Arc;
 
 use ffstream::daylight::{
     annual::{self, Domes, HourSky, PatchLight},
-    scene::{scene_frame, SceneLight, Sensor},
+    scene::{scene_frame, SceneLight, Sensor, UpAxis},
     weather,
 };
 use ffstream::formfactor::{FormFactorConfig, RowEngine, Scratch};
@@ -674,13 +674,13 @@ fn scene_frames_relabel_axes_and_turn_the_building() {
         (
             "y up",
             room_from(room_obj_mapped(false, y_up), 0.75),
-            scene_frame('y', 0.0),
+            scene_frame(UpAxis::Y, 0.0),
             y_up,
         ),
         (
             "turned",
             room_from(room_obj_mapped(false, turned), 0.75),
-            scene_frame('z', 90.0),
+            scene_frame(UpAxis::Z, 90.0),
             turned,
         ),
     ] {
