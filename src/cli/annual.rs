@@ -8,7 +8,9 @@ use std::time::Instant;
 use anyhow::Context;
 use clap::Args;
 use ffstream::daylight::{
-    annual, heatmap,
+    annual, clearsky,
+    glazing::Glazing,
+    heatmap,
     report::{self, Metrics, Occupied},
     scene::{grid_sensors, group_plane, read_sensors, scene_frame, SceneLight},
     weather, Site,
@@ -27,8 +29,19 @@ pub(crate) struct AnnualArgs {
     pub input: SceneInput,
     /// Weather file: EnergyPlus EPW or NREL TMY3 CSV (a name ending in .zst is
     /// decompressed). Its hours, in local standard time, drive the sun and the sky.
+    /// Without it, every hour of --year is clear (Ineichen–Perez clear sky at
+    /// --linke-turbidity) at --location.
     #[arg(long, value_name = "FILE")]
-    pub weather: PathBuf,
+    pub weather: Option<PathBuf>,
+    /// Linke turbidity of the clear sky used without --weather: about 2 for clean
+    /// mountain air, 3 for a clean lowland sky, 4–7 for hazy or polluted air.
+    #[arg(long, default_value_t = clearsky::DEFAULT_LINKE, value_name = "TL", conflicts_with = "weather", value_parser = super::choices::number::finite)]
+    pub linke_turbidity: f64,
+    /// Faces of group GROUP are glazing of visible transmittance TAU (0 < TAU ≤ 1):
+    /// daylight passes them scaled by TAU instead of being blocked, and light from
+    /// inside that reaches them leaves (reflectance 0). Repeat for several groups.
+    #[arg(long, value_name = "GROUP:TAU", value_parser = glazing)]
+    pub glazing: Vec<(String, f64)>,
     /// Sensors: a CSV file with header `name,x,y,z,nx,ny,nz` (scene units; the normal is
     /// the direction the sensor faces, e.g. 0,0,1 for a desk).
     #[arg(
@@ -44,7 +57,7 @@ pub(crate) struct AnnualArgs {
     #[arg(long, value_name = "GROUP:SPACING[:OFFSET]", value_parser = grid)]
     pub grid: Option<Grid>,
     /// The site as LAT,LON,TZ[,ELEV]: degrees north, degrees east, hours from UTC of the
-    /// local standard time, metres. Default: the weather file's.
+    /// local standard time, metres. Default: the weather file's; required without one.
     #[arg(long, value_name = "LAT,LON,TZ[,ELEV]", value_parser = location)]
     pub location: Option<Site>,
     /// Output directory (default: out/SCENE_NAME-annual). It receives form_factors.ffz
@@ -123,6 +136,16 @@ fn grid(s: &str) -> Result<Grid, String> {
     }
 }
 
+fn glazing(s: &str) -> Result<(String, f64), String> {
+    let bad = || format!("`{s}`: expected GROUP:TAU with 0 < TAU ≤ 1");
+    let (g, t) = s.rsplit_once(':').ok_or_else(bad)?;
+    let tau: f64 = t.trim().parse().map_err(|_| bad())?;
+    if g.is_empty() || !(tau > 0.0 && tau <= 1.0) {
+        return Err(bad());
+    }
+    Ok((g.to_string(), tau))
+}
+
 fn occupied(s: &str) -> Result<Occupied, String> {
     let bad = || format!("`{s}`: expected START-END in whole hours, 0 ≤ START < END ≤ 24");
     let (a, b) = s.split_once('-').ok_or_else(bad)?;
@@ -158,11 +181,21 @@ pub(super) fn run(mut a: AnnualArgs) -> anyhow::Result<ExitCode> {
         PathBuf::from(d)
     });
     // Inputs first: a bad weather or sensors file costs no form factors.
-    let mut w = weather::read(&a.weather)?;
-    if let Some(site) = a.location.clone() {
-        w.site = site;
-    }
+    let w = match (&a.weather, &a.location) {
+        (Some(path), site) => {
+            let mut w = weather::read(path)?;
+            if let Some(site) = site {
+                w.site = site.clone();
+            }
+            w
+        }
+        (None, Some(site)) => clearsky::clear_year(site, a.year, a.linke_turbidity)?,
+        (None, None) => anyhow::bail!(
+            "give --weather FILE, or --location LAT,LON,TZ[,ELEV] for a year of clear skies"
+        ),
+    };
     let scene = super::compute::load_scene(&a.input.scene)?;
+    let glass = Glazing::new(&scene, &a.glazing).map_err(|e| anyhow::anyhow!("--glazing: {e}"))?;
     let sensors = match (&a.sensors, &a.grid) {
         (Some(path), _) => read_sensors(path)?,
         (None, Some(g)) => grid_sensors(&scene, &g.group, g.spacing, g.offset)
@@ -184,8 +217,9 @@ pub(super) fn run(mut a: AnnualArgs) -> anyhow::Result<ExitCode> {
         }
     };
     let reader = FfzReader::open(&ffz).with_context(|| format!("{}", ffz.display()))?;
-    let patches = RowSource::patches(&reader).clone();
+    let mut patches = RowSource::patches(&reader).clone();
     super::solve::materials_from_scene(&patches, &scene, &a.input.scene)?;
+    glass.darken(&mut patches);
     let threads = a.compute.threads_or_all();
     let start = Instant::now();
     let step = |what: &str| {
@@ -194,8 +228,8 @@ pub(super) fn run(mut a: AnnualArgs) -> anyhow::Result<ExitCode> {
             start.elapsed().as_secs_f64()
         )
     };
-    let tris: Vec<_> = scene.triangles().collect();
-    let occluders = OccluderMesh::prepare(tris, false, false).build();
+    // Glazing does not block: its triangles are left out of the occluders.
+    let occluders = OccluderMesh::prepare(glass.opaque_triangles(&scene), false, false).build();
     let mut light = SceneLight::new(&patches, &occluders, scene.bounds(), threads);
     light.frame = scene_frame(a.up.into(), a.rotate);
     step(&format!(
@@ -203,8 +237,23 @@ pub(super) fn run(mut a: AnnualArgs) -> anyhow::Result<ExitCode> {
         w.site.latitude,
         w.site.longitude,
         w.site.time_zone,
-        a.weather.display()
+        a.weather
+            .as_ref()
+            .map_or(w.name.clone(), |p| p.display().to_string())
     ));
+    if !glass.is_empty() {
+        let groups: Vec<String> = a
+            .glazing
+            .iter()
+            .map(|(g, t)| format!("{g} τ {t}"))
+            .collect();
+        step(&format!(
+            "glazing: {} faces ({})",
+            glass.faces(),
+            groups.join(", ")
+        ));
+    }
+    light.glazing = glass;
     let result = annual::sensors_over_year(
         &light,
         &w,

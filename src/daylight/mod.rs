@@ -5,7 +5,9 @@
 //! (docs/daylight.md).
 
 pub mod annual;
+pub mod clearsky;
 pub mod dome;
+pub mod glazing;
 pub mod heatmap;
 pub mod input;
 pub mod perez;

@@ -4,7 +4,8 @@
 //!
 //! Openings are holes in the mesh: a ray that leaves the scene's bounding box without
 //! hitting a triangle sees the sky (upwards) or the ground (downwards; the dome's ground
-//! patch). Every triangle is opaque from both sides.
+//! patch). Every triangle is opaque from both sides, except glazing
+//! ([`super::glazing`]): a ray through glass carries the glass's transmittance.
 //!
 //! Integration rules (deterministic, no random numbers):
 //! - over a patch: each of its triangles is cut into four by its edge midpoints and the
@@ -23,6 +24,7 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use glam::DVec3;
 
 use super::dome::SkyDome;
+use super::glazing::Glazing;
 use super::input::InputError;
 use crate::formfactor::polygon::Polygon;
 use crate::formfactor::shadow::point_polygon;
@@ -203,7 +205,7 @@ pub fn group_plane(scene: &crate::scene::Scene, group: &str) -> Option<(DVec3, D
 }
 
 /// Even-odd test of the point (a, b) against a polygon in its plane.
-fn inside(poly: &[(f64, f64)], a: f64, b: f64) -> bool {
+pub(crate) fn inside(poly: &[(f64, f64)], a: f64, b: f64) -> bool {
     let mut inside = false;
     for k in 0..poly.len() {
         let (p, q) = (poly[k], poly[(k + 1) % poly.len()]);
@@ -256,6 +258,9 @@ pub struct SceneLight<'a> {
     /// Rotation from east–north–up to the scene's axes (identity: x east, y north, z
     /// up). Sky and sun directions are given in east–north–up.
     pub frame: glam::DMat3,
+    /// Faces that pass light scaled by their transmittance; their triangles must not be
+    /// in `occluders` (empty: none).
+    pub glazing: Glazing,
 }
 
 /// Which of the scene's axes points up.
@@ -333,12 +338,27 @@ impl<'a> SceneLight<'a> {
             level: 1,
             threads: threads.max(1),
             frame: glam::DMat3::IDENTITY,
+            glazing: Glazing::default(),
         }
     }
 
-    /// True when the ray from `x` along `d` leaves the scene (ignoring face `face`).
-    fn escapes(&self, x: DVec3, d: DVec3, face: u32) -> bool {
-        !self.occluders.occluded(x, x + d * self.reach, (face, face))
+    /// The share of light that reaches `b` from `a` (or `a` from `b`): 0 when an opaque
+    /// face blocks the segment, else the glazing's transmittance along it (faces
+    /// `ignore` of each end left out).
+    fn passes(&self, a: DVec3, b: DVec3, ignore: (u32, u32)) -> f64 {
+        if self.occluders.occluded(a, b, ignore) {
+            return 0.0;
+        }
+        if self.glazing.is_empty() {
+            return 1.0;
+        }
+        self.glazing.transmittance(a, b, ignore)
+    }
+
+    /// The share of the light arriving at `x` from direction `d` (from outside the
+    /// scene) that is not blocked (face `face` ignored).
+    fn escapes(&self, x: DVec3, d: DVec3, face: u32) -> f64 {
+        self.passes(x, x + d * self.reach, (face, face))
     }
 
     /// Coefficients of one point with normal `n` (face `face` ignored): per sky patch and
@@ -350,13 +370,13 @@ impl<'a> SceneLight<'a> {
             for (d_enu, w) in p.cells(cells) {
                 let d = self.frame * d_enu;
                 let up = n.dot(d);
-                if up > 0.0 && self.escapes(x, d, face) {
-                    c[k] += up * w;
+                if up > 0.0 {
+                    c[k] += up * w * self.escapes(x, d, face);
                 }
                 let down = self.frame * DVec3::new(d_enu.x, d_enu.y, -d_enu.z);
                 let dn = n.dot(down);
-                if dn > 0.0 && self.escapes(x, down, face) {
-                    c[dome.len()] += dn * w;
+                if dn > 0.0 {
+                    c[dome.len()] += dn * w * self.escapes(x, down, face);
                 }
             }
         }
@@ -395,30 +415,28 @@ impl<'a> SceneLight<'a> {
             if cos <= 0.0 {
                 return 0.0;
             }
-            let lit_at = |level: u8| -> (f64, bool, bool) {
-                let (mut lit, mut any_lit, mut any_dark) = (0.0, false, false);
+            // Light let through at each point, and the least and most of it (a sun-patch
+            // edge, or a pane's, lies between points that differ).
+            let lit_at = |level: u8| -> (f64, f64, f64) {
+                let (mut lit, mut least, mut most) = (0.0, f64::INFINITY, 0.0_f64);
                 for (x, w) in patch_points(p, level) {
-                    if self.escapes(x, s, p.face) {
-                        lit += w;
-                        any_lit = true;
-                    } else {
-                        any_dark = true;
-                    }
+                    let t = self.escapes(x, s, p.face);
+                    lit += w * t;
+                    least = least.min(t);
+                    most = most.max(t);
                 }
-                (lit, any_lit, any_dark)
+                (lit, least, most)
             };
-            let (mut lit, mut any_lit, mut any_dark) = lit_at(self.level);
+            let (mut lit, mut least, mut most) = lit_at(self.level);
             // A sun-patch edge that crosses the patch between its integration points
             // separates two of its corners (taken 1 % inside, off the neighbours' edges).
             let centre = p.centroid();
             for &c in p.corners() {
-                if self.escapes(centre + (c - centre) * 0.99, s, p.face) {
-                    any_lit = true;
-                } else {
-                    any_dark = true;
-                }
+                let t = self.escapes(centre + (c - centre) * 0.99, s, p.face);
+                least = least.min(t);
+                most = most.max(t);
             }
-            if any_lit && any_dark {
+            if least < most {
                 lit = lit_at(SUN_EDGE_LEVEL.max(self.level)).0;
             }
             (cos * lit / p.area) as f32
@@ -431,12 +449,13 @@ impl<'a> SceneLight<'a> {
     }
 
     /// The cosine between a sensor's normal and the sun in direction `d` (east, north,
-    /// up) when the sensor sees the sun (in front of it and unblocked), else 0.
+    /// up) when the sun is in front of the sensor, times the share of its light that
+    /// reaches the sensor (0 when blocked, the glazing's transmittance through glass).
     pub fn sensor_sun(&self, s: &Sensor, d: DVec3) -> f64 {
         let d = self.frame * d;
         let cos = s.normal.dot(d);
-        if cos > 0.0 && self.escapes(s.point, d, u32::MAX) {
-            cos
+        if cos > 0.0 {
+            cos * self.escapes(s.point, d, u32::MAX)
         } else {
             0.0
         }
@@ -468,9 +487,7 @@ impl<'a> SceneLight<'a> {
                 let k = w * s.normal.dot(r).max(0.0) * p.normal.dot(-r).max(0.0) / (d2 * d2);
                 if k > 0.0 {
                     all += k;
-                    if !self.occluders.occluded(s.point, y, (u32::MAX, p.face)) {
-                        seen += k;
-                    }
+                    seen += k * self.passes(s.point, y, (u32::MAX, p.face));
                 }
             }
             if all > 0.0 {
@@ -479,11 +496,7 @@ impl<'a> SceneLight<'a> {
                 // Every integration point lies behind the sensor's plane while a sliver
                 // of the patch is in front: ask the sliver's centre.
                 let c = front.vertex_mean();
-                if self.occluders.occluded(s.point, c, (u32::MAX, p.face)) {
-                    0.0
-                } else {
-                    f0 as f32
-                }
+                (f0 * self.passes(s.point, c, (u32::MAX, p.face))) as f32
             }
         })
     }

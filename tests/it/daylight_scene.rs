@@ -6,6 +6,7 @@ use std::sync::Arc;
 
 use ffstream::daylight::{
     annual::{self, Domes, HourSky, PatchLight},
+    glazing::Glazing,
     scene::{scene_frame, SceneLight, Sensor, UpAxis},
     weather,
 };
@@ -85,12 +86,20 @@ fn room_obj_mapped(closed: bool, map: fn([f64; 3]) -> [f64; 3]) -> String {
     s
 }
 
-const MTL: &str = "newmtl floor\nKd 0.2 0.2 0.2\nnewmtl ceiling\nKd 0.7 0.7 0.7\n\
+/// [`room_obj`] with the window glazed: a pane (group `glass`, facing in) fills it.
+fn room_obj_glazed() -> String {
+    // room_obj(false) writes 9 quads: 36 vertices before the pane's.
+    room_obj(false) + "v 3 0 1\nv 1 0 1\nv 1 0 2\nv 3 0 2\ng glass\nusemtl glass\nf 37 38 39 40\n"
+}
+
+const MTL: &str =
+    "newmtl glass\nKd 0.1 0.1 0.1\nnewmtl floor\nKd 0.2 0.2 0.2\nnewmtl ceiling\nKd 0.7 0.7 0.7\n\
                    newmtl north\nKd 0.5 0.5 0.5\nnewmtl west\nKd 0.5 0.4 0.3\n\
                    newmtl east\nKd 0.5 0.5 0.5\nnewmtl south\nKd 0.5 0.5 0.5\n";
 
 struct Room {
     _dir: tempfile::TempDir,
+    scene: ffstream::scene::Scene,
     patches: PatchSet,
     occluders: Occluders,
     extent: (DVec3, DVec3),
@@ -128,6 +137,7 @@ fn room_from(obj: String, max_edge: f64) -> Room {
     let rows = MemoryRows::new(patches.clone(), rows).unwrap();
     Room {
         _dir: dir,
+        scene,
         patches,
         occluders,
         extent: (lo, hi),
@@ -232,6 +242,72 @@ fn sensors_adjoint_route_equals_forward_solves_per_hour() {
             );
         }
     }
+}
+
+/// A pane of transmittance τ in the window: every sensor gets exactly τ times what it
+/// gets through the open window, in each part and hour. Sky, ground and sun reach the
+/// room only through the window, and light from inside that reaches the pane leaves as it
+/// leaves through the hole (the glass reflects nothing), so the glazed room is the open
+/// room with all its daylight scaled by τ.
+#[test]
+fn glazing_scales_the_open_windows_light_by_its_transmittance() {
+    let tau = 0.6;
+    let open = room(false, 0.75);
+    let glazed = room_from(room_obj_glazed(), 0.75);
+    assert!(glazed.patches.len() > open.patches.len());
+    let glass = Glazing::new(&glazed.scene, &[("glass".into(), tau)]).unwrap();
+    assert_eq!(glass.faces(), 1);
+    let occluders =
+        OccluderMesh::prepare(glass.opaque_triangles(&glazed.scene), false, false).build();
+    let mut patches = glazed.patches.clone();
+    glass.darken(&mut patches);
+    let mut w = greensboro();
+    // Three days: a clear one in June, one in December, a cloudy one in March.
+    w.hours
+        .retain(|h| matches!((h.month, h.day), (6, 21) | (12, 21) | (3, 10)));
+    assert_eq!(w.hours.len(), 72);
+    let run = |light: &SceneLight<'_>, rows: &MemoryRows| {
+        annual::sensors_over_year(
+            light,
+            &w,
+            2005,
+            0.2,
+            &sensors(),
+            rows,
+            &tight(),
+            &mut |_| {},
+        )
+        .unwrap()
+        .series
+    };
+    let without = run(
+        &SceneLight::new(&open.patches, &open.occluders, open.extent, 2),
+        &open.rows,
+    );
+    let mut light = SceneLight::new(&patches, &occluders, glazed.extent, 2);
+    light.glazing = glass;
+    let with = run(&light, &glazed.rows);
+    let mut lit = 0;
+    for (a, b) in without.iter().zip(&with) {
+        let parts = |s: &annual::Series| {
+            [
+                s.total.clone(),
+                s.direct_sky.clone(),
+                s.direct_sun.clone(),
+                s.reflected.clone(),
+            ]
+        };
+        for (pa, pb) in parts(a).iter().zip(parts(b)) {
+            for (t, (x, y)) in pa.iter().zip(&pb).enumerate() {
+                assert!(
+                    (y - tau * x).abs() <= 1e-6 * x + 1e-9,
+                    "hour {t}: glazed {y} lx, open {x} lx × {tau}"
+                );
+                lit += usize::from(*x > 1.0);
+            }
+        }
+    }
+    assert!(lit > 100, "{lit} lit values");
 }
 
 /// Without an opening no daylight gets in: every sensor reads exactly 0 in every hour.
@@ -472,6 +548,132 @@ fn sunlight_through_the_window_lands_on_the_patches() {
     }
 }
 
+/// What the library gives for `dir/room.obj`, `dir/sensors.csv` and the form factors in
+/// `out/form_factors.ffz` over the weather `w`, with `glazing`, as `annual` runs it.
+fn library_year(
+    dir: &std::path::Path,
+    out: &std::path::Path,
+    glazing: &[(String, f64)],
+    w: &weather::Weather,
+) -> annual::AnnualResult {
+    let reader = ffstream::ffz::FfzReader::open(out.join("form_factors.ffz")).unwrap();
+    let mut patches = ffstream::solve::RowSource::patches(&reader).clone();
+    let scene = ffstream::scene::open_scene(dir.join("room.obj").to_str().unwrap()).unwrap();
+    let glass = Glazing::new(&scene, glazing).unwrap();
+    glass.darken(&mut patches);
+    let occluders = OccluderMesh::prepare(glass.opaque_triangles(&scene), false, false).build();
+    let mut light = SceneLight::new(&patches, &occluders, scene.bounds(), 2);
+    light.glazing = glass;
+    let sensors = ffstream::daylight::scene::read_sensors(&dir.join("sensors.csv")).unwrap();
+    annual::sensors_over_year(
+        &light,
+        w,
+        2005,
+        0.2,
+        &sensors,
+        &reader,
+        &SolveConfig::default(),
+        &mut |_| {},
+    )
+    .unwrap()
+}
+
+/// `ffstream annual` without a weather file (a clear year at `--location`) on the room
+/// with a glazed window (`--glazing`): its table is the library's clear year through the
+/// same glazing and form-factor file; and the options' errors.
+#[test]
+fn annual_command_with_glazing_under_a_clear_sky() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::write(d.join("room.obj"), room_obj_glazed()).unwrap();
+    std::fs::write(d.join("room.mtl"), MTL).unwrap();
+    std::fs::write(
+        d.join("sensors.csv"),
+        "name,x,y,z,nx,ny,nz\nfront,2,1.5,0.8,0,0,1\nback,2,4,0.8,0,0,1\n",
+    )
+    .unwrap();
+    let out = d.join("out");
+    let p = |x: &std::path::Path| x.to_str().unwrap().to_string();
+    let args = |extra: &[&str]| {
+        let mut a = vec![
+            "annual".to_string(),
+            p(&d.join("room.obj")),
+            "--sensors".into(),
+            p(&d.join("sensors.csv")),
+            "-o".into(),
+            p(&out),
+            "--patches".into(),
+            "300".into(),
+        ];
+        a.extend(extra.iter().map(|s| s.to_string()));
+        a
+    };
+    let call = |extra: &[&str]| {
+        let a = args(extra);
+        crate::common::ffstream(&a.iter().map(String::as_str).collect::<Vec<_>>())
+    };
+    let run = call(&["--location", "36.1,-79.9,-5,270", "--glazing", "glass:0.6"]);
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(stderr.contains("clear sky (Linke turbidity 3)"), "{stderr}");
+    assert!(
+        stderr.contains("glazing: 1 faces (glass τ 0.6)"),
+        "{stderr}"
+    );
+    let table = std::fs::read_to_string(out.join("illuminance.csv")).unwrap();
+    let rows: Vec<Vec<f64>> = table
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').map(|x| x.parse().unwrap()).collect())
+        .collect();
+    assert_eq!(rows.len(), 8760);
+
+    // The library: the clear year, the glass left out of the occluders and dark.
+    let site = ffstream::daylight::Site::new(36.1, -79.9, -5.0, 270.0);
+    let w = ffstream::daylight::clearsky::clear_year(&site, 2005, 3.0).unwrap();
+    let result = library_year(d, &out, &[("glass".into(), 0.6)], &w);
+    let mut bright = 0;
+    for (k, s) in result.series.iter().enumerate() {
+        for (t, row) in rows.iter().enumerate() {
+            assert!(
+                (row[3 + k] - s.total[t]).abs() <= 0.05 + 1e-9 * s.total[t],
+                "{row:?} vs {}",
+                s.total[t]
+            );
+            bright += usize::from(s.total[t] > 1000.0);
+        }
+    }
+    assert!(bright > 1000, "{bright} bright sensor-hours");
+
+    // Bad options name themselves and cost no form factors.
+    for (extra, says) in [
+        (&["--glazing", "glass:0.6"][..], "--location"),
+        (
+            &["--location", "36,-80,-5", "--glazing", "nope:0.5"][..],
+            "nope is not in the scene",
+        ),
+        (
+            &["--location", "36,-80,-5", "--glazing", "glass:1.5"][..],
+            "0 < TAU",
+        ),
+        (
+            &["--location", "36,-80,-5", "--linke-turbidity", "0.5"][..],
+            "Linke turbidity 0.5",
+        ),
+    ] {
+        let run = call(extra);
+        let stderr = String::from_utf8_lossy(&run.stderr);
+        assert!(
+            !run.status.success() && stderr.contains(says),
+            "{extra:?}: {stderr}"
+        );
+    }
+}
+
 /// `ffstream annual` end to end on the room with a window: the tables it writes are the
 /// library's numbers for the same form-factor file, hour by hour, and its metrics are
 /// what the hourly table gives when counted here.
@@ -518,23 +720,7 @@ fn annual_command_writes_the_hourly_table_and_the_metrics() {
     assert_eq!(rows.len(), 8760);
 
     // The library on the same file.
-    let reader = ffstream::ffz::FfzReader::open(out.join("form_factors.ffz")).unwrap();
-    let patches = ffstream::solve::RowSource::patches(&reader).clone();
-    let scene = ffstream::scene::open_scene(&p(&d.join("room.obj"))).unwrap();
-    let occluders = OccluderMesh::prepare(scene.triangles().collect(), false, false).build();
-    let light = SceneLight::new(&patches, &occluders, scene.bounds(), 2);
-    let sensors = ffstream::daylight::scene::read_sensors(&d.join("sensors.csv")).unwrap();
-    let result = annual::sensors_over_year(
-        &light,
-        &greensboro(),
-        2005,
-        0.2,
-        &sensors,
-        &reader,
-        &SolveConfig::default(),
-        &mut |_| {},
-    )
-    .unwrap();
+    let result = library_year(d, &out, &[], &greensboro());
     let hours = &result.hours;
     for (k, s) in result.series.iter().enumerate() {
         for (t, row) in rows.iter().enumerate() {
