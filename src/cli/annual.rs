@@ -175,6 +175,7 @@ fn location(s: &str) -> Result<Site, String> {
 }
 
 pub(super) fn run(mut a: AnnualArgs) -> anyhow::Result<ExitCode> {
+    a.input.daylight = true;
     let dir = a.out_dir.clone().unwrap_or_else(|| {
         let mut d = super::default_run_dir(&a.input.scene).into_os_string();
         d.push("-annual");
@@ -195,6 +196,8 @@ pub(super) fn run(mut a: AnnualArgs) -> anyhow::Result<ExitCode> {
         ),
     };
     let scene = super::compute::load_scene(&a.input.scene)?;
+    // Computing the form factors prints the scene's warnings; a reused file does not.
+    super::compute::scene_warnings(&a.input, &scene, a.ffz.is_some())?;
     let glass = Glazing::new(&scene, &a.glazing).map_err(|e| anyhow::anyhow!("--glazing: {e}"))?;
     let sensors = match (&a.sensors, &a.grid) {
         (Some(path), _) => read_sensors(path)?,

@@ -181,6 +181,27 @@ pub(super) fn load_scene(spec: &str) -> anyhow::Result<Scene> {
     Ok(scene::open_scene(spec)?)
 }
 
+/// The scene's load warnings (those that matter for how it is lit: `input.daylight`):
+/// an error under `--strict`, else printed when `print`.
+pub(super) fn scene_warnings(input: &SceneInput, scene: &Scene, print: bool) -> anyhow::Result<()> {
+    let warnings: Vec<&String> = scene.warnings_for(input.daylight).collect();
+    if input.strict {
+        if let Some(first) = warnings.first() {
+            let more = match warnings.len() - 1 {
+                0 => String::new(),
+                m => format!(" (and {m} more warning(s))"),
+            };
+            bail!("--strict refuses this scene: {first}{more}");
+        }
+    }
+    if print {
+        for w in warnings {
+            eprintln!("ffstream: warning: {w}");
+        }
+    }
+    Ok(())
+}
+
 /// What a process does in a run, which decides what [`build_job`] builds and prints.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(super) enum Role {
@@ -206,20 +227,7 @@ pub(super) fn build_job(
     let cfg = form_factor_config(o)?;
     let setup_start = std::time::Instant::now();
     let scene = tracing::info_span!("load_scene").in_scope(|| load_scene(&input.scene))?;
-    if input.strict {
-        if let Some(first) = scene.warnings.first() {
-            let more = match scene.warnings.len() - 1 {
-                0 => String::new(),
-                m => format!(" (and {m} more warning(s))"),
-            };
-            bail!("--strict refuses this scene: {first}{more}");
-        }
-    }
-    if role != Role::Worker {
-        for w in &scene.warnings {
-            eprintln!("ffstream: warning: {w}");
-        }
-    }
+    scene_warnings(input, &scene, role != Role::Worker)?;
     let symmetric = symmetric_mode(o, &cfg)?;
     let threads = o.threads_or_all();
     let (count, max_edge) = patch_budget(input, &scene)?;

@@ -94,6 +94,10 @@ pub(crate) struct SceneInput {
     /// each is then an error, exit 1, instead of a warning.
     #[arg(long)]
     pub strict: bool,
+    /// Set by `annual`: the scene is lit by daylight, so a scene without an emitting
+    /// material is no fault (not an option).
+    #[arg(skip)]
+    pub daylight: bool,
 }
 
 impl SceneInput {

@@ -122,9 +122,7 @@ pub(super) fn finish(
         });
     }
     if !scene.has_emitter() {
-        scene.warnings.push(format!(
-            "{p}: no face uses an emitting material (Ke > 0): a radiosity solve has no light source"
-        ));
+        scene.warnings.push(format!("{p}: {}", super::NO_EMITTER));
     }
     let dups = super::duplicates::coincident_duplicates(&scene.faces);
     if let Some(w) =

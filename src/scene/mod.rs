@@ -102,6 +102,10 @@ impl Face {
     }
 }
 
+/// The end of the load warning of a scene without an emitting material.
+pub const NO_EMITTER: &str =
+    "no face uses an emitting material (Ke > 0): a radiosity solve has no light source";
+
 /// A scene: faces, the group names and materials they refer to, where it came from,
 /// and the warnings raised while loading it (the caller decides how to show them).
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -155,6 +159,14 @@ impl Scene {
             }
         }
         out
+    }
+
+    /// The load warnings that matter for a scene lit by emitters (`lit_from_outside`
+    /// false: all of them) or by daylight only (the missing emitter is no fault then).
+    pub fn warnings_for(&self, lit_from_outside: bool) -> impl Iterator<Item = &String> + '_ {
+        self.warnings
+            .iter()
+            .filter(move |w| !(lit_from_outside && w.ends_with(NO_EMITTER)))
     }
 
     /// True when at least one face uses an emitting material.
