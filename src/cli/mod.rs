@@ -64,7 +64,8 @@ pub(crate) enum Command {
     /// The main job: compute + solve + render, with good defaults.
     Run(run::RunArgs),
     /// Daylight across a year: illuminance at sensor points for every hour of a weather
-    /// file (sun, Perez sky, inter-reflection), with daylight metrics.
+    /// file, or of a year of clear skies (sun, Perez sky, glazing, inter-reflection), with
+    /// daylight metrics and heat maps.
     Annual(annual::AnnualArgs),
 }
 
