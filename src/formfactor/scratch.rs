@@ -49,6 +49,9 @@ pub struct Counters {
     /// Top-k tree search: walks from an unopened node down to one column, for the
     /// dropped mass.
     pub tree_tail_samples: u64,
+    /// Top-k tree search: nodes not opened because one occluder triangle hides them
+    /// from the whole row patch (rows with fewer than k visible columns).
+    pub tree_nodes_hidden: u64,
 }
 
 impl Counters {
@@ -60,6 +63,7 @@ impl Counters {
         self.pairs_topk_tail_skipped += o.pairs_topk_tail_skipped;
         self.tree_nodes_opened += o.tree_nodes_opened;
         self.tree_tail_samples += o.tree_tail_samples;
+        self.tree_nodes_hidden += o.tree_nodes_hidden;
         self.pairs_unoccludable += o.pairs_unoccludable;
         self.rays_cast += o.rays_cast;
         self.pairs_rays += o.pairs_rays;

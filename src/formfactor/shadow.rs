@@ -68,9 +68,9 @@ const MAX_PIECES: usize = 256;
 /// An occluder triangle prepared for one pair: corners and unit plane normal.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct Caster {
-    v: [DVec3; 3],
-    normal: DVec3,
-    offset: f64,
+    pub(crate) v: [DVec3; 3],
+    pub(crate) normal: DVec3,
+    pub(crate) offset: f64,
 }
 
 impl Caster {
@@ -453,19 +453,34 @@ pub(crate) fn blocked_integral(
 /// margin. The conditions (y in the cone of `c` from x, and beyond `c`'s plane) are
 /// affine in x for fixed y and in y for fixed x, so holding at the vertex pairs they
 /// hold for all pairs of points.
-fn hides(p: &[DVec3], q: &[DVec3], c: &Caster, tol: f64) -> bool {
-    let side = |y: DVec3| c.normal.dot(y) - c.offset;
+pub(crate) fn hides(p: &[DVec3], q: &[DVec3], c: &Caster, tol: f64) -> bool {
+    polygon_hides(p, q, &c.v, c.normal, c.offset, tol)
+}
+
+/// [`hides`] for a convex planar polygon `v` (at least 3 vertices, in order) with unit
+/// normal `normal` and plane `normal · y = offset`.
+pub(crate) fn polygon_hides(
+    p: &[DVec3],
+    q: &[DVec3],
+    v: &[DVec3],
+    normal: DVec3,
+    offset: f64,
+    tol: f64,
+) -> bool {
+    let side = |y: DVec3| normal.dot(y) - offset;
     let s = side(p[0]).signum();
     if p.iter().any(|&x| s * side(x) <= tol) || q.iter().any(|&y| s * side(y) >= -2.0 * tol) {
         return false;
     }
-    // Seen from x, y lies on c's side of the plane through x and each edge (a, b).
-    (0..3).all(|e| {
-        let (a, b, r) = (c.v[e], c.v[(e + 1) % 3], c.v[(e + 2) % 3]);
+    // Seen from x, y lies on the polygon's side of the plane through x and each edge
+    // (a, b); the polygon's centre tells which side that is.
+    let centre = v.iter().copied().sum::<DVec3>() / v.len() as f64;
+    (0..v.len()).all(|e| {
+        let (a, b) = (v[e], v[(e + 1) % v.len()]);
         p.iter().all(|&x| {
             let m = (a - x).cross(b - x);
             let len = m.length();
-            let inward = m.dot(r - x).signum();
+            let inward = m.dot(centre - x).signum();
             len > 0.0 && q.iter().all(|&y| inward * m.dot(y - x) > tol * len)
         })
     })

@@ -78,6 +78,18 @@ pub(crate) struct Node {
 }
 
 impl Node {
+    /// The eight corners of the node's box.
+    pub(crate) fn corners(&self) -> [DVec3; 8] {
+        let (l, h) = (self.lo, self.hi);
+        std::array::from_fn(|k| {
+            DVec3::new(
+                if k & 1 == 0 { l.x } else { h.x },
+                if k & 2 == 0 { l.y } else { h.y },
+                if k & 4 == 0 { l.z } else { h.z },
+            )
+        })
+    }
+
     /// Number of patches under the node.
     pub(crate) fn count(&self) -> u32 {
         self.count

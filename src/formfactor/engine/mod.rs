@@ -39,7 +39,7 @@ use super::{
     mc, point, topk, visibility, FormFactorConfig, Method, TopKSearch, TopKTail, Visibility,
 };
 use crate::geometry::occluders::{
-    Between, Occluders, MAX_PAIR_CANDIDATES, MAX_REJECTED_CANDIDATES,
+    Between, Occluders, MAX_PAIR_CANDIDATES, MAX_REJECTED_CANDIDATES, RAY_EPSILON,
 };
 use crate::patch::PatchSet;
 use crate::rows::Row;
@@ -65,6 +65,8 @@ pub struct Scratch {
     /// Exact visibility: the pair's candidates as casters, the shadow clipping's
     /// pieces.
     casters: Vec<Caster>,
+    /// The top-k tree search's single-triangle blockers of a hidden row.
+    hidden: topk_tree::HiddenRow,
     shadow: ShadowScratch,
     /// The row being computed (a hint for what the cluster lists keep; no value
     /// depends on it).
@@ -144,6 +146,13 @@ pub struct RowEngine {
     /// The hierarchy over the patches of the top-k tree search (None unless the
     /// configuration asks for it).
     tree: Option<PatchTree>,
+    /// Margin (world units) by which a triangle must hide a node from a row patch for
+    /// the tree search to skip the node: far above the rays' own tolerance, so every
+    /// ray the skipped pairs would cast is surely blocked.
+    hide_margin: f64,
+    /// Whether hidden rows skip the nodes a triangle hides (`topk_tree` step 4; off
+    /// only in tests, which check that it changes no row).
+    cull_hidden: bool,
 }
 
 /// Pair candidate lists (`Occluders::collect_between`) pay off only with few occluder
@@ -184,6 +193,7 @@ impl RowEngine {
         let cfg_visibility = cfg.visibility;
         let bounds = geom.iter().map(PatchBound::of).collect();
         let tol = PLANE_RELATIVE_TOLERANCE * diag;
+        let hide_margin = 100.0 * RAY_EPSILON * diag.max(occluders.diagonal());
         let bound_slack = 1e-12 * diag + 1e-14 * magnitude;
         let tree = (cfg.sparse_rows()
             && cfg.method == Method::Contour
@@ -217,7 +227,17 @@ impl RowEngine {
             clusters,
             packets: true,
             tree,
+            hide_margin,
+            cull_hidden: true,
         }
+    }
+
+    /// The same engine without the hidden rows' node skipping (for tests: it must
+    /// change no row).
+    #[cfg(test)]
+    pub(crate) fn without_hidden_culling(mut self) -> Self {
+        self.cull_hidden = false;
+        self
     }
 
     /// The same engine casting every ray on its own instead of in packets (for tests:

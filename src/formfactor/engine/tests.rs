@@ -471,3 +471,90 @@ fn threshold_rows_keep_exactly_the_dense_entries_at_or_above_it() {
         assert!(kept_some > 50, "{kept_some} rows with a real threshold");
     }
 }
+
+/// Rows that see fewer than k other patches (floor cells under the room's boxes) skip
+/// the nodes a triangle hides (topk_tree step 4): the kept entries are bit for bit
+/// those without the shortcut and those of the exhaustive search; a row that never
+/// fills its kept set has the same dropped mass too, and the others an unbiased one
+/// (the skipped nodes, all zeros, are not sampled); the shortcut is taken and saves
+/// evaluations.
+#[test]
+fn hidden_rows_skip_hidden_nodes_and_keep_their_rows() {
+    use crate::formfactor::TopKSearch;
+    use crate::geometry::subdivide::{default_max_edge, subdivide};
+    use crate::scene::builtin;
+    let scene = builtin("room", Some(16.0)).unwrap();
+    let patches = subdivide(&scene, default_max_edge(&scene, 6000));
+    let occ = Arc::new(Occluders::new(scene.triangles().collect()));
+    let k = 64;
+    let cfg = FormFactorConfig::fast().with_top_k(Some(k));
+    assert_eq!(cfg.top_k_search, TopKSearch::Tree);
+    let mut flat_cfg = cfg.clone();
+    flat_cfg.top_k_search = TopKSearch::Exhaustive;
+    let dense_cfg = FormFactorConfig::fast();
+    let culling = RowEngine::new(&patches, occ.clone(), cfg.clone());
+    let plain = RowEngine::new(&patches, occ.clone(), cfg).without_hidden_culling();
+    let flat = RowEngine::new(&patches, occ.clone(), flat_cfg);
+    let dense = RowEngine::new(&patches, occ, dense_cfg);
+    let mut s = [
+        Scratch::new(),
+        Scratch::new(),
+        Scratch::new(),
+        Scratch::new(),
+    ];
+    let (mut hidden_rows, mut same_dropped, mut errors) = (0, 0, Vec::new());
+    let mut evaluated = [0u64; 2];
+    let mut values = Vec::new();
+    for i in 0..culling.n() as u32 {
+        // The floor (y = 0, facing up) right under a box (the room is 3 high), and a
+        // sample of the rest.
+        let g = &culling.geom[i as usize];
+        let up = g.centroid + DVec3::Y * 2.5;
+        let under = g.normal.y > 0.9
+            && g.centroid.y.abs() < 1e-9
+            && culling.occluders.occluded(g.centroid, up, (g.face, g.face));
+        if !under && i % 29 != 0 {
+            continue;
+        }
+        let (before, e0, e1) = (
+            s[0].counters().tree_nodes_hidden,
+            s[0].counters().pairs_evaluated,
+            s[1].counters().pairs_evaluated,
+        );
+        let a = culling.compute_row(i, &mut s[0]);
+        let b = plain.compute_row(i, &mut s[1]);
+        if s[0].counters().tree_nodes_hidden > before {
+            hidden_rows += 1;
+            evaluated[0] += s[0].counters().pairs_evaluated - e0;
+            evaluated[1] += s[1].counters().pairs_evaluated - e1;
+        }
+        assert_eq!(a.values, b.values, "row {i}");
+        assert_eq!(a.values, flat.compute_row(i, &mut s[2]).values, "row {i}");
+        same_dropped += usize::from(a.dropped.to_bits() == b.dropped.to_bits());
+        let stored: f64 = match &a.values {
+            crate::rows::RowValues::Sparse { vals, .. } => vals.iter().map(|&v| f64::from(v)).sum(),
+            _ => unreachable!(),
+        };
+        dense.row_values(i, &mut s[3], &mut values);
+        errors.push(stored + f64::from(a.dropped) - values.iter().sum::<f64>());
+    }
+    let n = errors.len() as f64;
+    let mean = errors.iter().sum::<f64>() / n;
+    let var = errors.iter().map(|e| (e - mean).powi(2)).sum::<f64>() / (n - 1.0);
+    eprintln!(
+        "{} rows, {hidden_rows} with hidden nodes, {same_dropped} with the same dropped mass; \
+         their evaluations {} vs {}, nodes skipped {}; row total error {mean:.2e} ± {:.2e}",
+        errors.len(),
+        evaluated[0],
+        evaluated[1],
+        s[0].counters().tree_nodes_hidden,
+        (var / n).sqrt()
+    );
+    assert!(hidden_rows >= 20, "{hidden_rows} rows took the shortcut");
+    // Measured: 0.54 at these patches (the saving grows with them: bench/PERF.md §23).
+    assert!(3 * evaluated[0] < 2 * evaluated[1], "{evaluated:?}");
+    assert!(
+        mean.abs() <= 3.0 * (var / n).sqrt() + 1e-6,
+        "biased {mean:e}"
+    );
+}

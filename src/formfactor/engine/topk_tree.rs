@@ -25,14 +25,33 @@
 //!    many-light rendering (Conty Estevez and Kulla 2018) applied to form factors; the
 //!    tree's bounds are tight for far nodes, where the unopened mass lies, so the
 //!    weights follow the mass and the estimate's error is of order (tail mass)/√t.
+//! 4. Hidden rows. A patch that sees fewer than k others (a floor cell under a box, the
+//!    ground under a building) never fills its kept set with positive values, so its
+//!    floor stays 0 and step 1 would evaluate every column in front of it, each with
+//!    rays, to find them all 0: at 1M patches in the 16-box room 1.75 % of the rows did
+//!    94 % of the evaluations (bench/PERF.md §23). Once a row has found [`CULL_AFTER`]
+//!    hidden columns while its floor is 0, a hidden column that the row's blockers do
+//!    not already explain teaches it the occluder polygons (a triangle, or two coplanar
+//!    ones sharing an edge that make a convex quad) that hide the column whole: every
+//!    segment from the row patch to the column crosses the polygon, with a margin far
+//!    above the rays' tolerance (`shadow::polygon_hides`; one lesson per leaf). While
+//!    the floor is 0, a node that one of these hides whole (the same test against the
+//!    node's box) is not opened. Its columns would all come out exactly 0, every ray
+//!    blocked: they add nothing to the kept entries (the same, bit for bit) nor to the
+//!    dropped mass. A row that never fills its kept set has no tail and is the same
+//!    row bit for bit; one that fills it later may find fewer unopened nodes for its
+//!    sampled tail, whose estimate stays unbiased (the nodes left out hold nothing).
 
 use std::cmp::Reverse;
 use std::collections::BinaryHeap;
 
+use glam::DVec3;
+
 use super::topk_bounded::{systematic, Kept};
-use super::{RowEngine, Scratch};
+use super::{between, RowEngine, Scratch};
 use crate::formfactor::geom::PatchBound;
 use crate::formfactor::sampling::SplitMix64;
+use crate::formfactor::shadow::{polygon_hides, Caster};
 use crate::formfactor::tree::{Kids, PatchTree};
 use crate::rows::Row;
 
@@ -40,6 +59,90 @@ use crate::rows::Row;
 /// sampled (a walk costs about as much as an evaluation, and small scenes, where the
 /// tail is most of a short row, get the dense row's dropped mass).
 const EXACT_TAIL_FACTOR: usize = 2;
+
+/// Hidden columns a row finds, with its floor still 0, before it looks for the
+/// triangles that hide them (step 4): rows that see at least k others rarely get here.
+const CULL_AFTER: usize = 64;
+
+/// Most blocker triangles a hidden row keeps (step 4).
+const MAX_BLOCKERS: usize = 32;
+
+/// The occluder polygons that hide whole columns from a hidden row's patch (step 4).
+#[derive(Debug, Default)]
+pub(super) struct HiddenRow {
+    blockers: Vec<Shade>,
+    /// Candidate ids of a query.
+    found: Vec<u32>,
+}
+
+/// A convex occluder polygon: one occluder triangle, or two coplanar ones sharing an
+/// edge whose union is convex (a box face cut along its diagonal hides what neither
+/// half hides alone).
+#[derive(Clone, Copy, Debug)]
+struct Shade {
+    /// The triangles' ids (the second = the first for a triangle).
+    ids: [u32; 2],
+    v: [DVec3; 4],
+    len: usize,
+    normal: DVec3,
+    offset: f64,
+}
+
+impl Shade {
+    fn triangle(id: u32, t: [DVec3; 3]) -> Option<Self> {
+        let c = Caster::new(t)?;
+        Some(Shade {
+            ids: [id, id],
+            v: [t[0], t[1], t[2], t[2]],
+            len: 3,
+            normal: c.normal,
+            offset: c.offset,
+        })
+    }
+
+    /// The quad of triangles `self` and `o` when they lie in one plane (within `tol`),
+    /// share an edge and make a convex quadrilateral.
+    fn join(&self, o: &Shade, tol: f64) -> Option<Shade> {
+        if self.len != 3 || o.len != 3 || self.normal.dot(o.normal).abs() < 1.0 - 1e-12 {
+            return None;
+        }
+        if o.v[..3]
+            .iter()
+            .any(|&y| (self.normal.dot(y) - self.offset).abs() > tol)
+        {
+            return None;
+        }
+        let same = |a: DVec3, b: DVec3| (a - b).length() <= tol;
+        // The vertex of each triangle off the shared edge.
+        let lone = |t: &Shade, other: &Shade| {
+            let off: Vec<usize> = (0..3)
+                .filter(|&k| !other.v[..3].iter().any(|&y| same(t.v[k], y)))
+                .collect();
+            (off.len() == 1).then(|| off[0])
+        };
+        let (a, b) = (lone(self, o)?, lone(o, self)?);
+        let (u, w) = (self.v[a], o.v[b]);
+        let (s1, s2) = (self.v[(a + 1) % 3], self.v[(a + 2) % 3]);
+        let v = [u, s1, w, s2];
+        let turn = |k: usize| {
+            let (p, q, r) = (v[k], v[(k + 1) % 4], v[(k + 2) % 4]);
+            self.normal.dot((q - p).cross(r - q))
+        };
+        let turns = [turn(0), turn(1), turn(2), turn(3)];
+        let convex = turns.iter().all(|&t| t > 0.0) || turns.iter().all(|&t| t < 0.0);
+        convex.then_some(Shade {
+            ids: [self.ids[0], o.ids[0]],
+            v,
+            len: 4,
+            normal: self.normal,
+            offset: self.offset,
+        })
+    }
+
+    fn hides(&self, p: &[DVec3], q: &[DVec3], tol: f64) -> bool {
+        polygon_hides(p, q, &self.v[..self.len], self.normal, self.offset, tol)
+    }
+}
 
 /// A tail item of the estimate: an evaluated column that needs rays, or an unopened
 /// node.
@@ -77,11 +180,19 @@ impl RowEngine {
         push(&mut open, root);
         let mut tail: Vec<Tail> = Vec::new();
         let mut exact_tail = 0.0f64;
+        // Step 4: hidden columns found while the floor is 0, and the row's blockers.
+        let mut hidden = 0usize;
+        scratch.hidden.blockers.clear();
         while let Some(&(bits, Reverse(id))) = open.peek() {
             if f64::from_bits(bits) < kept.floor() {
                 break;
             }
             open.pop();
+            let culling = self.cull_hidden && hidden >= CULL_AFTER && kept.floor() == 0.0;
+            if culling && self.hidden_from(i, &tree.node(id).corners(), scratch) {
+                scratch.pair.counters.tree_nodes_hidden += 1;
+                continue;
+            }
             scratch.pair.counters.tree_nodes_opened += 1;
             match tree.node(id).kids {
                 Kids::Inner(left, right) => {
@@ -89,6 +200,7 @@ impl RowEngine {
                     push(&mut open, right);
                 }
                 Kids::Leaf => {
+                    let mut learnt = false;
                     for &j in tree.patches_under(id) {
                         if j == i {
                             continue;
@@ -104,7 +216,15 @@ impl RowEngine {
                             }
                             continue;
                         }
-                        kept.offer(j, self.candidate_value(i, j, u.f, u.needs_rays, scratch));
+                        let value = self.candidate_value(i, j, u.f, u.needs_rays, scratch);
+                        if value == 0.0 && u.needs_rays && kept.floor() == 0.0 {
+                            hidden += 1;
+                            // One lesson per leaf: its columns lie close together.
+                            if self.cull_hidden && hidden >= CULL_AFTER && !learnt {
+                                learnt = self.learn_blockers(i, j, scratch);
+                            }
+                        }
+                        kept.offer(j, value);
                     }
                 }
             }
@@ -119,6 +239,61 @@ impl RowEngine {
         );
         let tail_mass = exact_tail + self.tree_tail_mass(tree, i, &row, t, &tail, scratch);
         kept.into_row(i, tail_mass)
+    }
+
+    /// Step 4: whether one of the row's blockers hides the points `q` (a column's
+    /// corners, a node's box) whole from row patch i.
+    fn hidden_from(&self, i: u32, q: &[DVec3], scratch: &Scratch) -> bool {
+        let p = self.geom[i as usize].poly.verts();
+        scratch
+            .hidden
+            .blockers
+            .iter()
+            .any(|b| b.hides(p, q, self.hide_margin))
+    }
+
+    /// Step 4: column j came out hidden from row i. Unless a blocker of the row already
+    /// hides it whole, the occluder triangles that may come between the two patches
+    /// are asked, and those that hide it whole become blockers of the row. True when
+    /// the occluders were asked.
+    fn learn_blockers(&self, i: u32, j: u32, scratch: &mut Scratch) -> bool {
+        let (gi, gj) = (&self.geom[i as usize], &self.geom[j as usize]);
+        if scratch.hidden.blockers.len() >= MAX_BLOCKERS
+            || self.hidden_from(i, gj.poly.verts(), scratch)
+        {
+            return false;
+        }
+        let q = between(gi, gj, &gi.poly, &gj.poly);
+        let mut found = std::mem::take(&mut scratch.hidden.found);
+        self.occluders
+            .collect_between_up_to(&q, MAX_BLOCKERS, 2 * MAX_BLOCKERS, &mut found);
+        let shades: Vec<Shade> = found
+            .iter()
+            .filter_map(|&k| Shade::triangle(k, self.occluders.world_triangle(k)))
+            .collect();
+        // Quads first: a triangle of a quad that hides adds nothing.
+        let mut fresh: Vec<Shade> = Vec::new();
+        for (a, s) in shades.iter().enumerate() {
+            for t in &shades[a + 1..] {
+                if let Some(quad) = s.join(t, self.tol) {
+                    fresh.push(quad);
+                }
+            }
+        }
+        fresh.extend(shades);
+        let (pi, pj) = (gi.poly.verts(), gj.poly.verts());
+        for shade in fresh {
+            let h = &mut scratch.hidden;
+            let known = |b: &Shade| shade.ids.iter().all(|id| b.ids.contains(id));
+            if h.blockers.len() >= MAX_BLOCKERS || h.blockers.iter().any(known) {
+                continue;
+            }
+            if shade.hides(pi, pj, self.hide_margin) {
+                h.blockers.push(shade);
+            }
+        }
+        scratch.hidden.found = found;
+        true
     }
 
     /// Step 3: the mass of the tail items (module docs): exact when they hold at most

@@ -212,6 +212,11 @@ impl Occluders {
         }
     }
 
+    /// The diagonal (world units) that [`RAY_EPSILON`] is relative to.
+    pub(crate) fn diagonal(&self) -> f64 {
+        1.0 / self.inv_scale
+    }
+
     /// Number of triangles in the hierarchy.
     pub fn len(&self) -> usize {
         self.tris.len()
