@@ -150,6 +150,8 @@ pub struct RowEngine {
     /// the tree search to skip the node: far above the rays' own tolerance, so every
     /// ray the skipped pairs would cast is surely blocked.
     hide_margin: f64,
+    /// The larger of the patches' and the occluders' diagonals (world units).
+    span: f64,
     /// Whether hidden rows skip the nodes a triangle hides (`topk_tree` step 4; off
     /// only in tests, which check that it changes no row).
     cull_hidden: bool,
@@ -193,7 +195,8 @@ impl RowEngine {
         let cfg_visibility = cfg.visibility;
         let bounds = geom.iter().map(PatchBound::of).collect();
         let tol = PLANE_RELATIVE_TOLERANCE * diag;
-        let hide_margin = 100.0 * RAY_EPSILON * diag.max(occluders.diagonal());
+        let occluders_diagonal = occluders.diagonal();
+        let hide_margin = 100.0 * RAY_EPSILON * diag.max(occluders_diagonal);
         let bound_slack = 1e-12 * diag + 1e-14 * magnitude;
         let tree = (cfg.sparse_rows()
             && cfg.method == Method::Contour
@@ -228,6 +231,7 @@ impl RowEngine {
             packets: true,
             tree,
             hide_margin,
+            span: diag.max(occluders_diagonal),
             cull_hidden: true,
         }
     }

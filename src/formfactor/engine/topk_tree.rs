@@ -34,9 +34,13 @@
 //!    not already explain teaches it the occluder polygons (a triangle, or two coplanar
 //!    ones sharing an edge that make a convex quad) that hide the column whole: every
 //!    segment from the row patch to the column crosses the polygon, with a margin far
-//!    above the rays' tolerance (`shadow::polygon_hides`; one lesson per leaf). While
-//!    the floor is 0, a node that one of these hides whole (the same test against the
-//!    node's box) is not opened. Its columns would all come out exactly 0, every ray
+//!    above the rays' tolerance (`shadow::polygon_hides`; one lesson per leaf). The
+//!    blockers may also close a convex cell around the row patch (a box over a floor
+//!    cell: each face of the cell, but the one in the patch's own plane, lies within
+//!    one blocker), and a segment from the patch to a point outside the cell leaves it
+//!    through a blocker. While the floor is 0, a node that one blocker hides whole
+//!    (the same test against the node's box), or whose box lies beyond a plane of the
+//!    cell, is not opened. Its columns would all come out exactly 0, every ray
 //!    blocked: they add nothing to the kept entries (the same, bit for bit) nor to the
 //!    dropped mass. A row that never fills its kept set has no tail and is the same
 //!    row bit for bit; one that fills it later may find fewer unopened nodes for its
@@ -49,7 +53,8 @@ use glam::DVec3;
 
 use super::topk_bounded::{systematic, Kept};
 use super::{between, RowEngine, Scratch};
-use crate::formfactor::geom::PatchBound;
+use crate::formfactor::geom::{PatchBound, PatchGeom};
+use crate::formfactor::polygon::PolygonN;
 use crate::formfactor::sampling::SplitMix64;
 use crate::formfactor::shadow::{polygon_hides, Caster};
 use crate::formfactor::tree::{Kids, PatchTree};
@@ -73,7 +78,14 @@ pub(super) struct HiddenRow {
     blockers: Vec<Shade>,
     /// Candidate ids of a query.
     found: Vec<u32>,
+    /// The row patch's enclosing cell, as half-spaces n · y ≤ o that hold the patch
+    /// (empty: none known).
+    cell: Vec<(DVec3, f64)>,
 }
+
+/// Most vertices of a face of an enclosing cell: a square cut by at most
+/// [`MAX_BLOCKERS`] planes and the row patch's own.
+type CellFace = PolygonN<{ MAX_BLOCKERS + 8 }>;
 
 /// A convex occluder polygon: one occluder triangle, or two coplanar ones sharing an
 /// edge whose union is convex (a box face cut along its diagonal hides what neither
@@ -142,6 +154,22 @@ impl Shade {
     fn hides(&self, p: &[DVec3], q: &[DVec3], tol: f64) -> bool {
         polygon_hides(p, q, &self.v[..self.len], self.normal, self.offset, tol)
     }
+
+    /// Whether the points `q` of the polygon's plane lie in it (within `tol`).
+    fn contains(&self, q: &[DVec3], tol: f64) -> bool {
+        let v = &self.v[..self.len];
+        let turn: f64 = (0..v.len())
+            .map(|k| self.normal.dot(v[k].cross(v[(k + 1) % v.len()])))
+            .sum();
+        let sign = turn.signum();
+        (0..v.len()).all(|k| {
+            let (a, b) = (v[k], v[(k + 1) % v.len()]);
+            let edge = b - a;
+            let len = edge.length();
+            q.iter()
+                .all(|&y| sign * self.normal.dot(edge.cross(y - a)) >= -tol * len)
+        })
+    }
 }
 
 /// A tail item of the estimate: an evaluated column that needs rays, or an unopened
@@ -183,13 +211,14 @@ impl RowEngine {
         // Step 4: hidden columns found while the floor is 0, and the row's blockers.
         let mut hidden = 0usize;
         scratch.hidden.blockers.clear();
+        scratch.hidden.cell.clear();
         while let Some(&(bits, Reverse(id))) = open.peek() {
             if f64::from_bits(bits) < kept.floor() {
                 break;
             }
             open.pop();
             let culling = self.cull_hidden && hidden >= CULL_AFTER && kept.floor() == 0.0;
-            if culling && self.hidden_from(i, &tree.node(id).corners(), scratch) {
+            if culling && self.node_hidden(i, &tree.node(id).corners(), scratch) {
                 scratch.pair.counters.tree_nodes_hidden += 1;
                 continue;
             }
@@ -241,6 +270,87 @@ impl RowEngine {
         kept.into_row(i, tail_mass)
     }
 
+    /// Step 4: whether the box with corners `q` is hidden whole from row patch i: one
+    /// blocker hides it, or it lies outside the patch's enclosing cell.
+    fn node_hidden(&self, i: u32, q: &[DVec3; 8], scratch: &Scratch) -> bool {
+        let m = self.hide_margin;
+        let outside = |&(n, o): &(DVec3, f64)| q.iter().all(|&y| n.dot(y) - o > m);
+        scratch.hidden.cell.iter().any(outside) || self.hidden_from(i, q, scratch)
+    }
+
+    /// Step 4: the convex cell around row patch i whose faces, all but the one in the
+    /// patch's own plane, each lie within one blocker (empty when the blockers do not
+    /// close one). The patch lies inside every plane of the cell by the margin. A
+    /// segment from the patch to a point y outside the cell leaves it through a face
+    /// (not the patch's own plane: y is in front of it, or its column is 0 anyway),
+    /// so it crosses the blocker holding that face; when y is beyond one of the cell's
+    /// planes by the margin, it is that far from the crossing.
+    fn enclosing_cell(&self, i: u32, blockers: &[Shade]) -> Vec<(DVec3, f64)> {
+        let g = &self.geom[i as usize];
+        let (p, m) = (g.poly.verts(), self.hide_margin);
+        let same_plane = |b: &Shade, n: DVec3, o: f64| {
+            b.normal.dot(n).abs() > 1.0 - 1e-12
+                && (b.normal.dot(n) * b.offset - o).abs() <= self.tol
+        };
+        // Each blocker's plane once, turned so the patch lies inside by the margin. (A
+        // plane twice would cut its own face away and pass for redundant.)
+        let mut planes: Vec<(DVec3, f64, usize)> = Vec::new();
+        for (k, b) in blockers.iter().enumerate() {
+            let d: Vec<f64> = p.iter().map(|&x| b.normal.dot(x) - b.offset).collect();
+            let turned = if d.iter().all(|&d| d < -m) {
+                (b.normal, b.offset, k)
+            } else if d.iter().all(|&d| d > m) {
+                (-b.normal, -b.offset, k)
+            } else {
+                continue;
+            };
+            if !planes.iter().any(|&(n, o, _)| same_plane(b, n, o)) {
+                planes.push(turned);
+            }
+        }
+        // Drop planes whose face no blocker holds until every face is held.
+        'cells: loop {
+            for (k, &(n, o, _)) in planes.iter().enumerate() {
+                let face = self.cell_face(g, &planes, k);
+                if face.n < 3 {
+                    continue;
+                }
+                let held = blockers
+                    .iter()
+                    .any(|b| same_plane(b, n, o) && b.contains(face.verts(), self.tol));
+                if !held {
+                    planes.remove(k);
+                    continue 'cells;
+                }
+            }
+            return planes.into_iter().map(|(n, o, _)| (n, o)).collect();
+        }
+    }
+
+    /// The face of the cell `planes` in plane k: a square far larger than the scene
+    /// in that plane, cut by the other planes and by the front of row patch `g`'s plane.
+    fn cell_face(&self, g: &PatchGeom, planes: &[(DVec3, f64, usize)], k: usize) -> CellFace {
+        let (n, o, _) = planes[k];
+        let centre = g.centroid - n * (n.dot(g.centroid) - o);
+        let u = n.any_orthonormal_vector();
+        let (u, v) = (u * self.span * 4.0, n.cross(u) * self.span * 4.0);
+        let mut face = CellFace::new(&[
+            centre - u - v,
+            centre + u - v,
+            centre + u + v,
+            centre - u + v,
+        ]);
+        let mut cut = CellFace::EMPTY;
+        for (l, &(nl, ol, _)) in planes.iter().enumerate() {
+            if l != k {
+                face.clip_front_into(-nl, -ol, 0.0, &mut cut);
+                std::mem::swap(&mut face, &mut cut);
+            }
+        }
+        face.clip_front_into(g.normal, g.offset, 0.0, &mut cut);
+        cut
+    }
+
     /// Step 4: whether one of the row's blockers hides the points `q` (a column's
     /// corners, a node's box) whole from row patch i.
     fn hidden_from(&self, i: u32, q: &[DVec3], scratch: &Scratch) -> bool {
@@ -263,6 +373,7 @@ impl RowEngine {
         {
             return false;
         }
+        let before = scratch.hidden.blockers.len();
         let q = between(gi, gj, &gi.poly, &gj.poly);
         let mut found = std::mem::take(&mut scratch.hidden.found);
         self.occluders
@@ -293,6 +404,9 @@ impl RowEngine {
             }
         }
         scratch.hidden.found = found;
+        if scratch.hidden.blockers.len() > before {
+            scratch.hidden.cell = self.enclosing_cell(i, &scratch.hidden.blockers);
+        }
         true
     }
 
