@@ -472,11 +472,11 @@ fn threshold_rows_keep_exactly_the_dense_entries_at_or_above_it() {
     }
 }
 
-/// Rows that see fewer than k other patches (floor cells under the room's boxes) skip
-/// the nodes a triangle hides (topk_tree step 4): the kept entries are bit for bit
-/// those without the shortcut and those of the exhaustive search; a row that never
-/// fills its kept set has the same dropped mass too, and the others an unbiased one
-/// (the skipped nodes, all zeros, are not sampled); the shortcut is taken and saves
+/// Rows that find many hidden columns (floor cells under the room's boxes, standing or
+/// floating) skip the nodes an occluder polygon or an enclosing cell hides (topk_tree
+/// step 4): the kept entries are bit for bit those without the shortcut and those of
+/// the exhaustive search; the dropped mass of a row that skips a node is unbiased (the
+/// skipped nodes, all zeros, are not sampled); the shortcut is taken and saves
 /// evaluations.
 #[test]
 fn hidden_rows_skip_hidden_nodes_and_keep_their_rows() {
@@ -561,9 +561,8 @@ fn hidden_rows_skip_hidden_nodes_and_keep_their_rows() {
 
 /// The hidden rows' shortcut on two more scenes with hidden patches, every row: the
 /// Cornell box (floor under the blocks) and the city (ground under the buildings, open
-/// to the sky): kept entries and dropped mass bit for bit those of the search without
-/// it (a changed dropped mass is allowed only for a row that took the shortcut and
-/// then filled its kept set), and the shortcut taken.
+/// to the sky): kept entries bit for bit those of the search without it, and the
+/// dropped mass too for a row that skips no node; the shortcut taken.
 #[test]
 fn hidden_rows_shortcut_changes_no_entry_in_the_cornell_box_and_the_city() {
     use crate::geometry::subdivide::{default_max_edge, subdivide};

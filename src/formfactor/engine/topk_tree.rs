@@ -25,26 +25,28 @@
 //!    many-light rendering (Conty Estevez and Kulla 2018) applied to form factors; the
 //!    tree's bounds are tight for far nodes, where the unopened mass lies, so the
 //!    weights follow the mass and the estimate's error is of order (tail mass)/√t.
-//! 4. Hidden rows. A patch that sees fewer than k others (a floor cell under a box, the
-//!    ground under a building) never fills its kept set with positive values, so its
-//!    floor stays 0 and step 1 would evaluate every column in front of it, each with
-//!    rays, to find them all 0: at 1M patches in the 16-box room 1.75 % of the rows did
-//!    94 % of the evaluations (bench/PERF.md §23). Once a row has found [`CULL_AFTER`]
-//!    hidden columns while its floor is 0, a hidden column that the row's blockers do
-//!    not already explain teaches it the occluder polygons (a triangle, or two coplanar
+//! 4. Hidden columns by the node. A patch that sees fewer than k others (a floor cell
+//!    under a box, the ground under a building) never fills its kept set with positive
+//!    values, so its floor stays 0 and step 1 would evaluate every column in front of
+//!    it, each with rays, to find them all 0: at 1M patches in the 16-box room 1.75 %
+//!    of the rows did 94 % of the evaluations (bench/PERF.md §23). A cell under a
+//!    floating box is alike: it sees a few far walls, so its floor is tiny, and every
+//!    column above the box has a larger F⁰ and gets rays. Once a row has found
+//!    [`CULL_AFTER`] hidden columns, a hidden column that the row's blockers do not
+//!    already explain teaches it the occluder polygons (a triangle, or two coplanar
 //!    ones sharing an edge that make a convex quad) that hide the column whole: every
 //!    segment from the row patch to the column crosses the polygon, with a margin far
 //!    above the rays' tolerance (`shadow::polygon_hides`; one lesson per leaf). The
 //!    blockers may also close a convex cell around the row patch (a box over a floor
 //!    cell: each face of the cell, but the one in the patch's own plane, lies within
 //!    one blocker), and a segment from the patch to a point outside the cell leaves it
-//!    through a blocker. While the floor is 0, a node that one blocker hides whole
-//!    (the same test against the node's box), or whose box lies beyond a plane of the
-//!    cell, is not opened. Its columns would all come out exactly 0, every ray
-//!    blocked: they add nothing to the kept entries (the same, bit for bit) nor to the
-//!    dropped mass. A row that never fills its kept set has no tail and is the same
-//!    row bit for bit; one that fills it later may find fewer unopened nodes for its
-//!    sampled tail, whose estimate stays unbiased (the nodes left out hold nothing).
+//!    through a blocker. A node that one blocker hides whole (the same test against the
+//!    node's box), or whose box lies beyond a plane of the cell, is not opened. Its
+//!    columns would all come out exactly 0, every ray blocked: they add nothing to the
+//!    kept entries (the same, bit for bit) nor to the dropped mass. A row that never
+//!    skips a node is the same row bit for bit; one that does may find fewer unopened
+//!    nodes and tail columns for its sampled tail, whose estimate stays unbiased (what
+//!    it leaves out holds nothing).
 
 use std::cmp::Reverse;
 use std::collections::BinaryHeap;
@@ -217,7 +219,7 @@ impl RowEngine {
                 break;
             }
             open.pop();
-            let culling = self.cull_hidden && hidden >= CULL_AFTER && kept.floor() == 0.0;
+            let culling = self.cull_hidden && hidden >= CULL_AFTER;
             if culling && self.node_hidden(i, &tree.node(id).corners(), scratch) {
                 scratch.pair.counters.tree_nodes_hidden += 1;
                 continue;
@@ -246,7 +248,7 @@ impl RowEngine {
                             continue;
                         }
                         let value = self.candidate_value(i, j, u.f, u.needs_rays, scratch);
-                        if value == 0.0 && u.needs_rays && kept.floor() == 0.0 {
+                        if value == 0.0 && u.needs_rays {
                             hidden += 1;
                             // One lesson per leaf: its columns lie close together.
                             if self.cull_hidden && hidden >= CULL_AFTER && !learnt {
