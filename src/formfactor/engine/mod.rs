@@ -147,8 +147,10 @@ pub struct RowEngine {
     /// configuration asks for it).
     tree: Option<PatchTree>,
     /// Margin (world units) by which a triangle must hide a node from a row patch for
-    /// the tree search to skip the node: far above the rays' own tolerance, so every
-    /// ray the skipped pairs would cast is surely blocked.
+    /// the tree search to skip the node: four times the distance within which a ray
+    /// ignores hits near its ends, so every ray the skipped pairs would cast is surely
+    /// blocked. (100 times was too much: a floor cell 0.15 mm inside a box's wall at 1M
+    /// patches could not use the wall.)
     hide_margin: f64,
     /// The larger of the patches' and the occluders' diagonals (world units).
     span: f64,
@@ -196,7 +198,7 @@ impl RowEngine {
         let bounds = geom.iter().map(PatchBound::of).collect();
         let tol = PLANE_RELATIVE_TOLERANCE * diag;
         let occluders_diagonal = occluders.diagonal();
-        let hide_margin = 100.0 * RAY_EPSILON * diag.max(occluders_diagonal);
+        let hide_margin = 4.0 * RAY_EPSILON * diag.max(occluders_diagonal);
         let bound_slack = 1e-12 * diag + 1e-14 * magnitude;
         let tree = (cfg.sparse_rows()
             && cfg.method == Method::Contour

@@ -35,8 +35,8 @@
 //!    [`CULL_AFTER`] hidden columns, a hidden column that the row's blockers do not
 //!    already explain teaches it the occluder polygons (a triangle, or two coplanar
 //!    ones sharing an edge that make a convex quad) that hide the column whole: every
-//!    segment from the row patch to the column crosses the polygon, with a margin far
-//!    above the rays' tolerance (`shadow::polygon_hides`; one lesson per leaf). The
+//!    segment from the row patch to the column crosses the polygon, with a margin of
+//!    four times the rays' tolerance (`shadow::polygon_hides`; one lesson per leaf). The
 //!    blockers may also close a convex cell around the row patch (a box over a floor
 //!    cell: each face of the cell, but the one in the patch's own plane, lies within
 //!    one blocker), and a segment from the patch to a point outside the cell leaves it
