@@ -85,6 +85,12 @@ const MIN_PANEL_FRACTION: f64 = 1e-9;
 const GRADING: f64 = 0.2;
 /// Panel stack capacity per edge pair.
 const MAX_PANELS: usize = 96;
+/// Most panel splits per edge pair. Two edges that are collinear within rounding but
+/// not within [`PARALLEL_SIN2`] (an edge that clipping put along another) touch along
+/// their whole overlap, so every panel there asks to be split down to
+/// [`MIN_PANEL_FRACTION`]: about 10⁹ panels, a hang. A graded split toward one
+/// singular point needs a few dozen.
+const MAX_SPLITS: usize = 2048;
 
 /// A_a F_ab for two (already clipped) polygons whose contours wind counter-clockwise
 /// about their front normals. Returns 0 for fewer than 3 vertices on either side.
@@ -210,6 +216,7 @@ fn general_pair(a: &Edge, b: &Edge, inv: f64, gauss: &GaussTable, p: ContourPara
     let mut top = 1;
     stack[0] = (0.0, la);
     let mut total = 0.0;
+    let mut splits = 0;
     while top > 0 {
         top -= 1;
         let (s0, s1) = stack[top];
@@ -222,7 +229,7 @@ fn general_pair(a: &Edge, b: &Edge, inv: f64, gauss: &GaussTable, p: ContourPara
         let tol = (p.tol * la / len).min(0.1);
         let order = panel_order(dist, len, tol);
         let tiny = len <= MIN_PANEL_FRACTION * la;
-        if order <= max_order || tiny || top + 2 > MAX_PANELS {
+        if order <= max_order || tiny || top + 2 > MAX_PANELS || splits >= MAX_SPLITS {
             let n = order.min(max_order);
             let half = 0.5 * len;
             let mid = s0 + half;
@@ -246,6 +253,7 @@ fn general_pair(a: &Edge, b: &Edge, inv: f64, gauss: &GaussTable, p: ContourPara
             stack[top] = (s0, cut);
             stack[top + 1] = (cut, s1);
             top += 2;
+            splits += 1;
         }
     }
     total

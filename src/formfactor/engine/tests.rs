@@ -6,9 +6,14 @@ use crate::patch::Patch;
 use glam::dvec3;
 
 fn square(origin: DVec3, u: DVec3, v: DVec3, face: u32) -> Patch {
-    let n = u.cross(v);
+    quad([origin, origin + u, origin + u + v, origin + v], face)
+}
+
+/// A planar parallelogram patch with these corners (counter-clockwise about its front).
+fn quad(corners: [DVec3; 4], face: u32) -> Patch {
+    let n = (corners[1] - corners[0]).cross(corners[3] - corners[0]);
     Patch {
-        corners: [origin, origin + u, origin + u + v, origin + v],
+        corners,
         n_corners: 4,
         normal: n.normalize(),
         area: n.length(),
@@ -602,5 +607,61 @@ fn hidden_rows_shortcut_changes_no_entry_in_the_cornell_box_and_the_city() {
             "{name}: {hidden_rows} rows took the shortcut"
         );
         assert!(evaluated[0] < evaluated[1], "{name}: {evaluated:?}");
+    }
+}
+
+/// A floor cell and the bottom patch of a rotated box's wall whose foot passes 1e-4 m
+/// from the cell's corner (rows 103,666 and 952,880 of the 16-box room at 1M patches):
+/// clipping puts an edge of the cell along the wall's foot, collinear within rounding,
+/// and the contour kernel split that edge pair toward 10⁹ panels (a hang of `compute`).
+/// Now the pair returns, each direction in [0, 1] and at most the area of the part of
+/// the patch in front of the other's plane (a sliver of the cell; the whole wall).
+/// (The two directions are not reciprocal here, 4.1e-9 against 2.8e-9 m² of exchange:
+/// each clips a different sliver; a known limit of grazing pairs, bench/PERF.md §23.)
+#[test]
+fn a_wall_foot_along_a_clipped_edge_does_not_hang_the_kernel() {
+    let cell = quad(
+        [
+            dvec3(4.230769230769231, 0.0, 8.502024291497976),
+            dvec3(4.230769230769231, 0.0, 8.522267206477732),
+            dvec3(4.251012145748988, 0.0, 8.522267206477732),
+            dvec3(4.251012145748988, 0.0, 8.502024291497976),
+        ],
+        0,
+    );
+    let wall = quad(
+        [
+            dvec3(4.240166380756312, 0.0, 8.528552135018098),
+            dvec3(4.240166380756312, 0.019614379177935373, 8.528552135018098),
+            dvec3(4.223602773163755, 0.01961437917793538, 8.51728797942914),
+            dvec3(4.223602773163755, 0.0, 8.51728797942914),
+        ],
+        1,
+    );
+    assert!(cell.normal.y > 0.99 && wall.normal.z > 0.8);
+    // The area of each patch in front of the other's plane.
+    let front = |p: &Patch, q: &Patch| {
+        let poly = Polygon::new(p.corners()).clip_front(q.normal, q.normal.dot(q.corners[0]), 0.0);
+        let v = poly.verts();
+        (1..v.len().saturating_sub(1))
+            .map(|k| 0.5 * (v[k] - v[0]).cross(v[k + 1] - v[0]).length())
+            .sum::<f64>()
+    };
+    let (ai, aj) = (front(&cell, &wall), front(&wall, &cell));
+    let (area_i, area_j) = (cell.area, wall.area);
+    assert!(ai > 0.0 && ai < 1e-3 * area_i && (aj - area_j).abs() < 1e-12);
+    let patches = PatchSet {
+        patches: vec![cell, wall],
+        groups: vec!["g".into()],
+    };
+    for cfg in [FormFactorConfig::fast(), FormFactorConfig::accurate()] {
+        let e = RowEngine::new(&patches, Arc::new(Occluders::empty()), cfg);
+        let mut s = Scratch::new();
+        let (fij, fji) = (e.pair_value(0, 1, &mut s), e.pair_value(1, 0, &mut s));
+        assert!(
+            (0.0..=1.0).contains(&fij) && (0.0..=1.0).contains(&fji),
+            "{fij} {fji}"
+        );
+        assert!(area_i * fij <= ai && area_j * fji <= ai, "{fij} {fji} {ai}");
     }
 }
