@@ -49,8 +49,9 @@ pub struct Counters {
     /// Top-k tree search: walks from an unopened node down to one column, for the
     /// dropped mass.
     pub tree_tail_samples: u64,
-    /// Top-k tree search: nodes not opened because one occluder triangle hides them
-    /// from the whole row patch (rows with fewer than k visible columns).
+    /// Top-k tree search: nodes not opened because a blocker polygon, or the cell the
+    /// blockers close, hides them from the whole row patch (rows that found many hidden
+    /// columns).
     pub tree_nodes_hidden: u64,
 }
 

@@ -65,7 +65,7 @@ pub struct Scratch {
     /// Exact visibility: the pair's candidates as casters, the shadow clipping's
     /// pieces.
     casters: Vec<Caster>,
-    /// The top-k tree search's single-triangle blockers of a hidden row.
+    /// The top-k tree search's blocker polygons and enclosing cell of the current row.
     hidden: topk_tree::HiddenRow,
     shadow: ShadowScratch,
     /// The row being computed (a hint for what the cluster lists keep; no value
@@ -146,7 +146,7 @@ pub struct RowEngine {
     /// The hierarchy over the patches of the top-k tree search (None unless the
     /// configuration asks for it).
     tree: Option<PatchTree>,
-    /// Margin (world units) by which a triangle must hide a node from a row patch for
+    /// Margin (world units) by which a polygon must hide a node from a row patch for
     /// the tree search to skip the node: four times the distance within which a ray
     /// ignores hits near its ends, so every ray the skipped pairs would cast is surely
     /// blocked. (100 times was too much: a floor cell 0.15 mm inside a box's wall at 1M
@@ -154,8 +154,9 @@ pub struct RowEngine {
     hide_margin: f64,
     /// The larger of the patches' and the occluders' diagonals (world units).
     span: f64,
-    /// Whether hidden rows skip the nodes a triangle hides (`topk_tree` step 4; off
-    /// only in tests, which check that it changes no row).
+    /// Whether the tree search skips the nodes a blocker polygon or an enclosing cell
+    /// hides (`topk_tree` step 4; off only in tests, which check that it changes no
+    /// kept entry).
     cull_hidden: bool,
 }
 
@@ -197,8 +198,8 @@ impl RowEngine {
         let cfg_visibility = cfg.visibility;
         let bounds = geom.iter().map(PatchBound::of).collect();
         let tol = PLANE_RELATIVE_TOLERANCE * diag;
-        let occluders_diagonal = occluders.diagonal();
-        let hide_margin = 4.0 * RAY_EPSILON * diag.max(occluders_diagonal);
+        let span = diag.max(occluders.diagonal());
+        let hide_margin = 4.0 * RAY_EPSILON * span;
         let bound_slack = 1e-12 * diag + 1e-14 * magnitude;
         let tree = (cfg.sparse_rows()
             && cfg.method == Method::Contour
@@ -233,7 +234,7 @@ impl RowEngine {
             packets: true,
             tree,
             hide_margin,
-            span: diag.max(occluders_diagonal),
+            span,
             cull_hidden: true,
         }
     }

@@ -67,14 +67,15 @@ use crate::rows::Row;
 /// tail is most of a short row, get the dense row's dropped mass).
 const EXACT_TAIL_FACTOR: usize = 2;
 
-/// Hidden columns a row finds, with its floor still 0, before it looks for the
-/// triangles that hide them (step 4): rows that see at least k others rarely get here.
+/// Hidden columns a row finds before it looks for the polygons that hide them (step 4):
+/// rows that see most of what lies in front of them rarely get here.
 const CULL_AFTER: usize = 64;
 
-/// Most blocker triangles a hidden row keeps (step 4).
+/// Most blocker polygons a row keeps (step 4).
 const MAX_BLOCKERS: usize = 32;
 
-/// The occluder polygons that hide whole columns from a hidden row's patch (step 4).
+/// The occluder polygons that hide whole columns from a row's patch, and the cell they
+/// may close around it (step 4).
 #[derive(Debug, Default)]
 pub(super) struct HiddenRow {
     blockers: Vec<Shade>,
@@ -210,8 +211,9 @@ impl RowEngine {
         push(&mut open, root);
         let mut tail: Vec<Tail> = Vec::new();
         let mut exact_tail = 0.0f64;
-        // Step 4: hidden columns found while the floor is 0, and the row's blockers.
+        // Step 4: the hidden columns found so far, and the row's blockers.
         let mut hidden = 0usize;
+        let ready = |hidden: usize| self.cull_hidden && hidden >= CULL_AFTER;
         scratch.hidden.blockers.clear();
         scratch.hidden.cell.clear();
         while let Some(&(bits, Reverse(id))) = open.peek() {
@@ -219,8 +221,7 @@ impl RowEngine {
                 break;
             }
             open.pop();
-            let culling = self.cull_hidden && hidden >= CULL_AFTER;
-            if culling && self.node_hidden(i, &tree.node(id).corners(), scratch) {
+            if ready(hidden) && self.node_hidden(i, &tree.node(id).corners(), scratch) {
                 scratch.pair.counters.tree_nodes_hidden += 1;
                 continue;
             }
@@ -251,7 +252,7 @@ impl RowEngine {
                         if value == 0.0 && u.needs_rays {
                             hidden += 1;
                             // One lesson per leaf: its columns lie close together.
-                            if self.cull_hidden && hidden >= CULL_AFTER && !learnt {
+                            if ready(hidden) && !learnt {
                                 learnt = self.learn_blockers(i, j, scratch);
                             }
                         }
