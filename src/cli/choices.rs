@@ -6,7 +6,7 @@
 use ffstream::formfactor::{Method, Preset, TopKSearch, TopKTail, Visibility};
 use ffstream::scene::SceneFormat;
 use ffstream::service::{RowSelection, Schedule};
-use ffstream::solve::SolveMethod;
+use ffstream::solve::{DroppedMass, SolveMethod};
 
 /// A clap value enum and its conversion into the library type it stands for.
 macro_rules! choice {
@@ -112,6 +112,20 @@ choice! {
         Jacobi => SolveMethod::Jacobi,
         /// Progressive refinement: random row access, reciprocity.
         Shooting => SolveMethod::Shooting,
+    }
+}
+
+choice! {
+    /// `--dropped-mass`: what the solve does with the light top-k rows left out.
+    DroppedArg => DroppedMass {
+        /// Pool it and share it among the receivers in proportion to what each row
+        /// dropped: power is conserved (default).
+        Pool => DroppedMass::Pool,
+        /// Scale each row's kept entries up to its true sum (rows sum right, columns
+        /// do not: power is not conserved).
+        Scale => DroppedMass::Scale,
+        /// Use the kept entries as stored: the dropped light is absorbed.
+        Absorb => DroppedMass::Absorb,
     }
 }
 

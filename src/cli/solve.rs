@@ -11,7 +11,7 @@ use ffstream::patch::PatchSet;
 use ffstream::scene::Scene;
 use ffstream::solve::{self, Solution, SolveConfig, SolveMethod};
 
-use super::choices::SolverArg;
+use super::choices::{DroppedArg, SolverArg};
 
 #[derive(Args, Debug, Clone)]
 pub(crate) struct SolveArgs {
@@ -54,9 +54,15 @@ pub(crate) struct SolveOptions {
     /// Also write the lit mesh as PLY with per-vertex colours (MeshLab, Blender).
     #[arg(long, value_name = "lit.ply")]
     pub ply: Option<PathBuf>,
-    /// Top-k files: use the kept entries as stored, without scaling them to restore the
-    /// dropped mass (default: scale, so no light is lost).
-    #[arg(long)]
+    /// Top-k files: what to do with the light the rows left out (their dropped mass).
+    /// `pool` shares it among the patches that dropped it and conserves power; `scale`
+    /// multiplies each row's kept entries up to its true sum (solve's only way until
+    /// this option);
+    /// `absorb` loses it. Dense files drop nothing.
+    #[arg(long, value_enum, default_value_t = DroppedArg::Pool, value_name = "HOW")]
+    pub dropped_mass: DroppedArg,
+    /// Old spelling of `--dropped-mass absorb`, kept for one release.
+    #[arg(long, hide = true, conflicts_with = "dropped_mass")]
     pub no_renormalize: bool,
 }
 
@@ -144,7 +150,11 @@ pub(super) fn solve_file(
         method,
         tolerance: o.tolerance,
         max_iterations: o.max_iterations,
-        renormalize_top_k: !o.no_renormalize,
+        dropped: if o.no_renormalize {
+            solve::DroppedMass::Absorb
+        } else {
+            o.dropped_mass.into()
+        },
     };
     let solution = solve::solve(&reader, &cases, &rho, &cfg)
         .with_context(|| format!("solving {}", file.display()))?;

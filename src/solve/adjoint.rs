@@ -11,8 +11,10 @@
 //!
 //! Iteration: Jacobi sweeps on y, one sequential scan of the rows per sweep; row i
 //! scatters F_ij ρ_i y_i into every column j. The same rows the forward solve reads (a
-//! patch that reflects nothing contributes nothing), rescaled the same way for top-k
-//! files, so forward and adjoint answer the same question about the same matrix.
+//! patch that reflects nothing contributes nothing), with the same treatment of the
+//! mass top-k rows dropped (scaled rows, or the pool's rank-one term transposed:
+//! y_j gains (s_j / W) Σ_i D_i ρ_i y_i, `pool.rs`), so forward and adjoint answer the
+//! same question about the same matrix.
 
 use super::source::RowSource;
 use super::system::{
@@ -36,7 +38,7 @@ pub struct Adjoint {
 
 /// Solve y = g + Fᵀ(ρ ∘ y) for every receiver's `g` (n values each, the same for every
 /// channel) and return u = ρ ∘ y. Uses `cfg.tolerance`, `cfg.max_iterations` and
-/// `cfg.renormalize_top_k` (the method is always Jacobi).
+/// `cfg.dropped` (the method is always Jacobi).
 ///
 /// # Errors
 /// As [`super::solve`]: inconsistent inputs; a needed row missing, Skipped or malformed.
@@ -51,7 +53,10 @@ pub fn solve_adjoint(
         .iter()
         .map(|g| g.iter().map(|&x| [x; 3]).collect())
         .collect();
-    let sys = System::new(src.patches(), &sets, rho, cfg.renormalize_top_k)?;
+    let mut sys = System::new(src.patches(), &sets, rho, cfg.dropped)?;
+    if cfg.dropped == super::DroppedMass::Pool && src.may_drop() {
+        sys.measure_pool(src)?;
+    }
     let (n, m) = (sys.n, sys.m);
     let patches = src.patches();
     let mut y = sys.e.clone();
@@ -63,6 +68,8 @@ pub fn solve_adjoint(
         next.copy_from_slice(&sys.e);
         let mut presence = Presence::new(n);
         let mut weights = vec![0.0; m];
+        // Σ_i D_i ρ_i y_i over reflecting rows: the pool's term, transposed.
+        let mut gamma = vec![0.0; m];
         src.scan(&mut |row| {
             let Some((i, view)) = sys.gather_view(row, &mut presence, patches)? else {
                 return Ok(());
@@ -73,6 +80,11 @@ pub fn solve_adjoint(
             if weights.iter().all(|&w| w == 0.0) {
                 return Ok(());
             }
+            if view.dropped > 0.0 {
+                for (g, w) in gamma.iter_mut().zip(&weights) {
+                    *g += view.dropped * w;
+                }
+            }
             view.visit(n, |j, f| {
                 let out = &mut next[j * m..(j + 1) * m];
                 for (o, w) in out.iter_mut().zip(&weights) {
@@ -82,6 +94,16 @@ pub fn solve_adjoint(
         })?;
         if let Some(first) = presence.missing(|i| sys.reflects[i]) {
             return Err(missing_error(patches, first, FOR_GATHER));
+        }
+        if let Some(pool) = &sys.pool {
+            for (i, out) in next.chunks_exact_mut(m).enumerate() {
+                let s = pool.send_share(i);
+                if s != 0.0 {
+                    for (o, g) in out.iter_mut().zip(&gamma) {
+                        *o += s * g;
+                    }
+                }
+            }
         }
         let mut change = vec![0.0f64; m];
         for (k, (a, b)) in next.iter().zip(&y).enumerate() {

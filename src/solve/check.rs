@@ -15,7 +15,9 @@
 //! straight to dark patches is left out and a warning says so). This is a scatter: each
 //! row j read adds its share to the dark patches. With top-k rows the two routes use
 //! different truncations of F (row i versus column i taken from the rows j); both are
-//! scaled as [`super::rowview`] describes.
+//! scaled as [`super::rowview`] describes. The pool of [`super::DroppedMass::Pool`]
+//! gives its light to reflecting patches only (`pool.rs`): a dark patch's irradiance
+//! holds what the stored entries of the other rows carry to it.
 
 use super::error::SolveError;
 use super::rowview::RowView;
@@ -63,6 +65,7 @@ pub(crate) fn final_pass(
     let mut presence = Presence::new(n);
     let mut dark_source_skipped = Vec::new();
     let patches = src.patches();
+    let beta = sys.beta(b);
 
     src.scan(&mut |row| {
         let j = check_index(row.index, n)?;
@@ -79,7 +82,7 @@ pub(crate) fn final_pass(
             return Ok(());
         };
         if full && sys.reflects[j] {
-            view.gather(b, m, &mut acc)?;
+            sys.gather(&view, b, &beta, &mut acc)?;
             for c in 0..m {
                 let k = j * m + c;
                 h[k] = acc[c];

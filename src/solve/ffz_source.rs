@@ -40,4 +40,8 @@ impl RowSource for FfzReader {
     fn has_row(&self, i: u32) -> bool {
         self.presence().get(i) != crate::ffz::RowState::Missing
     }
+
+    fn may_drop(&self) -> bool {
+        self.layout() != crate::ffz::Layout::Dense
+    }
 }

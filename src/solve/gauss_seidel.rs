@@ -15,7 +15,11 @@
 //!
 //!   |r_ic| ≤ (max_i ρ_ic S_i) · max_j |ΔB_jc|,   S_i = Σ_j |F_ij| (scaled row),
 //!
-//! a rigorous bound computed during the sweep at no cost. When the bound is within
+//! a rigorous bound computed during the sweep at no cost. With the pool of
+//! [`super::DroppedMass::Pool`] the sweep uses β of the B it started from; β is linear
+//! in B, so the residual gains ρ_i D_i |β(B^new) − β(B^old)|, bounded by
+//! (max_i ρ_ic D_i) |Δβ_c| with β(B^new) computed after the sweep (O(n)).
+//! When the bound is within
 //! the tolerance, a final pass computes H = F B and the exact residual (one more
 //! scan); the solve ends if that confirms it.
 
@@ -50,18 +54,21 @@ pub(crate) fn run(
         sweep += 1;
         let mut change = vec![0.0f64; m];
         let mut coef = vec![0.0f64; m];
+        let mut pool_coef = vec![0.0f64; m];
         let mut presence = Presence::new(n);
+        let beta = sys.beta(&b);
         src.scan(&mut |row| {
             let Some((i, view)) = sys.gather_view(row, &mut presence, patches)? else {
                 return Ok(());
             };
-            let abs_sum = view.gather(&b, m, &mut acc)?;
+            let abs_sum = sys.gather(&view, &b, &beta, &mut acc)?;
             for c in 0..m {
                 let k = i * m + c;
                 let rho = sys.rho_col(i, c);
                 let v = sys.e[k] + rho * acc[c];
                 change[c] = nan_max(change[c], (v - b[k]).abs());
                 coef[c] = coef[c].max(rho * abs_sum);
+                pool_coef[c] = pool_coef[c].max(rho * view.dropped);
                 b[k] = v;
             }
             Ok(())
@@ -71,7 +78,10 @@ pub(crate) fn run(
             return Err(missing_error(patches, first, FOR_GATHER));
         }
         let scale = column_max_abs(&b, m);
-        let bound: Vec<f64> = coef.iter().zip(&change).map(|(a, d)| a * d).collect();
+        let beta_after = sys.beta(&b);
+        let bound: Vec<f64> = (0..m)
+            .map(|c| coef[c] * change[c] + pool_coef[c] * (beta_after[c] - beta[c]).abs())
+            .collect();
         let rel_bound = max_of(&relative(&bound, &scale));
         debug!(sweep, residual_bound = rel_bound, "gauss-seidel sweep");
         let last = sweep >= max_sweeps;

@@ -3,8 +3,9 @@
 //! Every sweep computes G = F B⁽ᵏ⁾ for the reflecting patches, which is at once the
 //! irradiance H of B⁽ᵏ⁾ and its exact residual: B⁽ᵏ⁾ − E − ρ G = B⁽ᵏ⁾ − B⁽ᵏ⁺¹⁾. So the
 //! iteration stops as soon as ‖B⁽ᵏ⁾ − B⁽ᵏ⁺¹⁾‖∞ ≤ tolerance × ‖B⁽ᵏ⁾‖∞ (per column) and
-//! returns B⁽ᵏ⁾ with its H and exact residual, with no extra pass. The order of the
-//! rows does not matter. Rows of patches that reflect nothing are never used: their
+//! returns B⁽ᵏ⁾ with its H and exact residual, with no extra pass (the pool's β of
+//! [`super::DroppedMass::Pool`] is computed from B⁽ᵏ⁾ before the sweep, so this holds
+//! with it too). The order of the rows does not matter. Rows of patches that reflect nothing are never used: their
 //! B stays E.
 
 use tracing::debug;
@@ -37,11 +38,12 @@ pub(crate) fn run(
         sweep += 1;
         let mut change = vec![0.0f64; m];
         let mut presence = Presence::new(n);
+        let beta = sys.beta(&b);
         src.scan(&mut |row| {
             let Some((i, view)) = sys.gather_view(row, &mut presence, patches)? else {
                 return Ok(());
             };
-            view.gather(&b, m, &mut acc)?;
+            sys.gather(&view, &b, &beta, &mut acc)?;
             for c in 0..m {
                 let k = i * m + c;
                 h[k] = acc[c];

@@ -24,8 +24,10 @@
 //! from it unless it emits. Rows of patches that neither reflect nor emit in any case
 //! are never read at all, so files computed with only the needed rows suffice; their
 //! irradiance comes by reciprocity (`check.rs`). A needed row that is missing or marked
-//! Skipped is an error naming the row. Top-k rows are rescaled so no light is lost
-//! (`rowview.rs`), unless [`SolveConfig::renormalize_top_k`] is off.
+//! Skipped is an error naming the row. The light top-k rows dropped goes into a pool
+//! shared by the receivers that dropped it, so no light is lost (`pool.rs`; one more
+//! scan before the solve), or the rows are scaled to their true sums (`rowview.rs`), or
+//! it is absorbed ([`DroppedMass`]).
 //!
 //! # Files
 //! - Radiosity CSV ([`write_csv`]): one file per case (`radiosity.csv`, or
@@ -47,6 +49,7 @@ mod ffz_source;
 mod gauss_seidel;
 mod jacobi;
 mod output;
+mod pool;
 mod rowview;
 mod shooting;
 mod source;
@@ -102,6 +105,43 @@ impl fmt::Display for SolveMethod {
     }
 }
 
+/// What the solve does with the mass that top-k rows dropped (`Row::dropped`, the part
+/// of a row's sum that no stored entry carries). Dense rows drop nothing and every
+/// choice gives them the same answer. See `pool.rs` and `rowview.rs`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum DroppedMass {
+    /// The light that stored entries do not carry goes into one pool, shared among the
+    /// reflecting patches in proportion to what each row dropped (an ambient term, as
+    /// in Cohen, Chen, Wallace and Greenberg 1988). Conserves power exactly: a closed
+    /// scene whose rows sum to 1 loses nothing.
+    #[default]
+    Pool,
+    /// Scale each top-k row's kept entries by (stored + dropped) / stored: the row sums
+    /// right, but the light the receiver lacks is taken from its kept senders only, and
+    /// the columns no longer balance, so power is neither conserved nor well placed.
+    Scale,
+    /// Use the kept entries as stored: the dropped light is absorbed.
+    Absorb,
+}
+
+impl DroppedMass {
+    pub const ALL: [DroppedMass; 3] = [DroppedMass::Pool, DroppedMass::Scale, DroppedMass::Absorb];
+
+    pub(crate) fn name(self) -> &'static str {
+        match self {
+            DroppedMass::Pool => "pool",
+            DroppedMass::Scale => "scale",
+            DroppedMass::Absorb => "absorb",
+        }
+    }
+}
+
+impl fmt::Display for DroppedMass {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
 /// Settings of one solve.
 #[derive(Clone, Debug, PartialEq)]
 pub struct SolveConfig {
@@ -110,8 +150,8 @@ pub struct SolveConfig {
     pub tolerance: f64,
     /// Most sweeps (Jacobi, Gauss–Seidel) or shots / n (shooting). Default 10 000.
     pub max_iterations: usize,
-    /// Scale top-k rows by (stored + dropped) / stored so no light is lost. Default on.
-    pub renormalize_top_k: bool,
+    /// What to do with the mass top-k rows dropped. Default [`DroppedMass::Pool`].
+    pub dropped: DroppedMass,
 }
 
 impl Default for SolveConfig {
@@ -120,7 +160,7 @@ impl Default for SolveConfig {
             method: SolveMethod::default(),
             tolerance: 1e-6,
             max_iterations: 10_000,
-            renormalize_top_k: true,
+            dropped: DroppedMass::Pool,
         }
     }
 }
@@ -248,12 +288,19 @@ pub fn solve(
             cfg.tolerance
         )));
     }
-    let sys = System::new(src.patches(), emission_sets, rho, cfg.renormalize_top_k)?;
+    let mut sys = System::new(src.patches(), emission_sets, rho, cfg.dropped)?;
+    let pool_passes = if cfg.dropped == DroppedMass::Pool && src.may_drop() {
+        sys.measure_pool(src)?;
+        1
+    } else {
+        0
+    };
     let mut it = match cfg.method {
         SolveMethod::Jacobi => jacobi::run(&sys, src, cfg)?,
         SolveMethod::GaussSeidel => gauss_seidel::run(&sys, src, cfg)?,
         SolveMethod::Shooting => shooting::run(&sys, src, cfg)?,
     };
+    it.passes += pool_passes;
     let state = std::mem::replace(&mut it.state, HState::Missing);
     let fp = match state {
         HState::Complete(fp) => fp,
@@ -294,6 +341,13 @@ pub fn solve(
         warnings.push(format!(
             "irradiance H of non-reflecting patches lacks the light sent directly by {count} \
              non-reflecting emitting patch(es) whose rows are not stored (first: row {first})"
+        ));
+    }
+    if let Some((first, count)) = sys.pool.as_ref().and_then(|p| p.senders_without_rows) {
+        warnings.push(format!(
+            "{count} emitting patch(es) have no stored row (first: row {first}): the light \
+             of theirs that the other rows' kept entries do not carry cannot be pooled \
+             and is lost"
         ));
     }
     if let Some((count, first, total)) = sys.lost_mass() {

@@ -1,14 +1,15 @@
 //! One stored row as the solver uses it: checked once, scaled for top-k, and read by
 //! two kernels (gather: Σ_j F_ij B_j; visit: every entry, for shooting and scatter).
 //!
-//! Top-k rows and "no light lost". A top-k row keeps the k largest F_ij and records in
-//! `Row::dropped` the mass it left out (see `src/rows.rs`). By default the solver
+//! Top-k rows. A top-k row keeps the k largest F_ij and records in `Row::dropped` the
+//! mass it left out (see `src/rows.rs`). With [`super::DroppedMass::Scale`] the solver
 //! multiplies the kept entries by s_i = (stored + dropped) / stored, so the row it uses
-//! sums to the true row sum: the power patch i would have sent to the dropped patches
-//! goes to the kept ones in proportion to their share. This is the renormalisation the
+//! sums to the true row sum: the light patch i lacks from its dropped senders is taken
+//! from the kept ones in proportion to their share. This is the renormalisation the
 //! paper proposes as future work ("keeping only the top 10-20 % ... renormalised so no
-//! light is lost"). With [`super::SolveConfig::renormalize_top_k`] off, dropped mass is
-//! lost (absorbed). Dense rows have `dropped = 0` and s = 1.
+//! light is lost"); it sums rows right but not columns, so power is not conserved
+//! (`pool.rs` does that). Otherwise s = 1 and the view carries the row's dropped mass
+//! for the pool. Dense rows have `dropped = 0` and s = 1.
 
 use crate::rows::{Row, RowValues};
 
@@ -31,6 +32,8 @@ pub(crate) struct RowView<'r> {
     /// Dropped mass that the scale cannot put back (a row that stores nothing), when
     /// renormalizing; else 0.
     pub(crate) lost: f32,
+    /// The row's dropped mass D_i (the pool's weight, `pool.rs`).
+    pub(crate) dropped: f64,
 }
 
 impl<'r> RowView<'r> {
@@ -97,6 +100,7 @@ impl<'r> RowView<'r> {
             entries,
             scale,
             lost,
+            dropped: f64::from(row.dropped.max(0.0)),
         }))
     }
 

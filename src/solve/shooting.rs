@@ -13,6 +13,11 @@
 //! i; the two systems differ by the asymmetry of the truncation (the final pass reports
 //! the residual against the gathering form).
 //!
+//! With the pool of [`super::DroppedMass::Pool`] (`pool.rs`) rows are not scaled: a
+//! shot from j also puts A_j D_j ΔB_j into the pool, and the pool is shot like one more
+//! patch when its unshot power P is the largest, giving each reflecting receiver i
+//! ΔB_i = ρ_i (u_i / U) P / A_i (O(n), no row read).
+//!
 //! Choice of shooter. Departure from the single-RHS algorithm: with K cases × RGB the
 //! "unshot power" of patch j is Σ_c A_j ΔB_jc / Φ_c over columns c with emitted power
 //! Φ_c > 0, i.e. each column's unshot power relative to its own emission, so a dim case
@@ -59,11 +64,21 @@ pub(crate) fn run(
     let max_shots = cfg.max_iterations.max(1).saturating_mul(n.max(1));
     let mut shots = 0usize;
     let mut shot = vec![0.0; m];
+    // The pool's unshot power per column (stays 0 without a pool or when no reflecting
+    // row dropped anything).
+    let pool = sys
+        .pool
+        .as_ref()
+        .filter(|p| p.shoot_share.iter().any(|&s| s > 0.0));
+    let mut pool_unshot = vec![0.0; m];
     let converged = loop {
         // Relative unshot power per column; exact sums every n shots so that the
         // running update cannot drift.
         if shots.is_multiple_of(n.max(1)) {
             unshot_power = column_power(sys, &unshot);
+            for (p, q) in unshot_power.iter_mut().zip(&pool_unshot) {
+                *p += q;
+            }
         }
         let worst = unshot_power
             .iter()
@@ -76,7 +91,31 @@ pub(crate) fn run(
         if shots >= max_shots {
             break false;
         }
-        let Some(j) = argmax(&priority) else {
+        let pool_priority: f64 = pool_unshot.iter().zip(&weight).map(|(x, w)| x * w).sum();
+        let best = argmax(&priority);
+        if let Some(pool) = pool.filter(|_| best.is_none_or(|j| pool_priority > priority[j])) {
+            shot.copy_from_slice(&pool_unshot);
+            pool_unshot.fill(0.0);
+            for (c, p) in unshot_power.iter_mut().enumerate() {
+                *p -= shot[c];
+            }
+            for (i, &s) in pool.shoot_share.iter().enumerate() {
+                if s == 0.0 {
+                    continue;
+                }
+                let share = s * inv_area[i];
+                for c in 0..m {
+                    let delta = sys.rho_col(i, c) * share * shot[c];
+                    b[i * m + c] += delta;
+                    unshot[i * m + c] += delta;
+                    unshot_power[c] += sys.area[i] * delta;
+                }
+                priority[i] = priority_of(&unshot, i);
+            }
+            shots += 1;
+            continue;
+        }
+        let Some(j) = best else {
             break true;
         };
         let row = src.row(j as u32)?.ok_or_else(|| {
@@ -132,6 +171,13 @@ pub(crate) fn run(
         })?;
         for (c, p) in unshot_power.iter_mut().enumerate() {
             *p += aj * shot[c] * rho_sum[c % 3];
+        }
+        if pool.is_some() && view.dropped > 0.0 {
+            for (c, (p, q)) in unshot_power.iter_mut().zip(&mut pool_unshot).enumerate() {
+                let into = aj * view.dropped * shot[c];
+                *p += into;
+                *q += into;
+            }
         }
         // j's own entry (F_jj ≠ 0 on curved patches) may have given it new unshot power.
         priority[j] = priority_of(&unshot, j);

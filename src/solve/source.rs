@@ -35,6 +35,13 @@ pub trait RowSource {
     /// Whether row `i` is stored (present or skipped), without reading it: how a
     /// random-access solve counts the missing rows it needs when it meets the first.
     fn has_row(&self, i: u32) -> bool;
+
+    /// Whether rows may carry dropped mass (top-k or threshold rows). A source that
+    /// answers false spares the solve the scan that measures the pool of dropped light
+    /// (`pool.rs`); the default answers true.
+    fn may_drop(&self) -> bool {
+        true
+    }
 }
 
 /// Rows held in memory, in the order given (that order is the "file order" of
@@ -102,6 +109,10 @@ impl RowSource for MemoryRows {
 
     fn has_row(&self, i: u32) -> bool {
         self.position.get(i as usize).copied().flatten().is_some()
+    }
+
+    fn may_drop(&self) -> bool {
+        self.rows.iter().any(|r| r.dropped != 0.0)
     }
 }
 

@@ -9,6 +9,9 @@
 use crate::patch::PatchSet;
 
 use super::error::SolveError;
+use super::pool::Pool;
+use super::source::RowSource;
+use super::DroppedMass;
 
 /// Validated inputs of one solve.
 #[derive(Debug)]
@@ -28,8 +31,12 @@ pub(crate) struct System {
     pub(crate) emits: Vec<bool>,
     /// Patches that reflect nothing (`!reflects`), in index order.
     pub(crate) dark: Vec<u32>,
-    /// Scale top-k rows so that no light is lost (see [`super::rowview`]).
-    pub(crate) renormalize: bool,
+    /// Scale top-k rows to their true sum ([`super::DroppedMass::Scale`], see
+    /// [`super::rowview`]).
+    pub(crate) scale_rows: bool,
+    /// The pool of light top-k rows do not carry ([`super::DroppedMass::Pool`]), once
+    /// measured ([`System::measure_pool`]).
+    pub(crate) pool: Option<Pool>,
     /// Rows seen that store nothing but have dropped mass (their light cannot be
     /// kept, spec §5.6), by row: their dropped mass (0: none, or not seen).
     lost_mass: Vec<std::sync::atomic::AtomicU32>,
@@ -50,7 +57,7 @@ impl System {
         patches: &PatchSet,
         emission_sets: &[Vec<[f32; 3]>],
         rho: &[[f32; 3]],
-        renormalize: bool,
+        dropped: DroppedMass,
     ) -> Result<Self, SolveError> {
         let n = patches.len();
         let cases = emission_sets.len();
@@ -120,7 +127,8 @@ impl System {
             reflects,
             emits,
             dark,
-            renormalize,
+            scale_rows: dropped == DroppedMass::Scale,
+            pool: None,
             lost_mass: (0..n)
                 .map(|_| std::sync::atomic::AtomicU32::new(0))
                 .collect(),
@@ -317,7 +325,7 @@ impl System {
             .checked
             .get(row.index as usize)
             .is_none_or(|c| !c.swap(true, std::sync::atomic::Ordering::Relaxed));
-        let view = super::rowview::RowView::new(row, self.n, self.renormalize, first_look)?;
+        let view = super::rowview::RowView::new(row, self.n, self.scale_rows, first_look)?;
         if let Some(v) = &view {
             if v.lost > 0.0 {
                 if let Some(slot) = self.lost_mass.get(row.index as usize) {
@@ -326,6 +334,45 @@ impl System {
             }
         }
         Ok(view)
+    }
+
+    /// Measure the pool of [`super::DroppedMass::Pool`] with one scan of `src`.
+    ///
+    /// # Errors
+    /// As [`Pool::measure`].
+    pub(crate) fn measure_pool(&mut self, src: &dyn RowSource) -> Result<(), SolveError> {
+        self.pool = Some(Pool::measure(self, src)?);
+        Ok(())
+    }
+
+    /// The pool's β for radiosity `b` (zeros without a pool).
+    pub(crate) fn beta(&self, b: &[f64]) -> Vec<f64> {
+        match &self.pool {
+            Some(p) => p.beta(b, self.m),
+            None => vec![0.0; self.m],
+        }
+    }
+
+    /// `acc = H_i` of the gathering form for row view `view` of patch i: the stored
+    /// entries (scaled as the view says) against `b`, plus the pool's share D_i β.
+    /// Returns the sum of |F_ij| of the stored entries (the Gauss–Seidel bound's).
+    ///
+    /// # Errors
+    /// As [`super::rowview::RowView::gather`].
+    pub(crate) fn gather(
+        &self,
+        view: &super::rowview::RowView<'_>,
+        b: &[f64],
+        beta: &[f64],
+        acc: &mut [f64],
+    ) -> Result<f64, SolveError> {
+        let abs_sum = view.gather(b, self.m, acc)?;
+        if self.pool.is_some() && view.dropped > 0.0 {
+            for (a, x) in acc.iter_mut().zip(beta) {
+                *a += view.dropped * x;
+            }
+        }
+        Ok(abs_sum)
     }
 
     /// Rows that store nothing but have dropped mass, among those seen: (count, first
