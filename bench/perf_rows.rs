@@ -378,7 +378,7 @@ fn main() {
         // (bench/run.py checks that a sampled mode matches the run it stands in for).
         let described = match mode.as_str() {
             "occluders" | "fineocc" => e.describe(),
-            _ => RowEngine::description(&config_of(mode), given) + &merged_note,
+            _ => RowEngine::description(&config_of(mode), given, false) + &merged_note,
         };
         println!("  engine: {described}");
     }

@@ -475,7 +475,8 @@ fn engine_for(
             mesh.given
         );
     }
-    let description = RowEngine::description(cfg, mesh.given) + &mesh.header_note() + &foreign;
+    let description =
+        RowEngine::description(cfg, mesh.given, mesh.other_mesh) + &mesh.header_note() + &foreign;
     if role == Role::Master {
         return Ok((None, description));
     }

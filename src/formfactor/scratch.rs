@@ -53,6 +53,8 @@ pub struct Counters {
     /// blockers close, hides them from the whole row patch (rows that found many hidden
     /// columns).
     pub tree_nodes_hidden: u64,
+    /// Hemisphere rays cast for top-k row totals (`engine/closure.rs`).
+    pub closure_rays: u64,
 }
 
 impl Counters {
@@ -65,6 +67,7 @@ impl Counters {
         self.tree_nodes_opened += o.tree_nodes_opened;
         self.tree_tail_samples += o.tree_tail_samples;
         self.tree_nodes_hidden += o.tree_nodes_hidden;
+        self.closure_rays += o.closure_rays;
         self.pairs_unoccludable += o.pairs_unoccludable;
         self.rays_cast += o.rays_cast;
         self.pairs_rays += o.pairs_rays;

@@ -90,6 +90,11 @@ impl Node {
         })
     }
 
+    /// Whether `x` lies in the node's box widened by `tol`.
+    fn holds(&self, x: DVec3, tol: f64) -> bool {
+        (x - self.lo).min_element() >= -tol && (self.hi - x).min_element() >= -tol
+    }
+
     /// Number of patches under the node.
     pub(crate) fn count(&self) -> u32 {
         self.count
@@ -181,6 +186,49 @@ impl PatchTree {
     pub(crate) fn patches_under(&self, id: u32) -> &[u32] {
         let (start, end) = self.node(id).range;
         &self.order[start as usize..end as usize]
+    }
+
+    /// Whether `x` lies on a patch whose front faces a ray arriving along `dir`
+    /// (normal · dir < 0): within `tol` of its plane and inside its polygon, edges
+    /// widened by `tol`. `stack` is scratch space.
+    pub(crate) fn front_patch_at(
+        &self,
+        geom: &[PatchGeom],
+        x: DVec3,
+        dir: DVec3,
+        tol: f64,
+        stack: &mut Vec<u32>,
+    ) -> bool {
+        stack.clear();
+        stack.extend(self.root());
+        while let Some(id) = stack.pop() {
+            let node = self.node(id);
+            if !node.holds(x, tol) {
+                continue;
+            }
+            match node.kids {
+                Kids::Inner(left, right) => stack.extend([left, right]),
+                Kids::Leaf => {
+                    let on = |g: &PatchGeom| {
+                        let v = g.poly.verts();
+                        g.normal.dot(dir) < 0.0
+                            && (g.normal.dot(x) - g.offset).abs() <= tol
+                            && (0..v.len()).all(|k| {
+                                let (a, b) = (v[k], v[(k + 1) % v.len()]);
+                                (b - a).cross(x - a).dot(g.normal) >= -tol * (b - a).length()
+                            })
+                    };
+                    if self
+                        .patches_under(id)
+                        .iter()
+                        .any(|&j| on(&geom[j as usize]))
+                    {
+                        return true;
+                    }
+                }
+            }
+        }
+        false
     }
 
     /// Builds the node of `order[start..end]` and its subtree; returns its id.

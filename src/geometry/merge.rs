@@ -77,6 +77,8 @@ pub struct OccluderMesh {
     pub merged: Option<(usize, usize)>,
     /// Whether the face ids mean nothing to the patches (another mesh, or merged).
     pub foreign: bool,
+    /// Whether the triangles come from another mesh than the patches' scene.
+    pub other_mesh: bool,
 }
 
 impl OccluderMesh {
@@ -96,6 +98,7 @@ impl OccluderMesh {
                     given,
                     merged: Some((m.groups, kept)),
                     foreign: true,
+                    other_mesh: foreign,
                 }
             }
             None => OccluderMesh {
@@ -103,6 +106,7 @@ impl OccluderMesh {
                 given,
                 merged: None,
                 foreign,
+                other_mesh: foreign,
             },
         }
     }
@@ -116,10 +120,12 @@ impl OccluderMesh {
 
     /// The hierarchy over the triangles.
     pub fn build(self) -> Occluders {
-        match self.foreign {
+        let mut o = match self.foreign {
             true => Occluders::new_foreign(self.triangles),
             false => Occluders::new(self.triangles),
-        }
+        };
+        o.surfaces_are_patches = !self.other_mesh;
+        o
     }
 }
 

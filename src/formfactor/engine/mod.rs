@@ -67,6 +67,8 @@ pub struct Scratch {
     casters: Vec<Caster>,
     /// The top-k tree search's blocker polygons and enclosing cell of the current row.
     hidden: topk_tree::HiddenRow,
+    /// The row total's hemisphere rays: their sample points, and the patch tree's walk.
+    closure: closure::ClosureScratch,
     shadow: ShadowScratch,
     /// The row being computed (a hint for what the cluster lists keep; no value
     /// depends on it).
@@ -270,13 +272,37 @@ impl RowEngine {
 
     /// The parameters that determine the numbers, for the file header.
     pub fn describe(&self) -> String {
-        Self::description(&self.cfg, self.occluders.len())
+        Self::description(
+            &self.cfg,
+            self.occluders.len(),
+            !self.occluders.surfaces_are_patches,
+        )
     }
 
     /// What [`RowEngine::describe`] says of an engine with `cfg` and that many occluder
-    /// triangles, without building it.
-    pub fn description(cfg: &FormFactorConfig, occluder_triangles: usize) -> String {
-        format!("{} occluder_triangles={occluder_triangles}", cfg.describe())
+    /// triangles, from another mesh than the patches' (`other_mesh`) or not, without
+    /// building it. Sparse rows add `dropped_mass=` (how their dropped mass is found).
+    pub fn description(
+        cfg: &FormFactorConfig,
+        occluder_triangles: usize,
+        other_mesh: bool,
+    ) -> String {
+        let dropped = match (cfg.sparse_rows(), cfg.method, cfg.top_k_tail) {
+            (false, ..) => String::new(),
+            (true, Method::Contour, TopKTail::Sampled(t)) => {
+                let how = match (&cfg.top_k_search, occluder_triangles > 0 && !other_mesh) {
+                    (crate::formfactor::TopKSearch::Tree, true) => "hemisphere",
+                    (crate::formfactor::TopKSearch::Tree, false) => "tree-walk",
+                    (crate::formfactor::TopKSearch::Exhaustive, _) => "sampled",
+                };
+                format!(" dropped_mass={how}:{t}")
+            }
+            (true, ..) => " dropped_mass=exact".to_string(),
+        };
+        format!(
+            "{} occluder_triangles={occluder_triangles}{dropped}",
+            cfg.describe()
+        )
     }
 
     /// Row i: dense, or the k largest entries when `top_k` is set, only those ≥
@@ -688,6 +714,7 @@ struct Unoccluded {
     listed: bool,
 }
 
+mod closure;
 mod exact;
 #[cfg(test)]
 mod tests;

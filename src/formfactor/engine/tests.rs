@@ -159,7 +159,7 @@ fn packets_change_no_value() {
                 assert_eq!(packets.list_max > 0, lists, "{boxes} boxes");
                 let single = RowEngine::new(&patches, occ.clone(), cfg).one_ray_at_a_time();
                 let (mut s1, mut s2) = (Scratch::new(), Scratch::new());
-                for i in (0..packets.n() as u32).step_by(11) {
+                for i in (0..packets.n() as u32).step_by(5) {
                     assert_eq!(
                         packets.compute_row(i, &mut s1),
                         single.compute_row(i, &mut s2),
@@ -368,7 +368,9 @@ fn tree_search_keeps_the_exhaustive_entries() {
         let (mut st, mut sf, mut sd) = (Scratch::new(), Scratch::new(), Scratch::new());
         let mut values = Vec::new();
         let (mut errors, mut tails) = (Vec::new(), Vec::new());
-        for i in (0..tree.n() as u32).step_by(7) {
+        // Every row: the tail estimate's errors are heavy-tailed (rows partly hidden
+        // under a box), so the bias test needs them all.
+        for i in 0..tree.n() as u32 {
             let (a, b) = (tree.compute_row(i, &mut st), flat.compute_row(i, &mut sf));
             assert_eq!(a.values, b.values, "{name}: row {i}");
             dense.row_values(i, &mut sd, &mut values);

@@ -260,6 +260,17 @@ impl Kept {
         }
     }
 
+    /// The mass known exactly so far: the kept entries as they will be stored (f32)
+    /// and what was pushed out or fell below `eps`.
+    pub(super) fn known_mass(&self) -> f64 {
+        let stored: f64 = self
+            .heap
+            .iter()
+            .map(|Reverse((bits, _))| f64::from(f64::from_bits(*bits) as f32))
+            .sum();
+        stored + self.dropped
+    }
+
     /// Column j with final value `value`: kept if ≥ `eps` and among the k best, the
     /// value pushed out (or this one, below `eps`) counted as dropped.
     pub(super) fn offer(&mut self, j: u32, value: f64) {

@@ -269,7 +269,8 @@ impl RowEngine {
                 .into_iter()
                 .map(|id| Tail::Node(id, tree.bound(id, &row).guess)),
         );
-        let tail_mass = exact_tail + self.tree_tail_mass(tree, i, &row, t, &tail, scratch);
+        let known = kept.known_mass() + exact_tail;
+        let tail_mass = exact_tail + self.tree_tail_mass(tree, i, &row, t, &tail, known, scratch);
         kept.into_row(i, tail_mass)
     }
 
@@ -414,7 +415,10 @@ impl RowEngine {
     }
 
     /// Step 3: the mass of the tail items (module docs): exact when they hold at most
-    /// [`EXACT_TAIL_FACTOR`] · `t` patches, else sampled from `t` points.
+    /// [`EXACT_TAIL_FACTOR`] · `t` patches; else the row total from `t` hemisphere rays
+    /// less the `known` mass (kept entries, pushed out, exact tail), when the occluders
+    /// are the patches' own surfaces (`closure.rs`); else sampled from `t` points.
+    #[allow(clippy::too_many_arguments)]
     fn tree_tail_mass(
         &self,
         tree: &PatchTree,
@@ -422,6 +426,7 @@ impl RowEngine {
         row: &PatchBound,
         t: usize,
         tail: &[Tail],
+        known: f64,
         scratch: &mut Scratch,
     ) -> f64 {
         let patches: usize = tail
@@ -445,6 +450,9 @@ impl RowEngine {
                 }
             }
             return sum;
+        }
+        if let Some(total) = self.closure_total(tree, i, t, scratch) {
+            return (total - known).max(0.0);
         }
         let weight = |x: &Tail| match *x {
             Tail::Column(_, w) | Tail::Node(_, w) => w,

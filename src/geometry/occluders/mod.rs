@@ -105,6 +105,10 @@ pub struct Occluders {
     /// patches mean nothing here, so self-occlusion is told apart by planes instead
     /// (see [`Occluders::occluded_between_planes`]).
     foreign: bool,
+    /// The triangles cover the same surfaces as the patches (their own scene's faces,
+    /// merged or not), so the first surface a ray meets is a patch's
+    /// ([`Occluders::first_hit`]); false for another mesh (`--occluders`).
+    pub(crate) surfaces_are_patches: bool,
 }
 
 impl Occluders {
@@ -119,6 +123,7 @@ impl Occluders {
         debug_assert!(tris.iter().all(|t| t.0 != u32::MAX), "face id u32::MAX");
         let mut o = Occluders::new(tris);
         o.foreign = true;
+        o.surfaces_are_patches = false;
         o
     }
 
@@ -156,6 +161,7 @@ impl Occluders {
             center,
             inv_scale: 1.0 / diag,
             foreign: false,
+            surfaces_are_patches: true,
         }
     }
 
@@ -209,6 +215,7 @@ impl Occluders {
             center: DVec3::ZERO,
             inv_scale: 1.0,
             foreign: false,
+            surfaces_are_patches: true,
         }
     }
 
@@ -311,6 +318,42 @@ impl Occluders {
                 .is_some()
                 && Segment::counts(tri, planes)
         })
+    }
+
+    /// The first point where the ray from `from` along `dir` (world units, any length)
+    /// meets a triangle within twice the scene's diagonal, ignoring triangles of face
+    /// `ignore` (native occluders) or lying in `plane` = (unit normal, offset), world
+    /// units (foreign ones): the ray's own surface. `None` when it meets nothing. Every
+    /// triangle the ray may meet is tested exactly (no early exit), keeping the nearest.
+    pub(crate) fn first_hit(
+        &self,
+        from: DVec3,
+        dir: DVec3,
+        ignore: u32,
+        plane: (DVec3, f64),
+    ) -> Option<DVec3> {
+        let bvh = self.bvh.as_ref()?;
+        let planes = self.normalized_planes(Some([plane, plane]));
+        let ignore = self.ignored_faces((ignore, ignore));
+        let f = self.to_norm(from);
+        let d = dir.normalize_or_zero() * 2.0;
+        let ray = SegmentRay::new(f, d)?;
+        let seg = Segment::new(f, d)?;
+        let mut nearest = f64::INFINITY;
+        by_axes!(seg.sheared.axes, |KX, KY, KZ| {
+            bvh.any_hit(&ray, ignore, false, |id| {
+                let tri = &self.tris[id];
+                if let Some(t) = tri.hit::<KX, KY, KZ>(&seg.sheared, seg.t0, seg.t1.min(nearest)) {
+                    if Segment::counts(tri, &planes) {
+                        nearest = nearest.min(t);
+                    }
+                }
+                false
+            })
+        });
+        nearest
+            .is_finite()
+            .then(|| self.center + (f + d * (nearest / d.length())) / self.inv_scale)
     }
 
     /// [`Occluders::occluded_between_planes`] for up to [`PACKET`] segments at once:
