@@ -339,6 +339,7 @@ fn main() {
         let cpu = cpu_seconds() - cpu0;
         let scale = n as f64 / timed.len() as f64;
         let (mut max_abs, mut sum_err, mut mean_abs) = (0.0f64, 0.0f64, 0.0f64);
+        let (mut sum_err_mean, mut sum_err_signed) = (0.0f64, 0.0f64);
         if !reference.is_empty() {
             let (rows, _, _) = run_rows(&e, &ref_idx, a.threads, checked_fn);
             for (r, want) in rows.iter().zip(&reference) {
@@ -352,8 +353,12 @@ fn main() {
                 mean_abs += s / n as f64;
                 let ws: f64 = want.iter().map(|&x| x as f64).sum();
                 sum_err = sum_err.max((r.true_sum() - ws).abs());
+                sum_err_mean += (r.true_sum() - ws).abs();
+                sum_err_signed += r.true_sum() - ws;
             }
             mean_abs /= reference.len() as f64;
+            sum_err_mean /= reference.len() as f64;
+            sum_err_signed /= reference.len() as f64;
         }
         let evaluated = c.pairs_evaluated.max(1) as f64;
         println!(
@@ -369,6 +374,12 @@ fn main() {
             sum_err,
             mean_abs
         );
+        if !reference.is_empty() {
+            println!(
+                "  row sums (stored + dropped) against the reference rows: mean |error| {sum_err_mean:.2e}, mean error {sum_err_signed:.2e}, max |error| {sum_err:.2e} over {} rows",
+                reference.len()
+            );
+        }
         println!(
             "  occluder triangles {occ_tris}; rays skipped by the top-k bound: {} of {} pairs needing rays; counters (timed rows): {c:?}",
             c.pairs_topk_tail_skipped,
