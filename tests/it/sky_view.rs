@@ -170,6 +170,60 @@ fn the_sky_view_at_the_foot_of_a_wall_is_one_minus_howell_c14() {
     }
 }
 
+/// Top-k rows of an open scene get their dropped mass from hemisphere rays (the header
+/// says so): the floor at the foot of the wall, with the rays' row totals, still has
+/// the sky view 1 − C-14 within their statistical error; with an `--occluders` mesh the
+/// header names the tree walk instead.
+#[test]
+fn top_k_row_totals_from_hemisphere_rays_give_the_sky_view_of_an_open_scene() {
+    let dir = tempfile::tempdir().unwrap();
+    write_mtl(dir.path());
+    let obj = dir.path().join("foot.obj");
+    std::fs::write(
+        &obj,
+        "mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 1 0.25 0\nv 0 0.25 0\nv 0 0 1\nv 1 0 1\n\
+         usemtl lit\ng floor\nf 1 2 3 4\ng wall\nf 1 5 6 2\n",
+    )
+    .unwrap();
+    let want_floor = 1.0 - howell_c14(0.25, 1.0);
+    // 1,024 rays a row; the tail (about 3,100 patches) is above twice that, so it is
+    // not evaluated in full.
+    let common = [
+        path_str(&obj),
+        "--max-edge",
+        "0.02",
+        "--top-k",
+        "2",
+        "--top-k-tail",
+        "1024",
+        "-q",
+        "-o",
+    ];
+    let ffz = dir.path().join("topk.ffz");
+    ok(&[&["compute"], &common[..], &[path_str(&ffz)]].concat());
+    let info = String::from_utf8(ffstream(&["info", path_str(&ffz)]).stdout).unwrap();
+    assert!(info.contains("dropped_mass=hemisphere:1024"), "{info}");
+    let s = sky_views(&ffz);
+    let (a, sa) = s
+        .iter()
+        .filter(|p| p.0 == "floor")
+        .fold((0.0, 0.0), |(a, sa), p| (a + p.1, sa + p.1 * p.2));
+    let floor = sa / a;
+    // About 650 floor patches × 1,024 rays: a standard error near 6e-4 at most.
+    println!("floor sky view {floor:.5} (1 − C-14: {want_floor:.5})");
+    assert!((floor - want_floor).abs() < 3e-3, "{floor} vs {want_floor}");
+
+    let other = dir.path().join("other.ffz");
+    ok(&[
+        &["compute"],
+        &common[..],
+        &[path_str(&other), "--occluders", path_str(&obj)],
+    ]
+    .concat());
+    let info = String::from_utf8(ffstream(&["info", path_str(&other)]).stdout).unwrap();
+    assert!(info.contains("dropped_mass=tree-walk:1024"), "{info}");
+}
+
 /// Every row of `from`, in file order.
 fn rows_of(from: &Path) -> (FfzReader, Vec<Row>) {
     let r = FfzReader::open(from).unwrap();
