@@ -117,6 +117,20 @@ fn an_open_square_sees_only_sky_and_a_closed_box_none() {
     assert_eq!(sky_line(&info), sky_line(&report), "{info}");
 }
 
+/// A floor strip 1 long and 0.25 deep at the foot of a wall 1 × 1 (groups `floor` and
+/// `wall`), with its MTL, in `dir`: the OBJ's path.
+fn write_wall_foot(dir: &Path) -> std::path::PathBuf {
+    write_mtl(dir);
+    let obj = dir.join("foot.obj");
+    std::fs::write(
+        &obj,
+        "mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 1 0.25 0\nv 0 0.25 0\nv 0 0 1\nv 1 0 1\n\
+         usemtl lit\ng floor\nf 1 2 3 4\ng wall\nf 1 5 6 2\n",
+    )
+    .unwrap();
+    obj
+}
+
 #[test]
 fn the_sky_view_at_the_foot_of_a_wall_is_one_minus_howell_c14() {
     // A floor strip 1 long (along the wall) and 0.25 deep at the foot of a wall 1 × 1,
@@ -124,14 +138,7 @@ fn the_sky_view_at_the_foot_of_a_wall_is_one_minus_howell_c14() {
     // view is 1 − F(floor → wall), Howell C-14 with W = 0.25, H = 1; the wall's is
     // 1 − (A_floor / A_wall) F(floor → wall) by reciprocity.
     let dir = tempfile::tempdir().unwrap();
-    write_mtl(dir.path());
-    let obj = dir.path().join("foot.obj");
-    std::fs::write(
-        &obj,
-        "mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 1 0.25 0\nv 0 0.25 0\nv 0 0 1\nv 1 0 1\n\
-         usemtl lit\ng floor\nf 1 2 3 4\ng wall\nf 1 5 6 2\n",
-    )
-    .unwrap();
+    let obj = write_wall_foot(dir.path());
     let f = howell_c14(0.25, 1.0);
     let want_floor = 1.0 - f;
     let want_wall = 1.0 - 0.25 * f;
@@ -177,14 +184,7 @@ fn the_sky_view_at_the_foot_of_a_wall_is_one_minus_howell_c14() {
 #[test]
 fn top_k_row_totals_from_hemisphere_rays_give_the_sky_view_of_an_open_scene() {
     let dir = tempfile::tempdir().unwrap();
-    write_mtl(dir.path());
-    let obj = dir.path().join("foot.obj");
-    std::fs::write(
-        &obj,
-        "mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 1 0.25 0\nv 0 0.25 0\nv 0 0 1\nv 1 0 1\n\
-         usemtl lit\ng floor\nf 1 2 3 4\ng wall\nf 1 5 6 2\n",
-    )
-    .unwrap();
+    let obj = write_wall_foot(dir.path());
     let want_floor = 1.0 - howell_c14(0.25, 1.0);
     // 1,024 rays a row; the tail (about 3,100 patches) is above twice that, so it is
     // not evaluated in full.
