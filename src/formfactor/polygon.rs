@@ -21,6 +21,15 @@ pub(crate) struct PolygonN<const N: usize> {
 /// A patch or a patch clipped by a plane.
 pub(crate) type Polygon = PolygonN<MAX_VERTS>;
 
+/// Whether `y` (in the plane of the convex polygon `v`) lies inside it, each edge
+/// widened by `tol`: `v` winds counter-clockwise seen from the side `normal` points to.
+pub(crate) fn convex_holds(v: &[DVec3], normal: DVec3, y: DVec3, tol: f64) -> bool {
+    (0..v.len()).all(|k| {
+        let (a, b) = (v[k], v[(k + 1) % v.len()]);
+        (b - a).cross(y - a).dot(normal) >= -tol * (b - a).length()
+    })
+}
+
 impl<const N: usize> PolygonN<N> {
     /// No vertex.
     pub(crate) const EMPTY: Self = PolygonN {

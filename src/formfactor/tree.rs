@@ -35,6 +35,7 @@ use std::f64::consts::PI;
 use glam::DVec3;
 
 use super::geom::{PatchBound, PatchGeom};
+use super::polygon::convex_holds;
 
 /// Patches a leaf holds at most.
 const LEAF_PATCHES: usize = 4;
@@ -210,13 +211,9 @@ impl PatchTree {
                 Kids::Inner(left, right) => stack.extend([left, right]),
                 Kids::Leaf => {
                     let on = |g: &PatchGeom| {
-                        let v = g.poly.verts();
                         g.normal.dot(dir) < 0.0
                             && (g.normal.dot(x) - g.offset).abs() <= tol
-                            && (0..v.len()).all(|k| {
-                                let (a, b) = (v[k], v[(k + 1) % v.len()]);
-                                (b - a).cross(x - a).dot(g.normal) >= -tol * (b - a).length()
-                            })
+                            && convex_holds(g.poly.verts(), g.normal, x, tol)
                     };
                     if self
                         .patches_under(id)

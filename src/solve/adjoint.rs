@@ -54,9 +54,7 @@ pub fn solve_adjoint(
         .map(|g| g.iter().map(|&x| [x; 3]).collect())
         .collect();
     let mut sys = System::new(src.patches(), &sets, rho, cfg.dropped)?;
-    if cfg.dropped == super::DroppedMass::Pool && src.may_drop() {
-        sys.measure_pool(src)?;
-    }
+    sys.prepare_pool(src)?;
     let (n, m) = (sys.n, sys.m);
     let patches = src.patches();
     let mut y = sys.e.clone();

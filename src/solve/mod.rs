@@ -289,12 +289,7 @@ pub fn solve(
         )));
     }
     let mut sys = System::new(src.patches(), emission_sets, rho, cfg.dropped)?;
-    let pool_passes = if cfg.dropped == DroppedMass::Pool && src.may_drop() {
-        sys.measure_pool(src)?;
-        1
-    } else {
-        0
-    };
+    let pool_passes = sys.prepare_pool(src)?;
     let mut it = match cfg.method {
         SolveMethod::Jacobi => jacobi::run(&sys, src, cfg)?,
         SolveMethod::GaussSeidel => gauss_seidel::run(&sys, src, cfg)?,

@@ -85,22 +85,22 @@ impl Pool {
                 return Ok(());
             };
             let a = sys.area[r];
-            let mut to_dark = 0.0;
+            let (mut stored, mut to_dark) = (0.0, 0.0);
             let reflecting = sys.reflects[r];
             view.visit(n, |x, f| {
                 if reflecting {
                     carried[x] += a * f;
                 }
                 shot_at[x] += a * f;
+                stored += f;
                 if !sys.reflects[x] {
                     to_dark += f;
                 }
             })?;
-            let d = row.dropped.max(0.0);
             if reflecting {
-                weight += a * d as f64;
+                weight += a * view.dropped;
             }
-            total[r] = Some(a * (row.stored_sum() + d as f64 - to_dark));
+            total[r] = Some(a * (stored + view.dropped - to_dark));
             Ok(())
         })?;
         let send = (0..n)

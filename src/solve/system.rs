@@ -31,11 +31,10 @@ pub(crate) struct System {
     pub(crate) emits: Vec<bool>,
     /// Patches that reflect nothing (`!reflects`), in index order.
     pub(crate) dark: Vec<u32>,
-    /// Scale top-k rows to their true sum ([`super::DroppedMass::Scale`], see
-    /// [`super::rowview`]).
-    pub(crate) scale_rows: bool,
+    /// What the solve does with the mass top-k rows dropped.
+    dropped: DroppedMass,
     /// The pool of light top-k rows do not carry ([`super::DroppedMass::Pool`]), once
-    /// measured ([`System::measure_pool`]).
+    /// measured ([`System::prepare_pool`]).
     pub(crate) pool: Option<Pool>,
     /// Rows seen that store nothing but have dropped mass (their light cannot be
     /// kept, spec §5.6), by row: their dropped mass (0: none, or not seen).
@@ -127,7 +126,7 @@ impl System {
             reflects,
             emits,
             dark,
-            scale_rows: dropped == DroppedMass::Scale,
+            dropped,
             pool: None,
             lost_mass: (0..n)
                 .map(|_| std::sync::atomic::AtomicU32::new(0))
@@ -325,7 +324,8 @@ impl System {
             .checked
             .get(row.index as usize)
             .is_none_or(|c| !c.swap(true, std::sync::atomic::Ordering::Relaxed));
-        let view = super::rowview::RowView::new(row, self.n, self.scale_rows, first_look)?;
+        let scale = self.dropped == DroppedMass::Scale;
+        let view = super::rowview::RowView::new(row, self.n, scale, first_look)?;
         if let Some(v) = &view {
             if v.lost > 0.0 {
                 if let Some(slot) = self.lost_mass.get(row.index as usize) {
@@ -336,13 +336,17 @@ impl System {
         Ok(view)
     }
 
-    /// Measure the pool of [`super::DroppedMass::Pool`] with one scan of `src`.
+    /// With [`super::DroppedMass::Pool`] and a source whose rows may drop mass, measure
+    /// the pool with one scan of `src`; returns the scans made (0 or 1).
     ///
     /// # Errors
     /// As [`Pool::measure`].
-    pub(crate) fn measure_pool(&mut self, src: &dyn RowSource) -> Result<(), SolveError> {
+    pub(crate) fn prepare_pool(&mut self, src: &dyn RowSource) -> Result<usize, SolveError> {
+        if self.dropped != DroppedMass::Pool || !src.may_drop() {
+            return Ok(0);
+        }
         self.pool = Some(Pool::measure(self, src)?);
-        Ok(())
+        Ok(1)
     }
 
     /// The pool's β for radiosity `b` (zeros without a pool).

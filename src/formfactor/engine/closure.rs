@@ -22,11 +22,16 @@
 //! not): the first surface a ray meets is then located among the patches by the patch
 //! tree. With another occluder mesh (`--occluders`) the walk's estimate is kept.
 
-use glam::DVec3;
-
 use super::{RowEngine, Scratch};
 use crate::formfactor::sampling::latin_pairs;
 use crate::formfactor::tree::PatchTree;
+
+/// Whether the row totals come from hemisphere rays with these occluders (that many
+/// triangles, from another mesh than the patches' or not): what the file header says
+/// (`RowEngine::description`) and what [`RowEngine::closure_total`] does.
+pub(super) fn hemisphere_totals(occluder_triangles: usize, other_mesh: bool) -> bool {
+    occluder_triangles > 0 && !other_mesh
+}
 
 /// Scratch space of [`RowEngine::closure_total`].
 #[derive(Debug, Default)]
@@ -46,7 +51,8 @@ impl RowEngine {
         t: usize,
         scratch: &mut Scratch,
     ) -> Option<f64> {
-        if !self.occluders.surfaces_are_patches || self.occluders.is_empty() || t == 0 {
+        if !hemisphere_totals(self.occluders.len(), !self.occluders.surfaces_are_patches) || t == 0
+        {
             return None;
         }
         let g = self
@@ -57,9 +63,7 @@ impl RowEngine {
         let mut rng = self.tail_rng(i);
         latin_pairs(&mut rng, t, &mut s.perms, &mut s.points);
         let n = g.normal;
-        let a = if n.x.abs() < 0.9 { DVec3::X } else { DVec3::Y };
-        let u = n.cross(a).normalize();
-        let v = n.cross(u);
+        let (u, v) = n.any_orthonormal_pair();
         // Start points on a jittered s × s grid when t is a square (a shadow edge
         // across the patch is then sampled in both directions), directions from the
         // Latin hypercube's other two coordinates.

@@ -290,7 +290,8 @@ impl RowEngine {
         let dropped = match (cfg.sparse_rows(), cfg.method, cfg.top_k_tail) {
             (false, ..) => String::new(),
             (true, Method::Contour, TopKTail::Sampled(t)) => {
-                let how = match (&cfg.top_k_search, occluder_triangles > 0 && !other_mesh) {
+                let hemisphere = closure::hemisphere_totals(occluder_triangles, other_mesh);
+                let how = match (&cfg.top_k_search, hemisphere) {
                     (crate::formfactor::TopKSearch::Tree, true) => "hemisphere",
                     (crate::formfactor::TopKSearch::Tree, false) => "tree-walk",
                     (crate::formfactor::TopKSearch::Exhaustive, _) => "sampled",

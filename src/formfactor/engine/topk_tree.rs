@@ -56,7 +56,7 @@ use glam::DVec3;
 use super::topk_bounded::{systematic, Kept};
 use super::{between, RowEngine, Scratch};
 use crate::formfactor::geom::{PatchBound, PatchGeom};
-use crate::formfactor::polygon::PolygonN;
+use crate::formfactor::polygon::{convex_holds, PolygonN};
 use crate::formfactor::sampling::SplitMix64;
 use crate::formfactor::shadow::{polygon_hides, Caster};
 use crate::formfactor::tree::{Kids, PatchTree};
@@ -164,14 +164,8 @@ impl Shade {
         let turn: f64 = (0..v.len())
             .map(|k| self.normal.dot(v[k].cross(v[(k + 1) % v.len()])))
             .sum();
-        let sign = turn.signum();
-        (0..v.len()).all(|k| {
-            let (a, b) = (v[k], v[(k + 1) % v.len()]);
-            let edge = b - a;
-            let len = edge.length();
-            q.iter()
-                .all(|&y| sign * self.normal.dot(edge.cross(y - a)) >= -tol * len)
-        })
+        let normal = turn.signum() * self.normal;
+        q.iter().all(|&y| convex_holds(v, normal, y, tol))
     }
 }
 

@@ -336,7 +336,8 @@ impl Occluders {
         let planes = self.normalized_planes(Some([plane, plane]));
         let ignore = self.ignored_faces((ignore, ignore));
         let f = self.to_norm(from);
-        let d = dir.normalize_or_zero() * 2.0;
+        let unit = dir.normalize_or_zero();
+        let d = unit * 2.0;
         let ray = SegmentRay::new(f, d)?;
         let seg = Segment::new(f, d)?;
         let mut nearest = f64::INFINITY;
@@ -351,9 +352,10 @@ impl Occluders {
                 false
             })
         });
+        // `t` of the exact test is a distance along the unit direction.
         nearest
             .is_finite()
-            .then(|| self.center + (f + d * (nearest / d.length())) / self.inv_scale)
+            .then(|| self.center + (f + unit * nearest) / self.inv_scale)
     }
 
     /// [`Occluders::occluded_between_planes`] for up to [`PACKET`] segments at once:
