@@ -12,6 +12,10 @@
 //!   --threads T     threads (default: 2)
 //!   --ref-rows M    random rows compared against the reference preset (default: 0)
 //!   --ref-mode MODE the reference rows from this mode instead (see `config_of`)
+//!   --ref-partial P up to P more reference rows among the partly hidden ones: rows of
+//!                   the first mode (every row computed once) whose total (stored +
+//!                   dropped) is neither within 1e-4 of 0 nor of 1 (in a closed scene,
+//!                   patches partly under a box: where row totals are hardest)
 //!   --occluders F   coarse OBJ for the `occluders` mode
 //! ```
 //!
@@ -42,6 +46,7 @@ struct Args {
     threads: usize,
     ref_rows: usize,
     ref_mode: Option<String>,
+    ref_partial: usize,
     occluders: Option<String>,
 }
 
@@ -54,6 +59,7 @@ fn parse_args() -> Args {
         threads: 2,
         ref_rows: 0,
         ref_mode: None,
+        ref_partial: 0,
         occluders: None,
     };
     let mut pos = 0;
@@ -67,6 +73,7 @@ fn parse_args() -> Args {
             "--threads" => a.threads = val().parse().unwrap_or(2),
             "--ref-rows" => a.ref_rows = val().parse().unwrap_or(0),
             "--ref-mode" => a.ref_mode = Some(val()),
+            "--ref-partial" => a.ref_partial = val().parse().unwrap_or(0),
             "--occluders" => a.occluders = Some(val()),
             _ => {
                 match pos {
@@ -185,7 +192,10 @@ fn sparse(i: u32, entries: &[(u32, f64)]) -> Row {
 /// top-k scaling series runs it), `fasttopkKx` (the same with `--top-k-search
 /// exhaustive`), `occluders` (the scene's faces as foreign occluders,
 /// i.e. `--occluders` with the scene's own OBJ), `fineocc` (occluders = the patches'
-/// own triangles, as if the OBJ were tessellated as finely as the patches), `exact`,
+/// own triangles, as if the OBJ were tessellated as finely as the patches), `qtolTOL`
+/// (the accurate preset with `--quad-tol TOL`), `minffEPS` (`--min-ff EPS`),
+/// `symmetricMODE` (MODE in half rows),
+/// `exact`,
 /// `exactTOL` or `exactTOLrN` (the accurate preset with `--visibility exact`,
 /// `--shadow-tol TOL`, `--samples N` for the pairs left to rays), `raysN` (the accurate
 /// preset with `--samples N`).
@@ -217,6 +227,19 @@ fn config_of(mode: &str) -> FormFactorConfig {
             c
         }
         "fast" => FormFactorConfig::fast(),
+        m if m.starts_with("symmetric") && m.len() > "symmetric".len() => {
+            config_of(&m["symmetric".len()..])
+        }
+        m if m.starts_with("minff") => {
+            // `minffEPS`: the accurate preset with `--min-ff EPS` (tree search).
+            base.with_min_ff(m["minff".len()..].parse().ok())
+        }
+        m if m.starts_with("qtol") => {
+            // `qtolTOL`: the accurate preset with `--quad-tol TOL`.
+            let mut c = base;
+            c.quad_tol = m["qtol".len()..].parse().unwrap_or(c.quad_tol);
+            c
+        }
         m if m.starts_with("exact") => {
             // `exact`, `exactTOL` or `exactTOLrN`: the accurate preset with
             // --visibility exact (--shadow-tol TOL), N rays for the pairs left to rays.
@@ -280,6 +303,23 @@ fn main() {
     let mut ref_idx: Vec<u32> = (0..a.ref_rows)
         .map(|_| (rng.next_f64() * n as f64) as u32)
         .collect();
+    if a.ref_partial > 0 {
+        let first = a.modes.first().map_or("default", String::as_str);
+        let e = RowEngine::new(&patches, Arc::clone(&fine), config_of(first));
+        let all: Vec<u32> = (0..n as u32).collect();
+        let (rows, _, wall) = run_rows(&e, &all, a.threads, full_row);
+        let partial: Vec<u32> = rows
+            .iter()
+            .filter(|r| (1e-4..=1.0 - 1e-4).contains(&r.true_sum()))
+            .map(|r| r.index)
+            .collect();
+        let take = a.ref_partial.min(partial.len());
+        println!(
+            "partly hidden rows ({first}, all {n} rows in {wall:.1} s): {} (total in [1e-4, 1 - 1e-4]); {take} of them, evenly spread, join the reference rows",
+            partial.len()
+        );
+        ref_idx.extend((0..take).map(|k| partial[k * partial.len() / take]));
+    }
     ref_idx.sort_unstable();
     ref_idx.dedup();
     let reference = if ref_idx.is_empty() {
@@ -330,19 +370,36 @@ fn main() {
         let occ_tris = occ.len();
         let e = RowEngine::new(&patches, occ, config_of(mode));
         let cpu0 = cpu_seconds();
-        let (timed_fn, checked_fn): (RowFn, RowFn) = if mode == "symmetric" {
+        let (timed_fn, checked_fn): (RowFn, RowFn) = if mode.starts_with("symmetric") {
             (half_row_all, half_row_as_stored)
         } else {
             (full_row, full_row)
         };
-        let (_, c, wall) = run_rows(&e, &timed, a.threads, timed_fn);
+        let (timed_rows, c, wall) = run_rows(&e, &timed, a.threads, timed_fn);
         let cpu = cpu_seconds() - cpu0;
+        let mut stored = 0usize;
+        for r in &timed_rows {
+            r.for_each_nonzero(|_, _| stored += 1);
+        }
         let scale = n as f64 / timed.len() as f64;
         let (mut max_abs, mut sum_err, mut mean_abs) = (0.0f64, 0.0f64, 0.0f64);
         let (mut sum_err_mean, mut sum_err_signed) = (0.0f64, 0.0f64);
+        let mut worst: Vec<(f64, String)> = Vec::new();
         if !reference.is_empty() {
             let (rows, _, _) = run_rows(&e, &ref_idx, a.threads, checked_fn);
             for (r, want) in rows.iter().zip(&reference) {
+                let ws: f64 = want.iter().map(|&x| x as f64).sum();
+                let d = r.true_sum() - ws;
+                worst.push((
+                    d.abs(),
+                    format!(
+                        "row {} total {:.6} reference {ws:.6} (stored {:.6}, dropped {:.6}): {d:+.2e}",
+                        r.index,
+                        r.true_sum(),
+                        r.true_sum() - r.dropped as f64,
+                        r.dropped
+                    ),
+                ));
                 let got = r.to_dense(n);
                 let mut s = 0.0;
                 for (g, w) in got.iter().zip(want) {
@@ -379,7 +436,16 @@ fn main() {
                 "  row sums (stored + dropped) against the reference rows: mean |error| {sum_err_mean:.2e}, mean error {sum_err_signed:.2e}, max |error| {sum_err:.2e} over {} rows",
                 reference.len()
             );
+            worst.sort_by(|a, b| b.0.total_cmp(&a.0));
+            for (_, line) in worst.iter().take(5) {
+                println!("    {line}");
+            }
         }
+        println!(
+            "  nonzero entries per timed row: {:.1} (all rows: {:.3e})",
+            stored as f64 / timed.len() as f64,
+            stored as f64 * scale
+        );
         println!(
             "  occluder triangles {occ_tris}; rays skipped by the top-k bound: {} of {} pairs needing rays; counters (timed rows): {c:?}",
             c.pairs_topk_tail_skipped,

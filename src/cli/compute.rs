@@ -59,6 +59,12 @@ pub(crate) struct ComputeOptions {
     /// reference 1e-6; see README for cost against accuracy).
     #[arg(long, value_name = "TOL", value_parser = number::tolerance)]
     pub shadow_tol: Option<f64>,
+    /// contour: target relative error of each entry's unoccluded part (the quadrature
+    /// of the contour integral and of the far-field rule). Default: the preset's, fast
+    /// 1e-6, accurate 1e-8, reference 1e-13. Looser is cheaper: see README, "Cost
+    /// against accuracy".
+    #[arg(long, value_name = "TOL", value_parser = number::tolerance)]
+    pub quad_tol: Option<f64>,
     /// Visibility samples per pair (mc: point pairs; contour: rays per pair that may be
     /// occluded, all of them cast unless --first-batch is also given). 1 to 65536.
     #[arg(long, value_name = "S", value_parser = clap::value_parser!(u32).range(1..=i64::from(MAX_SAMPLES)))]
@@ -387,6 +393,12 @@ fn form_factor_config(o: &ComputeOptions) -> anyhow::Result<FormFactorConfig> {
             bail!("--shadow-tol applies to exact visibility: add --visibility exact (this preset's visibility is rays)");
         }
         cfg.shadow_tol = t;
+    }
+    if let Some(t) = o.quad_tol {
+        if cfg.method != Method::Contour {
+            bail!("--quad-tol applies to --method contour only");
+        }
+        cfg.quad_tol = t;
     }
     if o.visibility.is_some() && cfg.method != Method::Contour {
         bail!(

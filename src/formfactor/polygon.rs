@@ -54,7 +54,6 @@ impl<const N: usize> PolygonN<N> {
 
     /// Vector area (½ Σ v_k × v_{k+1}): its length is the area, its direction the
     /// normal of the side the contour winds counter-clockwise around.
-    #[cfg(test)]
     pub(crate) fn vector_area(&self) -> DVec3 {
         if self.n < 3 {
             return DVec3::ZERO;

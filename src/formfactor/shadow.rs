@@ -59,7 +59,7 @@ use super::polygon::{Polygon, PolygonN};
 
 /// A receiver piece: `P_j` (at most 8 vertices) clipped by the four planes of a cone
 /// (one vertex more per plane).
-type Piece = PolygonN<16>;
+pub(crate) type Piece = PolygonN<16>;
 
 /// Most pieces the union of the shadows of one point may be cut into before the
 /// pair goes to rays.
@@ -487,7 +487,7 @@ pub(crate) fn polygon_hides(
 }
 
 /// Most cells [`split_at_events`] cuts P_i into.
-const MAX_CELLS: usize = 64;
+pub(crate) const MAX_CELLS: usize = 64;
 
 /// Cuts P_i into convex cells along the lines where the shadows change shape (where
 /// the integrand has kinks), so that the rule sees a smooth integrand on each: the
@@ -560,7 +560,7 @@ fn ray_meets_segment(x: DVec3, v: DVec3, a: DVec3, b: DVec3) -> bool {
 /// happens along only part of the line: elsewhere the line is no kink), up to
 /// [`MAX_CELLS`] cells. Returns whether every cell the plane crosses where it matters
 /// was cut.
-fn cut(
+pub(crate) fn cut(
     cells: &mut Vec<Piece>,
     a: DVec3,
     b: DVec3,

@@ -116,7 +116,9 @@ impl HalfRowBuffer {
             if bucket.is_empty() {
                 continue;
             }
-            bucket.sort_unstable_by_key(|&(r, c, _)| (r, c));
+            // One u64 key per entry: a tenth of a dense symmetric run's CPU went into
+            // comparing (r, c) tuples here (bench/PERF.md §25).
+            bucket.sort_unstable_by_key(|&(r, c, _)| (u64::from(r) << 32) | u64::from(c));
             let mut rows: Vec<Row> = Vec::new();
             for &(r, c, v) in bucket.iter() {
                 match rows.last_mut() {

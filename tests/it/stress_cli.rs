@@ -328,6 +328,7 @@ fn option_values_out_of_range_are_refused_at_once_naming_the_range() {
         (&compute, "--max-edge=-inf", "finite number > 0"),
         (&compute, "--max-edge=nan", "finite number > 0"),
         (&compute, "--shadow-tol=1", "(0, 0.1]"),
+        (&compute, "--quad-tol=0", "(0, 0.1]"),
         (&["run", "no.obj"], "--samples=0", "1..=65536"),
         (
             &["solve", "no.ffz", "-o", "r.csv"],
@@ -568,7 +569,8 @@ fn explicit_samples_never_inherit_an_early_stop() {
 }
 
 /// Options that would change nothing are refused, not dropped: a shadow tolerance
-/// without exact visibility, a visibility mode for a kernel that casts its own rays.
+/// without exact visibility, a visibility mode for a kernel that casts its own rays,
+/// a quadrature tolerance for a kernel without quadrature.
 #[test]
 fn visibility_options_that_would_do_nothing_are_refused() {
     let dir = tempfile::tempdir().unwrap();
@@ -581,6 +583,10 @@ fn visibility_options_that_would_do_nothing_are_refused() {
         (
             &["--method", "mc", "--visibility", "exact"][..],
             "--visibility applies to --method contour",
+        ),
+        (
+            &["--method", "point", "--quad-tol", "1e-3"][..],
+            "--quad-tol applies to --method contour",
         ),
     ] {
         let mut args = vec!["compute", "builtin:obstructed", "-q", "-o", path_str(&out)];
@@ -617,6 +623,22 @@ fn visibility_options_that_would_do_nothing_are_refused() {
             "{extra:?}: {text}"
         );
     }
+    // --quad-tol is taken and recorded (the header's key, so a resume compares it).
+    crate::common::ok(&[
+        "compute",
+        "builtin:obstructed",
+        "-q",
+        "--force",
+        "--max-edge",
+        "0.5",
+        "--quad-tol",
+        "1e-3",
+        "-o",
+        path_str(&out),
+    ]);
+    let info = ffstream(&["info", path_str(&out)]);
+    let text = String::from_utf8_lossy(&info.stdout);
+    assert!(text.contains("quad_tol=1e-3"), "{text}");
 }
 
 /// Issue 20 item 5: a mesh far too fine for its file used to be subdivided (seconds,

@@ -321,9 +321,9 @@ impl Occluders {
     }
 
     /// The first point where the ray from `from` along `dir` (world units, any length)
-    /// meets a triangle within twice the scene's diagonal, ignoring triangles of face
-    /// `ignore` (native occluders) or lying in `plane` = (unit normal, offset), world
-    /// units (foreign ones): the ray's own surface. `None` when it meets nothing. Every
+    /// meets a triangle within twice the scene's diagonal (from distance 0 on), ignoring
+    /// triangles of face `ignore` (native occluders) and those lying in `plane` =
+    /// (unit normal, offset), world units: the ray's own surface. `None` when it meets nothing. Every
     /// triangle the ray may meet is tested exactly (no early exit), keeping the nearest.
     pub(crate) fn first_hit(
         &self,
@@ -339,7 +339,12 @@ impl Occluders {
         let unit = dir.normalize_or_zero();
         let d = unit * 2.0;
         let ray = SegmentRay::new(f, d)?;
-        let seg = Segment::new(f, d)?;
+        let mut seg = Segment::new(f, d)?;
+        // Hits from the start on: the ray's own surface is left out by its plane, and
+        // a surface standing next to the start point (a box's wall a few ray
+        // tolerances away) must stop it, or it passes into the box and the start
+        // point seems to see nothing (one ray in ~40 rows of floor beside a box).
+        seg.t0 = 0.0;
         let mut nearest = f64::INFINITY;
         by_axes!(seg.sheared.axes, |KX, KY, KZ| {
             bvh.any_hit(&ray, ignore, false, |id| {
@@ -356,6 +361,41 @@ impl Occluders {
         nearest
             .is_finite()
             .then(|| self.center + (f + unit * nearest) / self.inv_scale)
+    }
+
+    /// Calls `visit` with every triangle (world units) that stands on the plane
+    /// `plane` = (unit normal, offset, world units) near the box [lo, hi] (world
+    /// units): its own box overlaps [lo, hi] widened by `tol`, and one or two of its
+    /// corners, not three, lie within `tol` of the plane (a wall of a box standing on
+    /// a floor; a triangle lying in the plane is left out).
+    pub(crate) fn standing_on(
+        &self,
+        lo: DVec3,
+        hi: DVec3,
+        plane: (DVec3, f64),
+        tol: f64,
+        mut visit: impl FnMut([DVec3; 3]),
+    ) {
+        let Some(bvh) = &self.bvh else { return };
+        let (lo, hi) = (lo - DVec3::splat(tol), hi + DVec3::splat(tol));
+        let (nlo, nhi) = (self.to_norm(lo), self.to_norm(hi));
+        bvh.for_each_in_box(
+            nlo,
+            nhi,
+            |_, _| true,
+            |k| {
+                let v = self.world_triangle(k as u32);
+                let (tlo, thi) = (v[0].min(v[1]).min(v[2]), v[0].max(v[1]).max(v[2]));
+                let on = v
+                    .iter()
+                    .filter(|p| (plane.0.dot(**p) - plane.1).abs() <= tol)
+                    .count();
+                if (1..3).contains(&on) && tlo.cmple(hi).all() && thi.cmpge(lo).all() {
+                    visit(v);
+                }
+                false
+            },
+        );
     }
 
     /// [`Occluders::occluded_between_planes`] for up to [`PACKET`] segments at once:

@@ -738,3 +738,41 @@ fn box_walk_offers_every_overlapping_triangle() {
         }
     }
 }
+
+#[test]
+fn first_hit_meets_a_wall_right_beside_its_start() {
+    // Floor (face 0, z = 0) and a wall standing on it (face 1, x = 0.5). A ray from
+    // the floor a hair (1e-8 of the diagonal, below the ray tolerance) in front of
+    // the wall, heading into it, must stop at the wall: the hemisphere row totals
+    // count such a ray as seeing nothing if it passes into what stands behind.
+    let mut tris = quad(
+        0,
+        [
+            dvec3(0.0, 0.0, 0.0),
+            dvec3(1.0, 0.0, 0.0),
+            dvec3(1.0, 1.0, 0.0),
+            dvec3(0.0, 1.0, 0.0),
+        ],
+    );
+    tris.extend(quad(
+        1,
+        [
+            dvec3(0.5, 0.0, 0.0),
+            dvec3(0.5, 1.0, 0.0),
+            dvec3(0.5, 1.0, 1.0),
+            dvec3(0.5, 0.0, 1.0),
+        ],
+    ));
+    for occ in [Occluders::new(tris.clone()), Occluders::new_foreign(tris)] {
+        let gap = 1e-8 * occ.diagonal();
+        let from = dvec3(0.5 - gap, 0.5, 0.0);
+        let floor = (DVec3::Z, 0.0);
+        let hit = occ
+            .first_hit(from, dvec3(1.0, 0.0, 1.0), 0, floor)
+            .expect("the wall stops the ray");
+        assert!((hit.x - 0.5).abs() < 1e-12, "{hit}");
+        assert!(hit.z > 0.0 && hit.z < 2.0 * gap, "{hit}");
+        // Away from the wall the ray meets nothing (no surface of the floor's own).
+        assert_eq!(occ.first_hit(from, dvec3(-1.0, 0.0, 1.0), 0, floor), None);
+    }
+}
