@@ -55,6 +55,52 @@ pub(crate) fn in_run(todo: &[u32], n: u32) -> Vec<bool> {
     v
 }
 
+/// The rows of one bucket (entries of rows `base..base + len`), each with its columns
+/// ascending: the entries are counted and placed per row in the order they came (a
+/// counting sort), and a row whose columns did not come in order is sorted. A
+/// comparison sort of the whole bucket took a tenth of a dense symmetric run's CPU
+/// (bench/PERF.md §25). The same rows whatever order the entries came in.
+fn rows_of_bucket(bucket: &[(u32, u32, f32)], base: u32, len: u32) -> Vec<Row> {
+    let mut slot = vec![0u32; len as usize];
+    for &(r, _, _) in bucket {
+        slot[(r - base) as usize] += 1;
+    }
+    let mut rows: Vec<Row> = Vec::new();
+    for (o, s) in slot.iter_mut().enumerate() {
+        let count = *s as usize;
+        if count > 0 {
+            *s = rows.len() as u32;
+            rows.push(Row {
+                index: base + o as u32,
+                values: RowValues::Sparse {
+                    cols: Vec::with_capacity(count),
+                    vals: Vec::with_capacity(count),
+                },
+                dropped: 0.0,
+            });
+        }
+    }
+    for &(r, c, v) in bucket {
+        if let RowValues::Sparse { cols, vals } =
+            &mut rows[slot[(r - base) as usize] as usize].values
+        {
+            cols.push(c);
+            vals.push(v);
+        }
+    }
+    for row in &mut rows {
+        if let RowValues::Sparse { cols, vals } = &mut row.values {
+            if !cols.is_sorted() {
+                let mut pairs: Vec<(u32, f32)> =
+                    cols.iter().copied().zip(vals.iter().copied()).collect();
+                pairs.sort_unstable_by_key(|p| p.0);
+                (*cols, *vals) = pairs.into_iter().unzip();
+            }
+        }
+    }
+    rows
+}
+
 /// Worker side: entries of finished half rows, bucketed by destination block.
 pub(crate) struct HalfRowBuffer {
     n: u32,
@@ -112,34 +158,12 @@ impl HalfRowBuffer {
         // A piece's rows hold at most n entries: the top-k layout with k = n is the
         // partial-row container (never written to the .ffz file itself).
         let layout = Layout::TopK { k: self.n };
-        for bucket in &mut self.buckets {
+        for (k, bucket) in self.buckets.iter_mut().enumerate() {
             if bucket.is_empty() {
                 continue;
             }
-            // One u64 key per entry: a tenth of a dense symmetric run's CPU went into
-            // comparing (r, c) tuples here (bench/PERF.md §25).
-            bucket.sort_unstable_by_key(|&(r, c, _)| (u64::from(r) << 32) | u64::from(c));
-            let mut rows: Vec<Row> = Vec::new();
-            for &(r, c, v) in bucket.iter() {
-                match rows.last_mut() {
-                    Some(Row {
-                        index,
-                        values: RowValues::Sparse { cols, vals },
-                        ..
-                    }) if *index == r => {
-                        cols.push(c);
-                        vals.push(v);
-                    }
-                    _ => rows.push(Row {
-                        index: r,
-                        values: RowValues::Sparse {
-                            cols: vec![c],
-                            vals: vec![v],
-                        },
-                        dropped: 0.0,
-                    }),
-                }
-            }
+            let base = k as u32 * self.block;
+            let rows = rows_of_bucket(bucket, base, self.block.min(self.n - base));
             // Free the bucket rather than keep its capacity: which blocks receive the
             // most entries shifts as the run goes on, and kept capacities would add up.
             *bucket = Vec::new();
@@ -438,6 +462,39 @@ mod tests {
         let rest: Vec<u32> = (2 * b..n).rev().collect();
         let ready = f.finish(&rest).unwrap();
         assert_eq!(ready, (2..n.div_ceil(b)).collect::<Vec<_>>());
+    }
+
+    #[test]
+    fn a_bucket_gives_the_same_rows_whatever_order_its_entries_came_in() {
+        // Rows 10..14 of a bucket; entries of row 11 and 13 arrive out of column order.
+        let entries = [
+            (11, 7, 1.0),
+            (13, 2, 2.0),
+            (11, 3, 3.0),
+            (10, 1, 4.0),
+            (13, 9, 5.0),
+            (11, 12, 6.0),
+            (13, 0, 7.0),
+        ];
+        let want = |order: &[(u32, u32, f32)]| {
+            let mut sorted = order.to_vec();
+            sorted.sort_by_key(|e| (e.0, e.1));
+            sorted
+        };
+        let flat = |rows: Vec<Row>| {
+            let mut out = Vec::new();
+            for r in rows {
+                r.for_each_nonzero(|c, v| out.push((r.index, c, v)));
+            }
+            out
+        };
+        let mut reversed = entries;
+        reversed.reverse();
+        for order in [&entries[..], &reversed[..]] {
+            let rows = rows_of_bucket(order, 10, 5);
+            assert_eq!(rows.len(), 3);
+            assert_eq!(flat(rows), want(order));
+        }
     }
 
     #[test]
