@@ -26,6 +26,9 @@ $T ff-builtin -- $F compute builtin:cube --max-edge 0.03125 --threads 1 -q --for
 $T ff-facets -- $F compute facets.obj --max-edge 0.03126 --threads 1 -q --force -o facets.ffz
 $T ff-facets-fast -- $F compute facets.obj --max-edge 0.03126 --threads 1 -q --force -o fast.ffz --preset fast
 $T ff-facets-nomerge -- $F compute facets.obj --max-edge 0.03126 --threads 1 -q --force -o nomerge.ffz --no-merge-occluders
+$T ff-facets-qtol1e-3 -- $F compute facets.obj --max-edge 0.03126 --threads 1 -q --force -o qtol1e-3.ffz --quad-tol 1e-3
+$T ff-facets-qtol1e-1 -- $F compute facets.obj --max-edge 0.03126 --threads 1 -q --force -o qtol1e-1.ffz --quad-tol 0.1
 (cd v3d && $PYTHON "$HERE/timed.py" ../times.json v3d-default -- "$VIEW3D" ../v3d_default.vs3 F.bin)
 uptime >> load.txt
-$PYTHON "$HERE/cube_compare.py" facets.obj ff-facets=facets.ffz ff-facets-fast=fast.ffz v3d-default=v3d/F.bin
+$PYTHON "$HERE/cube_compare.py" facets.obj ff-facets=facets.ffz ff-facets-fast=fast.ffz \
+  ff-facets-qtol1e-3=qtol1e-3.ffz ff-facets-qtol1e-1=qtol1e-1.ffz v3d-default=v3d/F.bin
