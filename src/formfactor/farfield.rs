@@ -45,6 +45,33 @@ pub(crate) struct PatchLanes {
 }
 
 impl PatchLanes {
+    /// The points of [`PatchPoints::on`] written straight into lanes (no
+    /// intermediate [`PatchPoints`]: the far pair's j side, built per pair).
+    pub(crate) fn on(map: &PatchMap, q: usize, gauss: &GaussTable) -> Self {
+        let mut out = PatchLanes {
+            x: [0.0; MAX_FAR_ORDER * MAX_FAR_ORDER],
+            y: [0.0; MAX_FAR_ORDER * MAX_FAR_ORDER],
+            z: [0.0; MAX_FAR_ORDER * MAX_FAR_ORDER],
+            w: [0.0; MAX_FAR_ORDER * MAX_FAR_ORDER],
+            len: 0,
+        };
+        let mut n = 0;
+        for_each_point(map, q, gauss, |p, w| {
+            out.x[n] = p.x;
+            out.y[n] = p.y;
+            out.z[n] = p.z;
+            out.w[n] = w;
+            n += 1;
+        });
+        out.len = n.div_ceil(LANES) * LANES;
+        // Padding repeats the first point with weight 0 (no division by zero).
+        for k in n..out.len {
+            (out.x[k], out.y[k], out.z[k], out.w[k]) = (out.x[0], out.y[0], out.z[0], 0.0);
+        }
+        out
+    }
+
+    #[cfg(test)]
     pub(crate) fn new(p: &PatchPoints) -> Self {
         let len = p.n.div_ceil(LANES) * LANES;
         let mut out = PatchLanes {
@@ -110,51 +137,67 @@ impl PatchPoints {
     }
 
     /// As `PatchPoints::new` (tests) on the patch whose map is `map` (built once per patch,
-    /// not once per pair): triangles through the collapsed square, quads through the
-    /// bilinear map of sampling (affine with a constant Jacobian for parallelograms).
+    /// not once per pair).
     pub(crate) fn on(map: &PatchMap, q: usize, gauss: &GaussTable) -> Self {
-        let q = q.clamp(1, MAX_FAR_ORDER);
-        let rule = gauss.rule(q);
         let mut out = PatchPoints {
             p: [DVec3::ZERO; MAX_FAR_ORDER * MAX_FAR_ORDER],
             w: [0.0; MAX_FAR_ORDER * MAX_FAR_ORDER],
             n: 0,
         };
-        if let (MAX_FAR_ORDER, PatchMap::Parallelogram { o, e1, e2, area }) = (q, *map) {
-            // Under an affine map a polynomial keeps its total degree, so the 12-point
-            // rule of total degree 7 does what the 4 × 4 product rule (16 points, also
-            // degree 7 in each variable) does for these integrands: the same ρ^(−8)
-            // convergence, checked against the same bound by `calibrate`.
-            for &(x, y, w) in &degree7_square_rule() {
-                out.p[out.n] = o + e1 * (0.5 * (x + 1.0)) + e2 * (0.5 * (y + 1.0));
-                out.w[out.n] = 0.25 * w * area;
-                out.n += 1;
-            }
-            return out;
-        }
-        for &(xu, wu) in rule {
-            for &(xv, wv) in rule {
-                let (s, t) = (0.5 * (xu + 1.0), 0.5 * (xv + 1.0));
-                let w = 0.25 * wu * wv;
-                let (p, j) = match *map {
-                    PatchMap::Triangle { a, b, c, area } => {
-                        (a + (b - a) * s + (c - b) * (s * t), 2.0 * area * s)
-                    }
-                    _ => map.eval(s, t),
-                };
-                out.p[out.n] = p;
-                out.w[out.n] = w * j;
-                out.n += 1;
-            }
-        }
+        for_each_point(map, q, gauss, |p, w| {
+            out.p[out.n] = p;
+            out.w[out.n] = w;
+            out.n += 1;
+        });
         out
+    }
+}
+
+/// Calls `f(point, area weight)` for each point of the q × q rule (q clamped to
+/// 1..=MAX_FAR_ORDER) on the patch whose map is `map`: triangles through the collapsed
+/// square, quads through the bilinear map of sampling (affine with a constant
+/// Jacobian for parallelograms).
+fn for_each_point(map: &PatchMap, q: usize, gauss: &GaussTable, mut f: impl FnMut(DVec3, f64)) {
+    let q = q.clamp(1, MAX_FAR_ORDER);
+    if let (MAX_FAR_ORDER, PatchMap::Parallelogram { o, e1, e2, area }) = (q, *map) {
+        // Under an affine map a polynomial keeps its total degree, so the 12-point
+        // rule of total degree 7 does what the 4 × 4 product rule (16 points, also
+        // degree 7 in each variable) does for these integrands: the same ρ^(−8)
+        // convergence, checked against the same bound by `calibrate`.
+        for &(x, y, w) in degree7_square_rule() {
+            f(
+                o + e1 * (0.5 * (x + 1.0)) + e2 * (0.5 * (y + 1.0)),
+                0.25 * w * area,
+            );
+        }
+        return;
+    }
+    let rule = gauss.rule(q);
+    for &(xu, wu) in rule {
+        for &(xv, wv) in rule {
+            let (s, t) = (0.5 * (xu + 1.0), 0.5 * (xv + 1.0));
+            let w = 0.25 * wu * wv;
+            let (p, j) = match *map {
+                PatchMap::Triangle { a, b, c, area } => {
+                    (a + (b - a) * s + (c - b) * (s * t), 2.0 * area * s)
+                }
+                _ => map.eval(s, t),
+            };
+            f(p, w * j);
+        }
     }
 }
 
 /// A 12-point rule on [−1, 1]² exact for every polynomial of total degree ≤ 7 (Stroud,
 /// "Approximate Calculation of Multiple Integrals", 1971, C2: 7-3): (x, y, weight),
 /// weights summing to 4, every point inside the square.
-fn degree7_square_rule() -> [(f64, f64, f64); 12] {
+fn degree7_square_rule() -> &'static [(f64, f64, f64); 12] {
+    // Built once: its square roots were taken for every far pair before.
+    static RULE: std::sync::OnceLock<[(f64, f64, f64); 12]> = std::sync::OnceLock::new();
+    RULE.get_or_init(degree7_square_rule_uncached)
+}
+
+fn degree7_square_rule_uncached() -> [(f64, f64, f64); 12] {
     let s583 = 583f64.sqrt();
     let r = (6.0f64 / 7.0).sqrt();
     let s = ((114.0 - 3.0 * s583) / 287.0).sqrt();

@@ -101,6 +101,12 @@ fn rows_of_bucket(bucket: &[(u32, u32, f32)], base: u32, len: u32) -> Vec<Row> {
     rows
 }
 
+/// zstd level of the half-row pieces. They are transient (rank 0 spills them, then
+/// decodes them into whole rows that it compresses at the file's level), so a fast
+/// level of zstd's negative range serves: they are compressed once and decoded once,
+/// and only the spill file and the messages grow a little (bench/PERF.md §25).
+pub(crate) const PIECE_ZSTD_LEVEL: i32 = -3;
+
 /// Worker side: entries of finished half rows, bucketed by destination block.
 pub(crate) struct HalfRowBuffer {
     n: u32,

@@ -21,7 +21,7 @@ use crate::formfactor::{RowEngine, Scratch};
 use crate::rows::Row;
 use crate::service::link::WorkerLink;
 use crate::service::rss::peak_rss_bytes;
-use crate::service::symmetric::{in_run, HalfRowBuffer};
+use crate::service::symmetric::{in_run, HalfRowBuffer, PIECE_ZSTD_LEVEL};
 use crate::service::{ComputeJob, PairRoutes, ServiceError, WorkerStats};
 
 /// Environment variable that makes a worker fail on purpose when it reaches this row
@@ -340,7 +340,7 @@ impl Pending {
                 *bytes = 0;
                 msg
             }
-            Pending::Half { buf, .. } => match buf.flush(cfg.zstd_level) {
+            Pending::Half { buf, .. } => match buf.flush(PIECE_ZSTD_LEVEL) {
                 Ok((pieces, rows)) => FromCompute::Pieces { pieces, rows },
                 Err(e) => FromCompute::Failed {
                     row: None,

@@ -532,8 +532,7 @@ impl RowEngine {
             scratch.pair.counters.pairs_far_field += 1;
             let pts_i = scratch.far_points_of(self.id, i, q, gi, self.gauss);
             {
-                let pts_j = PatchPoints::on(&gj.map, q, self.gauss);
-                let lanes = PatchLanes::new(&pts_j);
+                let lanes = PatchLanes::on(&gj.map, q, self.gauss);
                 farfield::area_form_factor_soa(pts_i, gi.normal, lanes.slice(), gj.normal)
             }
         } else {
