@@ -48,52 +48,46 @@ impl PatchLanes {
     /// The points of [`PatchPoints::on`] written straight into lanes (no
     /// intermediate [`PatchPoints`]: the far pair's j side, built per pair).
     pub(crate) fn on(map: &PatchMap, q: usize, gauss: &GaussTable) -> Self {
-        let mut out = PatchLanes {
-            x: [0.0; MAX_FAR_ORDER * MAX_FAR_ORDER],
-            y: [0.0; MAX_FAR_ORDER * MAX_FAR_ORDER],
-            z: [0.0; MAX_FAR_ORDER * MAX_FAR_ORDER],
-            w: [0.0; MAX_FAR_ORDER * MAX_FAR_ORDER],
-            len: 0,
-        };
-        let mut n = 0;
-        for_each_point(map, q, gauss, |p, w| {
-            out.x[n] = p.x;
-            out.y[n] = p.y;
-            out.z[n] = p.z;
-            out.w[n] = w;
-            n += 1;
-        });
-        out.len = n.div_ceil(LANES) * LANES;
-        // Padding repeats the first point with weight 0 (no division by zero).
-        for k in n..out.len {
-            (out.x[k], out.y[k], out.z[k], out.w[k]) = (out.x[0], out.y[0], out.z[0], 0.0);
-        }
+        let mut out = Self::empty();
+        for_each_point(map, q, gauss, |p, w| out.push(p, w));
+        out.pad();
         out
     }
 
     #[cfg(test)]
     pub(crate) fn new(p: &PatchPoints) -> Self {
-        let len = p.n.div_ceil(LANES) * LANES;
-        let mut out = PatchLanes {
+        let mut out = Self::empty();
+        for k in 0..p.n {
+            out.push(p.p[k], p.w[k]);
+        }
+        out.pad();
+        out
+    }
+
+    fn empty() -> Self {
+        PatchLanes {
             x: [0.0; MAX_FAR_ORDER * MAX_FAR_ORDER],
             y: [0.0; MAX_FAR_ORDER * MAX_FAR_ORDER],
             z: [0.0; MAX_FAR_ORDER * MAX_FAR_ORDER],
             w: [0.0; MAX_FAR_ORDER * MAX_FAR_ORDER],
-            len,
-        };
-        for k in 0..len {
-            // Padding repeats the first point with weight 0 (no division by zero).
-            let (pt, w) = if k < p.n {
-                (p.p[k], p.w[k])
-            } else {
-                (p.p[0], 0.0)
-            };
-            out.x[k] = pt.x;
-            out.y[k] = pt.y;
-            out.z[k] = pt.z;
-            out.w[k] = w;
+            len: 0,
         }
-        out
+    }
+
+    fn push(&mut self, p: DVec3, w: f64) {
+        let k = self.len;
+        (self.x[k], self.y[k], self.z[k], self.w[k]) = (p.x, p.y, p.z, w);
+        self.len += 1;
+    }
+
+    /// Rounds the length up to a multiple of [`LANES`]: the padding repeats the first
+    /// point with weight 0 (no division by zero).
+    fn pad(&mut self) {
+        let n = self.len;
+        self.len = n.div_ceil(LANES) * LANES;
+        for k in n..self.len {
+            (self.x[k], self.y[k], self.z[k], self.w[k]) = (self.x[0], self.y[0], self.z[0], 0.0);
+        }
     }
 
     pub(crate) fn slice(&self) -> FarSlice<'_> {

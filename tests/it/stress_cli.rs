@@ -599,10 +599,18 @@ fn visibility_options_that_would_do_nothing_are_refused() {
         );
         assert!(!out.exists(), "{extra:?}: a file was written");
     }
-    // With exact visibility (asked for, or the reference preset's) the tolerance is taken.
-    for extra in [
-        &["--visibility", "exact", "--shadow-tol", "1e-4"][..],
-        &["--preset", "reference", "--shadow-tol", "1e-4"][..],
+    // With exact visibility (asked for, or the reference preset's) the tolerance is
+    // taken, and so is --quad-tol; the header records them (a resume compares them).
+    for (extra, want) in [
+        (
+            &["--visibility", "exact", "--shadow-tol", "1e-4"][..],
+            "visibility=exact shadow_tol=1e-4",
+        ),
+        (
+            &["--preset", "reference", "--shadow-tol", "1e-4"][..],
+            "visibility=exact shadow_tol=1e-4",
+        ),
+        (&["--quad-tol", "1e-3"][..], "quad_tol=1e-3"),
     ] {
         let mut args = vec![
             "compute",
@@ -618,27 +626,8 @@ fn visibility_options_that_would_do_nothing_are_refused() {
         crate::common::ok(&args);
         let info = ffstream(&["info", path_str(&out)]);
         let text = String::from_utf8_lossy(&info.stdout);
-        assert!(
-            text.contains("visibility=exact shadow_tol=1e-4"),
-            "{extra:?}: {text}"
-        );
+        assert!(text.contains(want), "{extra:?}: {text}");
     }
-    // --quad-tol is taken and recorded (the header's key, so a resume compares it).
-    crate::common::ok(&[
-        "compute",
-        "builtin:obstructed",
-        "-q",
-        "--force",
-        "--max-edge",
-        "0.5",
-        "--quad-tol",
-        "1e-3",
-        "-o",
-        path_str(&out),
-    ]);
-    let info = ffstream(&["info", path_str(&out)]);
-    let text = String::from_utf8_lossy(&info.stdout);
-    assert!(text.contains("quad_tol=1e-3"), "{text}");
 }
 
 /// Issue 20 item 5: a mesh far too fine for its file used to be subdivided (seconds,

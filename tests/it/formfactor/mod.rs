@@ -460,12 +460,7 @@ fn floor_under_a_bottomless_box_stays_dark() {
     let mut b = Built::default();
     b.face("floor", DVec3::ZERO, x, y, 4, false);
     b.face("ceiling", z, y, x, 4, false);
-    let (lo, w, h) = (dvec3(0.25, 0.25, 0.0), 0.5, 0.5);
-    b.face("box_top", lo + z * h, x * w, y * w, 2, false);
-    b.face("box_x0", lo, z * h, y * w, 2, false);
-    b.face("box_x1", lo + x * w, y * w, z * h, 2, false);
-    b.face("box_y0", lo, x * w, z * h, 2, false);
-    b.face("box_y1", lo + y * w, z * h, x * w, 2, false);
+    b.bottomless_box(dvec3(0.25, 0.25, 0.0), dvec3(0.75, 0.75, 0.5), 2);
     for (name, cfg) in FormFactorConfig::presets() {
         for method in Method::ALL {
             let rows = all_rows(&b.engine(cfg.clone().with_method(method)));
@@ -666,12 +661,7 @@ fn top_k_row_totals_of_patches_partly_under_a_box_are_their_uncovered_share() {
     b.face("y0", DVec3::ZERO, z, x, 5, false);
     b.face("y1", y, x, z, 5, false);
     let (lo, hi) = (dvec3(0.27, 0.31, 0.0), dvec3(0.72, 0.68, 0.4));
-    let (w, d, h) = (x * (hi.x - lo.x), y * (hi.y - lo.y), z * hi.z);
-    b.face("box_top", lo + h, w, d, 2, false);
-    b.face("box_x0", lo, h, d, 2, false);
-    b.face("box_x1", lo + w, d, h, 2, false);
-    b.face("box_y0", lo, w, h, 2, false);
-    b.face("box_y1", lo + d, h, w, 2, false);
+    b.bottomless_box(lo, hi, 2);
     let cfg = FormFactorConfig {
         top_k_tail: TopKTail::Sampled(4),
         ..FormFactorConfig::accurate().with_top_k(Some(8))

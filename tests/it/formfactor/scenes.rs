@@ -34,6 +34,19 @@ impl Built {
     }
 
     /// [`Built::face`] subdivided mu × mv (mu along u).
+    /// A bottomless box on the floor z = lo.z over [lo.x, hi.x] × [lo.y, hi.y], up to
+    /// hi.z: a top and four outward walls ("box_top", "box_x0", "box_x1", "box_y0",
+    /// "box_y1"), each m × m patches.
+    pub(crate) fn bottomless_box(&mut self, lo: DVec3, hi: DVec3, m: usize) -> &mut Self {
+        let d = hi - lo;
+        let (w, depth, h) = (DVec3::X * d.x, DVec3::Y * d.y, DVec3::Z * d.z);
+        self.face("box_top", lo + h, w, depth, m, false);
+        self.face("box_x0", lo, h, depth, m, false);
+        self.face("box_x1", lo + w, depth, h, m, false);
+        self.face("box_y0", lo, w, h, m, false);
+        self.face("box_y1", lo + depth, h, w, m, false)
+    }
+
     pub(crate) fn cells(
         &mut self,
         name: &str,
