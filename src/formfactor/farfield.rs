@@ -33,9 +33,9 @@ pub(crate) const LANES: usize = 4;
 
 /// One patch's points of one order, structure-of-arrays (x, y, z, area weight),
 /// padded to a multiple of [`LANES`] with zero weights, for [`area_form_factor_soa`].
-/// Built per pair on the stack (a per-patch table of all orders would cost ~1 KiB per
-/// patch, 100 MB at 100k patches, for ~2 % of the time).
-#[derive(Clone, Copy)]
+/// Filled per pair into [`FarScratch`] (a per-patch table of all orders would cost
+/// ~1 KiB per patch, 100 MB at 100k patches, for ~2 % of the time).
+#[derive(Clone, Copy, Debug)]
 pub(crate) struct PatchLanes {
     x: [f64; MAX_FAR_ORDER * MAX_FAR_ORDER],
     y: [f64; MAX_FAR_ORDER * MAX_FAR_ORDER],
@@ -45,13 +45,13 @@ pub(crate) struct PatchLanes {
 }
 
 impl PatchLanes {
-    /// The points of [`PatchPoints::on`] written straight into lanes (no
-    /// intermediate [`PatchPoints`]: the far pair's j side, built per pair).
-    pub(crate) fn on(map: &PatchMap, q: usize, gauss: &GaussTable) -> Self {
-        let mut out = Self::empty();
-        for_each_point(map, q, gauss, |p, w| out.push(p, w));
-        out.pad();
-        out
+    /// Replaces the lanes by the points of [`PatchPoints::on`] (j's side of a far pair,
+    /// filled per pair into a buffer that lives in the thread's scratch: no zeroing
+    /// of the 512-byte arrays per pair, which cost 5 % of a dense run).
+    fn fill(&mut self, map: &PatchMap, q: usize, gauss: &GaussTable) {
+        self.len = 0;
+        for_each_point(map, q, gauss, |p, w| self.push(p, w));
+        self.pad();
     }
 
     #[cfg(test)]
@@ -97,6 +97,44 @@ impl PatchLanes {
             z: &self.z[..self.len],
             w: &self.w[..self.len],
         }
+    }
+}
+
+impl Default for PatchLanes {
+    fn default() -> Self {
+        Self::empty()
+    }
+}
+
+/// A thread's far-field working memory: the row patch's points by order (built once
+/// per row) and the lanes of the current pair's other patch (refilled per pair).
+#[derive(Debug, Default)]
+pub(crate) struct FarScratch {
+    /// (engine id, patch) whose points `points` holds.
+    row: Option<(u64, u32)>,
+    points: [Option<PatchPoints>; MAX_FAR_ORDER + 1],
+    lanes: PatchLanes,
+}
+
+impl FarScratch {
+    /// A_i F⁰_ij of a far pair by the order-q tensor rule (see
+    /// [`area_form_factor_soa`]): i's points cached for the row (`engine`, `i`), j's
+    /// written into the lanes.
+    pub(crate) fn area_form_factor(
+        &mut self,
+        (engine, i): (u64, u32),
+        (map_i, ni): (&PatchMap, DVec3),
+        (map_j, nj): (&PatchMap, DVec3),
+        q: usize,
+        gauss: &GaussTable,
+    ) -> f64 {
+        if self.row != Some((engine, i)) {
+            self.row = Some((engine, i));
+            self.points = [None; MAX_FAR_ORDER + 1];
+        }
+        let pts_i = self.points[q].get_or_insert_with(|| PatchPoints::on(map_i, q, gauss));
+        self.lanes.fill(map_j, q, gauss);
+        area_form_factor_soa(pts_i, ni, self.lanes.slice(), nj)
     }
 }
 

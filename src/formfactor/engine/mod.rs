@@ -28,7 +28,7 @@ use glam::DVec3;
 
 use super::clusters::{ClusterCache, Clusters};
 use super::contour::{area_form_factor_edges, ContourParams};
-use super::farfield::{self, FarOrders, PatchLanes, PatchPoints, MAX_FAR_ORDER};
+use super::farfield::{self, FarOrders};
 use super::geom::{PatchBound, PatchGeom};
 use super::polygon::{EdgeSet, Polygon};
 use super::quadrature::{gauss_table, GaussTable};
@@ -73,10 +73,8 @@ pub struct Scratch {
     /// The row being computed (a hint for what the cluster lists keep; no value
     /// depends on it).
     row: Option<u32>,
-    /// Far-field Gauss points of patch `far_row.1` of engine `far_row.0`, by order
-    /// (index q), filled lazily.
-    far_row: Option<(u64, u32)>,
-    far_points: [Option<PatchPoints>; MAX_FAR_ORDER + 1],
+    /// Far pairs' Gauss points ([`farfield::FarScratch`]).
+    far: farfield::FarScratch,
 }
 
 impl Scratch {
@@ -98,22 +96,6 @@ impl Scratch {
     /// Returns the counters and resets them.
     pub fn take_counters(&mut self) -> Counters {
         std::mem::take(&mut self.pair.counters)
-    }
-
-    /// The order-q far-field points of patch i (computed once per row).
-    fn far_points_of(
-        &mut self,
-        engine: u64,
-        i: u32,
-        q: usize,
-        g: &PatchGeom,
-        gauss: &GaussTable,
-    ) -> &PatchPoints {
-        if self.far_row != Some((engine, i)) {
-            self.far_row = Some((engine, i));
-            self.far_points = [None; MAX_FAR_ORDER + 1];
-        }
-        self.far_points[q].get_or_insert_with(|| PatchPoints::on(&g.map, q, gauss))
     }
 }
 
@@ -530,11 +512,13 @@ impl RowEngine {
         };
         let af = if let Some(q) = far {
             scratch.pair.counters.pairs_far_field += 1;
-            let pts_i = scratch.far_points_of(self.id, i, q, gi, self.gauss);
-            {
-                let lanes = PatchLanes::on(&gj.map, q, self.gauss);
-                farfield::area_form_factor_soa(pts_i, gi.normal, lanes.slice(), gj.normal)
-            }
+            scratch.far.area_form_factor(
+                (self.id, i),
+                (&gi.map, gi.normal),
+                (&gj.map, gj.normal),
+                q,
+                self.gauss,
+            )
         } else {
             // The edges too are recomputed only for a clipped polygon.
             let edges = |p: &Cow<'_, Polygon>, g: &'a PatchGeom| match p {
