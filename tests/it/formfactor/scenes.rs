@@ -56,10 +56,7 @@ impl Built {
         (mu, mv): (usize, usize),
         split: bool,
     ) -> &mut Self {
-        let face = self.faces;
-        self.faces += 1;
-        let group = self.patches.groups.len() as u32;
-        self.patches.groups.push(name.to_string());
+        let (face, group) = self.new_face(name);
         let n = u.cross(v).normalize();
         let at =
             |a: usize, b: usize| origin + u * (a as f64 / mu as f64) + v * (b as f64 / mv as f64);
@@ -88,10 +85,7 @@ impl Built {
     /// Adds the triangle v (front = counter-clockwise) as a new face in a new group,
     /// subdivided into k² similar triangles.
     pub(crate) fn triangle(&mut self, name: &str, v: [DVec3; 3], k: usize) -> &mut Self {
-        let face = self.faces;
-        self.faces += 1;
-        let group = self.patches.groups.len() as u32;
-        self.patches.groups.push(name.to_string());
+        let (face, group) = self.new_face(name);
         let n = (v[1] - v[0]).cross(v[2] - v[0]).normalize();
         let at = |a: usize, b: usize| {
             v[0] + (v[1] - v[0]) * (a as f64 / k as f64) + (v[2] - v[0]) * (b as f64 / k as f64)
@@ -116,6 +110,46 @@ impl Built {
         }
         self.tris.push((face, v));
         self
+    }
+
+    /// A regular `sides`-gon of circumradius `r` about `centre` in the plane z =
+    /// centre.z, facing +z (`up`) or −z, as one face in a new group: a fan of `sides`
+    /// triangle patches (centre and two consecutive corners), each also an occluder
+    /// triangle of that face.
+    pub(crate) fn polygon_disk(
+        &mut self,
+        name: &str,
+        centre: DVec3,
+        r: f64,
+        sides: usize,
+        up: bool,
+    ) -> &mut Self {
+        let (face, group) = self.new_face(name);
+        let n = if up { DVec3::Z } else { -DVec3::Z };
+        let corner = |k: usize| {
+            let a = std::f64::consts::TAU * k as f64 / sides as f64;
+            centre + dvec3(r * a.cos(), r * a.sin(), 0.0)
+        };
+        for k in 0..sides {
+            // Counter-clockwise about the front normal.
+            let t = if up {
+                [centre, corner(k), corner(k + 1)]
+            } else {
+                [centre, corner(k + 1), corner(k)]
+            };
+            self.patches.patches.push(patch(&t, n, group, face));
+            self.tris.push((face, t));
+        }
+        self
+    }
+
+    /// A new scene face in a new group called `name`: (face, group).
+    fn new_face(&mut self, name: &str) -> (u32, u32) {
+        let face = self.faces;
+        self.faces += 1;
+        let group = self.patches.groups.len() as u32;
+        self.patches.groups.push(name.to_string());
+        (face, group)
     }
 
     /// An occluder only (no patches): a parallelogram as two triangles.
