@@ -1017,7 +1017,11 @@ def main(argv) -> int:
         print(__doc__)
         return 0 if argv else 2
     try:
-        f = read(argv[0])
+        # The command line prints every warning below, once: the RuntimeWarnings that
+        # a library caller gets for the same faults would say each a second time.
+        with _warnings.catch_warnings():
+            _warnings.simplefilter("ignore", RuntimeWarning)
+            f = read(argv[0])
     except (FfzError, OSError) as e:
         print(f"error: {e}", file=sys.stderr)
         return 1
