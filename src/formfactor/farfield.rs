@@ -14,8 +14,10 @@
 //! Maps from [-1, 1]² onto a patch: bilinear for quads (Jacobian |∂x/∂u × ∂x/∂v|;
 //! affine with a constant Jacobian for parallelograms),
 //! the collapsed (Duffy) square for triangles, x = a + s (b − a) + s t (c − b) with
-//! s, t ∈ [0, 1] and Jacobian 2A·s; both are polynomial, so Gauss points stay exact
-//! for polynomial integrands.
+//! s, t ∈ [0, 1] and Jacobian 2A·s, whose factor s is the weight of Gauss–Jacobi
+//! points in s (Gauss–Legendre in t). Both maps are polynomial, so the points stay
+//! exact for polynomial integrands: to degree 2q − 1 on parallelograms and triangles,
+//! one less on other quads (their Jacobian is linear in u and v).
 
 use glam::DVec3;
 use wide::f64x4;
