@@ -88,6 +88,12 @@ pub struct PairRoutes {
     pub fallback: u64,
     /// Pairs whose visibility rays estimated (the fallbacks included).
     pub rays: u64,
+    /// Of the exact pairs, those proven fully visible: no outer points.
+    pub exact_visible: u64,
+    /// Of the exact pairs, those proven fully hidden: no outer points.
+    pub exact_hidden: u64,
+    /// Outer points the other (partly shadowed) exact pairs took, together.
+    pub exact_points: u64,
 }
 
 impl PairRoutes {
@@ -98,6 +104,9 @@ impl PairRoutes {
             exact: c.pairs_exact,
             fallback: c.pairs_exact_fallback,
             rays: c.pairs_rays,
+            exact_visible: c.pairs_exact_visible,
+            exact_hidden: c.pairs_exact_hidden,
+            exact_points: c.exact_points,
         }
     }
 
@@ -107,6 +116,9 @@ impl PairRoutes {
         self.exact += o.exact;
         self.fallback += o.fallback;
         self.rays += o.rays;
+        self.exact_visible += o.exact_visible;
+        self.exact_hidden += o.exact_hidden;
+        self.exact_points += o.exact_points;
     }
 
     /// Evaluated pairs whose visibility neither route worked out because their
@@ -139,6 +151,21 @@ impl PairRoutes {
             line += &format!(
                 ", {rest} ({:.1}%) decided by their unoccluded value alone (0, or too small for a top-k row)",
                 share(rest)
+            );
+        }
+        if self.exact > 0 {
+            // Where the exact route's time goes: the shortcuts cost no outer points,
+            // the partly shadowed pairs cost their points (each a cut of j by every
+            // candidate's shadow).
+            let partly = self
+                .exact
+                .saturating_sub(self.exact_visible)
+                .saturating_sub(self.exact_hidden);
+            line += &format!(
+                "; of the exact: {} fully visible, {} fully hidden, {partly} partly shadowed ({:.1} outer points each on average)",
+                self.exact_visible,
+                self.exact_hidden,
+                self.exact_points as f64 / partly.max(1) as f64
             );
         }
         line

@@ -133,9 +133,9 @@ pub(crate) fn decode_failed(v: &[u8], rank: i32) -> Result<(Option<u32>, String)
     Ok((row, String::from_utf8_lossy(&v[8..]).into_owned()))
 }
 
-/// Length of a DONE message: rows, busy seconds, threads, peak RSS, then the five
+/// Length of a DONE message: rows, busy seconds, threads, peak RSS, then the eight
 /// counts of [`PairRoutes`].
-const DONE_LEN: usize = 28 + 5 * 8;
+const DONE_LEN: usize = 28 + 8 * 8;
 
 pub(crate) fn encode_done(s: &WorkerStats) -> Vec<u8> {
     let mut v = Vec::with_capacity(DONE_LEN);
@@ -144,7 +144,16 @@ pub(crate) fn encode_done(s: &WorkerStats) -> Vec<u8> {
     v.extend_from_slice(&s.threads.to_le_bytes());
     v.extend_from_slice(&s.peak_rss.to_le_bytes());
     let p = &s.pairs;
-    for x in [p.evaluated, p.unoccludable, p.exact, p.fallback, p.rays] {
+    for x in [
+        p.evaluated,
+        p.unoccludable,
+        p.exact,
+        p.fallback,
+        p.rays,
+        p.exact_visible,
+        p.exact_hidden,
+        p.exact_points,
+    ] {
         v.extend_from_slice(&x.to_le_bytes());
     }
     v
@@ -178,6 +187,9 @@ pub(crate) fn decode_done(v: &[u8], rank: i32) -> Result<WorkerStats, ServiceErr
             exact: u64_at(44),
             fallback: u64_at(52),
             rays: u64_at(60),
+            exact_visible: u64_at(68),
+            exact_hidden: u64_at(76),
+            exact_points: u64_at(84),
         },
     })
 }
@@ -241,6 +253,9 @@ mod tests {
                 exact: 30,
                 fallback: 2,
                 rays: 7,
+                exact_visible: 11,
+                exact_hidden: 5,
+                exact_points: 1 << 40,
             },
         };
         let d = decode_done(&encode_done(&s), 4).unwrap();
