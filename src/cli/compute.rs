@@ -496,6 +496,12 @@ fn engine_for(
     let occluders = Arc::new(tracing::info_span!("build_bvh").in_scope(|| mesh.build()));
     let engine = tracing::info_span!("prepare_engine")
         .in_scope(|| RowEngine::new(patches, occluders, cfg.clone()));
+    if let (Some((solids, triangles)), true) = (engine.solids_found(), announce) {
+        eprintln!(
+            "ffstream: exact visibility: {solids} convex solids ({triangles} occluder \
+             triangles) cast their shadows whole"
+        );
+    }
     Ok((Some(Arc::new(engine)), description))
 }
 

@@ -56,6 +56,7 @@
 use glam::DVec3;
 
 use super::polygon::{Polygon, PolygonN};
+use super::solids::{Solid, NO_SOLID};
 
 /// A receiver piece: `P_j` (at most 8 vertices) clipped by the four planes of a cone
 /// (one vertex more per plane).
@@ -71,6 +72,8 @@ pub(crate) struct Caster {
     pub(crate) v: [DVec3; 3],
     pub(crate) normal: DVec3,
     pub(crate) offset: f64,
+    /// The convex solid it belongs to ([`super::solids`]), or [`NO_SOLID`].
+    pub(crate) solid: u32,
 }
 
 impl Caster {
@@ -86,7 +89,13 @@ impl Caster {
             v,
             normal,
             offset: normal.dot(v[0]),
+            solid: NO_SOLID,
         })
+    }
+
+    /// The same caster, part of solid `solid` (or [`NO_SOLID`]).
+    pub(crate) fn in_solid(self, solid: u32) -> Self {
+        Caster { solid, ..self }
     }
 }
 
@@ -97,11 +106,78 @@ struct Half {
     offset: f64,
 }
 
-/// The points y whose segment from x crosses a caster: four half-spaces.
+/// Most half-spaces of a cone: a triangle's four, a solid's silhouette planes and the
+/// planes of the faces x sees (a box: at most six and three).
+const MAX_HALVES: usize = 12;
+
+/// The points y whose segment from x crosses a caster: an intersection of half-spaces.
 #[derive(Clone, Copy, Debug)]
-struct Cone([Half; 4]);
+struct Cone {
+    h: [Half; MAX_HALVES],
+    n: usize,
+}
+
+/// What a convex solid hides from one point.
+enum SolidShadow {
+    /// Nothing (the point lies on one of its faces).
+    Nothing,
+    /// What lies in the cone written out.
+    Cone,
+    /// Not decided as a whole: its triangles one by one.
+    Triangles,
+}
 
 impl Cone {
+    const EMPTY: Half = Half {
+        normal: DVec3::ZERO,
+        offset: 0.0,
+    };
+
+    fn halves(&self) -> &[Half] {
+        &self.h[..self.n]
+    }
+
+    /// Adds a half-space; false when the cone is full.
+    fn push(&mut self, h: Half) -> bool {
+        if self.n == MAX_HALVES {
+            return false;
+        }
+        self.h[self.n] = h;
+        self.n += 1;
+        true
+    }
+
+    /// The half-space of the points beyond the plane `normal · y = offset` seen from a
+    /// point at signed distance `side` from it, by more than the tolerance band of the
+    /// clip (a blocker lying on P_j's plane blocks nothing, as a ray ignores hits that
+    /// close to its end).
+    fn beyond(normal: DVec3, offset: f64, side: f64, tol: f64) -> Half {
+        let s = side.signum();
+        Half {
+            normal: -s * normal,
+            offset: -s * offset + 2.0 * tol,
+        }
+    }
+
+    /// The half-space bounded by the plane through `x`, `a` and `b` that holds
+    /// `inside`; None when the plane is undefined (x on the line of a, b).
+    fn through(x: DVec3, a: DVec3, b: DVec3, inside: DVec3) -> Option<Half> {
+        let m = (a - x).cross(b - x);
+        let len = m.length();
+        if len.is_nan() || len <= 0.0 {
+            return None;
+        }
+        let m = if m.dot(inside - x) < 0.0 {
+            -m / len
+        } else {
+            m / len
+        };
+        Some(Half {
+            normal: m,
+            offset: m.dot(x),
+        })
+    }
+
     /// The cone of `t` seen from `x`; None when `t` is seen edge-on. `tol`: length
     /// under which a point counts as on a plane.
     fn new(x: DVec3, t: &Caster, tol: f64) -> Option<Cone> {
@@ -109,38 +185,79 @@ impl Cone {
         if side.abs() <= tol {
             return None;
         }
-        // Beyond the triangle's plane by more than the tolerance band of the clip
-        // (a blocker lying on P_j's plane blocks nothing, as a ray ignores hits
-        // that close to its end).
-        let s = side.signum();
-        let far = Half {
-            normal: -s * t.normal,
-            offset: -s * t.offset + 2.0 * tol,
+        let mut c = Cone {
+            h: [Self::EMPTY; MAX_HALVES],
+            n: 1,
         };
-        let mut h = [far; 4];
+        c.h[0] = Self::beyond(t.normal, t.offset, side, tol);
         for k in 0..3 {
             let (p, q, r) = (t.v[k], t.v[(k + 1) % 3], t.v[(k + 2) % 3]);
-            let m = (p - x).cross(q - x);
-            let len = m.length();
-            if len.is_nan() || len <= 0.0 {
-                return None; // x on the line of an edge: in the plane, edge-on
+            // x on the line of an edge: in the plane, edge-on.
+            c.push(Self::through(x, p, q, r)?);
+        }
+        Some(c)
+    }
+
+    /// What the convex solid `k` hides of `receiver` from `x` ([`super::solids`]): the
+    /// cone of its silhouette beyond the faces x sees, written into `c`.
+    fn of_solid(x: DVec3, k: &Solid, receiver: &Piece, tol: f64, c: &mut Cone) -> SolidShadow {
+        let mut side = [0.0; super::solids::MAX_FACES];
+        let mut sees = 0u32;
+        for (f, face) in k.faces.iter().enumerate() {
+            side[f] = face.normal.dot(x) - face.offset;
+            if side[f] > tol {
+                sees |= 1 << f;
             }
-            let m = if m.dot(r - x) < 0.0 {
-                -m / len
-            } else {
-                m / len
-            };
-            h[k + 1] = Half {
-                normal: m,
-                offset: m.dot(x),
+        }
+        c.n = 0;
+        if sees == 0 {
+            // x inside K or on its surface. On the open face alone (the floor under a
+            // box), every segment into K's side of its plane leaves through a real
+            // face. On real faces that P_j lies wholly in front of (x on the patch's
+            // own face), no segment enters K. Otherwise (strictly inside, on an edge,
+            // or on a real face with P_j partly behind it), the triangles decide.
+            let faces = &k.faces[..];
+            let on = |f: usize| side[f] >= -tol;
+            let open = faces.iter().position(|f| f.open).filter(|&f| on(f));
+            let real_on = || (0..faces.len()).filter(|&f| !faces[f].open && on(f));
+            return match open {
+                Some(f) if real_on().next().is_none() => {
+                    c.push(Self::beyond(faces[f].normal, faces[f].offset, 1.0, tol));
+                    SolidShadow::Cone
+                }
+                None if real_on().next().is_some()
+                    && real_on().all(|f| {
+                        receiver
+                            .verts()
+                            .iter()
+                            .all(|y| faces[f].normal.dot(*y) - faces[f].offset > tol)
+                    }) =>
+                {
+                    SolidShadow::Nothing
+                }
+                _ => SolidShadow::Triangles,
             };
         }
-        Some(Cone(h))
+        for (f, face) in k.faces.iter().enumerate() {
+            if sees & (1 << f) != 0 && !c.push(Self::beyond(face.normal, face.offset, 1.0, tol)) {
+                return SolidShadow::Triangles;
+            }
+        }
+        for e in &k.edges {
+            let [f, g] = e.faces.map(|f| sees & (1 << f) != 0);
+            if f != g {
+                match Self::through(x, e.a, e.b, k.centre) {
+                    Some(h) if c.push(h) => {}
+                    _ => return SolidShadow::Triangles,
+                }
+            }
+        }
+        SolidShadow::Cone
     }
 
     /// True when no point of `p` lies inside (`p` entirely outside one half-space).
     fn misses(&self, p: &Piece, tol: f64) -> bool {
-        self.0
+        self.halves()
             .iter()
             .any(|h| p.verts().iter().all(|v| h.normal.dot(*v) - h.offset <= tol))
     }
@@ -182,75 +299,123 @@ pub(crate) struct ShadowScratch {
     pieces: Vec<Piece>,
     next: Vec<Piece>,
     active: Vec<Caster>,
+    loose: Vec<Caster>,
     cells: Vec<Piece>,
 }
 
 /// F(x → B_j(x)): the form factor from the point `x` (unit normal `n`) to the part of
-/// `pj` that the `casters` hide from it. None when the union of the shadows needs more
-/// than [`MAX_PIECES`] pieces.
+/// `pj` that the `casters` and `solids` hide from it. None when the union of the
+/// shadows needs more than [`MAX_PIECES`] pieces, or a piece more vertices than a
+/// [`Piece`] holds.
 pub(crate) fn blocked_at(
     x: DVec3,
     n: DVec3,
     pj: &Polygon,
     casters: &[Caster],
+    solids: &[&Solid],
     tol: f64,
     s: &mut ShadowScratch,
 ) -> Option<f64> {
     let receiver = Piece::new(pj.verts());
     s.cones.clear();
     let mut total = 0.0;
+    let mut whole = Cone {
+        h: [Cone::EMPTY; MAX_HALVES],
+        n: 0,
+    };
+    for k in solids {
+        match Cone::of_solid(x, k, &receiver, tol, &mut whole) {
+            SolidShadow::Nothing => {}
+            SolidShadow::Cone => shadow_part(x, n, &receiver, &whole, tol, s, &mut total)?,
+            SolidShadow::Triangles => {
+                for t in &k.triangles {
+                    if let Some(cone) = Cone::new(x, t, tol) {
+                        shadow_part(x, n, &receiver, &cone, tol, s, &mut total)?;
+                    }
+                }
+            }
+        }
+    }
     for t in casters {
-        let Some(cone) = Cone::new(x, t, tol) else {
-            continue;
-        };
-        if cone.misses(&receiver, tol) {
-            continue;
-        }
-        // This shadow on P_j, then minus the cones of the shadows before it.
-        let (mut shadow, mut spare) = (receiver, Piece::EMPTY);
-        for h in &cone.0 {
-            shadow.clip_front_into(h.normal, h.offset, tol, &mut spare);
-            std::mem::swap(&mut shadow, &mut spare);
-            if !usable(&shadow) {
-                break;
-            }
-        }
-        s.cones.push(cone);
-        if !usable(&shadow) {
-            continue;
-        }
-        s.pieces.clear();
-        s.pieces.push(shadow);
-        let earlier = s.cones.len() - 1;
-        for c in 0..earlier {
-            let c = s.cones[c];
-            s.next.clear();
-            for piece in &s.pieces {
-                subtract(piece, &c, tol, &mut s.next);
-            }
-            std::mem::swap(&mut s.pieces, &mut s.next);
-            if s.pieces.is_empty() {
-                break;
-            }
-            if s.pieces.len() > MAX_PIECES {
-                return None;
-            }
-        }
-        for piece in &s.pieces {
-            total += point_polygon(x, n, piece.verts());
+        if let Some(cone) = Cone::new(x, t, tol) {
+            shadow_part(x, n, &receiver, &cone, tol, s, &mut total)?;
         }
     }
     Some(total)
 }
 
-/// Appends the convex pieces of `p` outside the cone `c` to `out`.
-fn subtract(p: &Piece, c: &Cone, tol: f64, out: &mut Vec<Piece>) {
+/// Adds to `total` F(x → ·) of the part of `receiver` in `cone` and outside the cones
+/// of the shadows before it (`s.cones`), to which `cone` is then added.
+fn shadow_part(
+    x: DVec3,
+    n: DVec3,
+    receiver: &Piece,
+    cone: &Cone,
+    tol: f64,
+    s: &mut ShadowScratch,
+    total: &mut f64,
+) -> Option<()> {
+    if cone.misses(receiver, tol) {
+        return Some(());
+    }
+    // This shadow on P_j, then minus the cones of the shadows before it.
+    let (mut shadow, mut spare) = (*receiver, Piece::EMPTY);
+    for h in cone.halves() {
+        if shadow.n == shadow.v.len() {
+            return None;
+        }
+        shadow.clip_front_into(h.normal, h.offset, tol, &mut spare);
+        std::mem::swap(&mut shadow, &mut spare);
+        if !usable(&shadow) {
+            break;
+        }
+    }
+    let ShadowScratch {
+        cones,
+        pieces,
+        next,
+        ..
+    } = s;
+    let earlier = cones.len();
+    cones.push(*cone);
+    if !usable(&shadow) {
+        return Some(());
+    }
+    pieces.clear();
+    pieces.push(shadow);
+    for c in &cones[..earlier] {
+        next.clear();
+        for piece in pieces.iter() {
+            if !subtract(piece, c, tol, next) {
+                return None;
+            }
+        }
+        std::mem::swap(pieces, next);
+        if pieces.is_empty() {
+            break;
+        }
+        if pieces.len() > MAX_PIECES {
+            return None;
+        }
+    }
+    for piece in pieces.iter() {
+        *total += point_polygon(x, n, piece.verts());
+    }
+    Some(())
+}
+
+/// Appends the convex pieces of `p` outside the cone `c` to `out`; false when a piece
+/// would have more vertices than a [`Piece`] holds.
+fn subtract(p: &Piece, c: &Cone, tol: f64, out: &mut Vec<Piece>) -> bool {
     if c.misses(p, tol) {
         out.push(*p);
-        return;
+        return true;
     }
     let (mut inside, mut spare, mut outside) = (*p, Piece::EMPTY, Piece::EMPTY);
-    for h in &c.0 {
+    for h in c.halves() {
+        if inside.n == inside.v.len() {
+            return false;
+        }
         inside.clip_front_into(-h.normal, -h.offset, tol, &mut outside);
         if usable(&outside) {
             out.push(outside);
@@ -258,9 +423,10 @@ fn subtract(p: &Piece, c: &Cone, tol: f64, out: &mut Vec<Piece>) {
         inside.clip_front_into(h.normal, h.offset, tol, &mut spare);
         std::mem::swap(&mut inside, &mut spare);
         if !usable(&inside) {
-            return;
+            return true;
         }
     }
+    true
 }
 
 /// The 7-point degree-5 rule on a triangle (Radon 1948; e.g. Stroud T2:5-1):
@@ -357,6 +523,8 @@ pub(crate) struct Pair<'a> {
     pub(crate) pj: &'a Polygon,
     /// The occluder triangles that may come between them.
     pub(crate) casters: &'a [Caster],
+    /// The convex solids that the casters' [`Caster::solid`] refer to.
+    pub(crate) solids: &'a [Solid],
     /// Length under which a point counts as on a plane.
     pub(crate) tol: f64,
 }
@@ -414,14 +582,29 @@ pub(crate) fn blocked_integral(
         casters: &active,
         ..*pair
     };
+    // The shadows at a point: each solid whole, the other casters one by one.
+    let mut loose = std::mem::take(&mut s.loose);
+    loose.clear();
+    let mut ids: Vec<u32> = Vec::new();
+    for c in &active {
+        if c.solid == NO_SOLID {
+            loose.push(*c);
+        } else if !ids.contains(&c.solid) {
+            ids.push(c.solid);
+        }
+    }
+    let solids: Vec<&Solid> = ids.iter().map(|&k| &pair.solids[k as usize]).collect();
     let mut cells = std::mem::take(&mut s.cells);
-    if !split_at_events(&narrowed, &mut cells) {
+    if !split_at_events(&narrowed, &loose, &solids, &mut cells) {
         s.cells = cells;
         s.active = active;
+        s.loose = loose;
         return None;
     }
     let mut run = Run {
         pair: &narrowed,
+        loose: &loose,
+        solids: &solids,
         density: tol_abs / area,
         dark_floor: tol_abs / 64.0,
         points: 0,
@@ -445,6 +628,7 @@ pub(crate) fn blocked_integral(
     let points = run.points;
     s.cells = cells;
     s.active = active;
+    s.loose = loose;
     total.map(|t| Blocked::Part(t, points))
 }
 
@@ -500,7 +684,12 @@ pub(crate) const MAX_CELLS: usize = 64;
 ///
 /// Returns false when the jumps could not all be cut (too many cells): the rule would
 /// then converge only slowly across them, and the pair goes to rays.
-fn split_at_events(pair: &Pair<'_>, cells: &mut Vec<Piece>) -> bool {
+fn split_at_events(
+    pair: &Pair<'_>,
+    loose: &[Caster],
+    solids: &[&Solid],
+    cells: &mut Vec<Piece>,
+) -> bool {
     cells.clear();
     cells.push(Piece::new(pair.pi.verts()));
     let q = pair.pj.verts();
@@ -518,25 +707,89 @@ fn split_at_events(pair: &Pair<'_>, cells: &mut Vec<Piece>) -> bool {
             return false;
         }
     }
-    for c in pair.casters {
-        for m in 0..q.len() {
-            let (p0, p1) = (q[m], q[(m + 1) % q.len()]);
-            // A caster vertex v seen on the edge p0 → p1 of P_j: from x, the ray
-            // through v meets the edge itself, beyond v.
-            for v in c.v {
-                cut(cells, p0, p1, v, tol, &|x| ray_meets_segment(x, v, p0, p1));
-            }
-            // A vertex p0 of P_j seen on a caster edge v → w: the segment from x to p0
-            // crosses the edge itself.
-            for e in 0..3 {
-                let (v, w) = (c.v[e], c.v[(e + 1) % 3]);
-                cut(cells, p0, v, w, tol, &|x| {
-                    ray_meets_segment(x, p0, v, w) || ray_meets_segment(p0, x, v, w)
-                });
-            }
-        }
+    for (k, c) in loose.iter().enumerate() {
+        // An edge shared with another caster in the same plane (an inner edge of
+        // merged triangles) is no edge of the shadows.
+        let inner = [0, 1, 2].map(|e| {
+            let (v, w) = (c.v[e], c.v[(e + 1) % 3]);
+            loose.iter().enumerate().any(|(l, d)| {
+                l != k
+                    && d.normal.dot(c.normal).abs() > 1.0 - 1e-12
+                    && (d.normal.dot(v) - d.offset).abs() <= tol
+                    && (0..3).any(|f| {
+                        let (a, b) = (d.v[f], d.v[(f + 1) % 3]);
+                        (a == v && b == w) || (a == w && b == v)
+                    })
+            })
+        });
+        let edges = (0..3)
+            .filter(|&e| !inner[e])
+            .map(|e| (c.v[e], c.v[(e + 1) % 3]));
+        cut_at_kinks(cells, q, &c.v, edges, tol);
+    }
+    // A convex solid's shadow is bounded by its silhouette: only edges that are on it
+    // from some point of P_i (between a face that some point sees and one that it does
+    // not) and their ends make kinks.
+    let pv = pair.pi.verts();
+    for k in solids {
+        // Per face: how many vertices of P_i see it (a point sees a face when it lies
+        // in front of its plane by more than the tolerance, affine in the point).
+        let seen_by: Vec<usize> = k
+            .faces
+            .iter()
+            .map(|f| {
+                pv.iter()
+                    .filter(|x| f.normal.dot(**x) - f.offset > tol)
+                    .count()
+            })
+            .collect();
+        let edges: Vec<(DVec3, DVec3)> = k
+            .edges
+            .iter()
+            .filter(|e| {
+                // On the silhouette from no point of P_i when every point sees both
+                // faces, or none sees either.
+                let [f, g] = e.faces.map(|f| seen_by[f as usize]);
+                !(f == g && (f == 0 || f == pv.len()))
+            })
+            .map(|e| (e.a, e.b))
+            .collect();
+        let mut ends: Vec<DVec3> = edges.iter().flat_map(|&(a, b)| [a, b]).collect();
+        ends.sort_by(|a, b| {
+            (a.x.total_cmp(&b.x))
+                .then(a.y.total_cmp(&b.y))
+                .then(a.z.total_cmp(&b.z))
+        });
+        ends.dedup();
+        cut_at_kinks(cells, q, &ends, edges.into_iter(), tol);
     }
     true
+}
+
+/// Cuts `cells` where a vertex of `vertices` lines up with an edge of `q` (P_j), and a
+/// vertex of `q` with an edge of `edges`.
+fn cut_at_kinks(
+    cells: &mut Vec<Piece>,
+    q: &[DVec3],
+    vertices: &[DVec3],
+    edges: impl Iterator<Item = (DVec3, DVec3)> + Clone,
+    tol: f64,
+) {
+    for m in 0..q.len() {
+        let (p0, p1) = (q[m], q[(m + 1) % q.len()]);
+        // A caster vertex v seen on the edge p0 → p1 of P_j: from x, the ray through v
+        // meets the edge itself, beyond v.
+        for &v in vertices {
+            cut(cells, p0, p1, v, tol, &|x| ray_meets_segment(x, v, p0, p1));
+        }
+        // A vertex p0 of P_j seen on a caster edge v → w: the segment from x to p0
+        // crosses the edge itself.
+        for (v, w) in edges.clone() {
+            cut(cells, p0, v, w, tol, &|x| {
+                ray_meets_segment(x, p0, v, w) || ray_meets_segment(p0, x, v, w)
+            });
+        }
+    }
 }
 
 /// True when the line from `x` through `v` meets the segment `a`–`b` (x, v, a, b
@@ -620,6 +873,9 @@ pub(crate) fn cut(
 /// The state of one outer integral.
 struct Run<'p, 'a> {
     pair: &'p Pair<'a>,
+    /// The casters that belong to no solid, and the solids.
+    loose: &'p [Caster],
+    solids: &'p [&'a Solid],
     /// Tolerance per unit area of P_i.
     density: f64,
     /// What a triangle whose samples all see no shadow may hold and still count as 0.
@@ -658,7 +914,7 @@ impl Run<'_, '_> {
         let at = |b: [f64; 3]| b[0] * t[0] + b[1] * t[1] + b[2] * t[2];
         let (mut value, mut dark_free) = (0.0, true);
         for (b, w) in RADON {
-            let g = blocked_at(at(b), p.ni, p.pj, p.casters, p.tol, s)?;
+            let g = blocked_at(at(b), p.ni, p.pj, self.loose, self.solids, p.tol, s)?;
             value += w * g;
             dark_free &= g == 0.0;
         }
@@ -802,6 +1058,89 @@ mod tests {
         assert!((got - want).abs() < 1e-15, "{got} vs {want}");
     }
 
+    /// A convex solid, whole, hides what its triangles hide one by one, from points on
+    /// the floor (beside and under a box without a bottom), on walls, on the ceiling
+    /// and on the boxes' own faces, of receivers that include the boxes' faces.
+    #[test]
+    fn a_convex_solid_hides_what_its_triangles_hide() {
+        use crate::formfactor::sampling::SplitMix64;
+        use crate::formfactor::solids::{tests::box_triangles, Solids};
+        let tris: Vec<[DVec3; 3]> = [
+            box_triangles(dvec3(1.0, 0.0, 1.0), dvec3(2.0, 1.5, 2.5), true),
+            box_triangles(dvec3(2.5, 0.5, 0.5), dvec3(3.0, 2.5, 1.0), false),
+        ]
+        .concat();
+        let found = Solids::find(&tris, 1e-9);
+        assert_eq!(found.solids.len(), 2);
+        let solids: Vec<&Solid> = found.solids.iter().collect();
+        let one_by_one: Vec<Caster> = tris.iter().filter_map(|t| Caster::new(*t)).collect();
+        // Planes as (origin, u, v): the rectangle origin + [0,1]² (u, v); normal u × v.
+        let rect = |o: [f64; 3], u: [f64; 3], v: [f64; 3]| {
+            (DVec3::from(o), DVec3::from(u), DVec3::from(v))
+        };
+        let floor = rect([0.0; 3], [0.0, 0.0, 4.0], [4.0, 0.0, 0.0]);
+        let ceiling = rect([0.0, 3.0, 0.0], [4.0, 0.0, 0.0], [0.0, 0.0, 4.0]);
+        let east = rect([4.0, 0.0, 0.0], [0.0, 0.0, 4.0], [0.0, 3.0, 0.0]);
+        let west = rect([0.0; 3], [0.0, 3.0, 0.0], [0.0, 0.0, 4.0]);
+        let south = rect([0.0; 3], [4.0, 0.0, 0.0], [0.0, 3.0, 0.0]);
+        let roof = rect([1.0, 1.5, 1.0], [0.0, 0.0, 1.5], [1.0, 0.0, 0.0]);
+        let box_west = rect([1.0, 0.0, 1.0], [0.0, 0.0, 1.5], [0.0, 1.5, 0.0]);
+        let box_east = rect([3.0, 0.5, 0.5], [0.0, 2.0, 0.0], [0.0, 0.0, 0.5]);
+        let pairs = [
+            (floor, ceiling),
+            (floor, east),
+            (floor, box_west),
+            (ceiling, floor),
+            (west, east),
+            (west, box_west),
+            (east, floor),
+            (south, ceiling),
+            (roof, ceiling),
+            (box_east, east),
+            (box_east, ceiling),
+        ];
+        let mut rng = SplitMix64::new(7);
+        let (mut compared, mut whole, mut shaded) = (0, 0, 0);
+        for ((oi, ui, vi), (oj, uj, vj)) in pairs {
+            let ni = ui.cross(vi).normalize();
+            let nj = uj.cross(vj);
+            let pj = Polygon::new(&[oj, oj + uj, oj + uj + vj, oj + vj]);
+            for _ in 0..400 {
+                let x = oi + rng.next_f64() * ui + rng.next_f64() * vi;
+                if nj.dot(x - oj) <= 1e-9 {
+                    continue; // the engine clips P_i to P_j's front
+                }
+                let mut s = ShadowScratch::default();
+                let a = blocked_at(x, ni, &pj, &[], &solids, 1e-12, &mut s).unwrap();
+                let b = blocked_at(x, ni, &pj, &one_by_one, &[], 1e-12, &mut s).unwrap();
+                assert!((a - b).abs() <= 1e-10, "x {x}: solids {a}, triangles {b}");
+                compared += 1;
+                shaded += usize::from(b > 1e-6);
+                let receiver = Piece::new(pj.verts());
+                let mut cone = Cone {
+                    h: [Cone::EMPTY; MAX_HALVES],
+                    n: 0,
+                };
+                whole += solids
+                    .iter()
+                    .filter(|k| {
+                        !matches!(
+                            Cone::of_solid(x, k, &receiver, 1e-12, &mut cone),
+                            SolidShadow::Triangles
+                        )
+                    })
+                    .count();
+            }
+        }
+        // The solids were used whole nearly everywhere, and there were shadows.
+        assert!(
+            whole >= 2 * compared * 95 / 100,
+            "whole {whole} of {}",
+            2 * compared
+        );
+        assert!(shaded >= compared / 4, "shaded {shaded} of {compared}");
+    }
+
     fn casters_of_square(x0: f64, x1: f64, z0: f64, z1: f64, y: f64) -> Vec<Caster> {
         let (a, b, c, d) = (
             dvec3(x0, y, z0),
@@ -824,13 +1163,13 @@ mod tests {
         let pj = square(0.0, 1.0, 0.0, 1.0, 1.0);
         let casters = casters_of_square(0.25, 0.75, 0.25, 0.75, 0.5);
         let mut s = ShadowScratch::default();
-        let got = blocked_at(x, DVec3::Y, &pj, &casters, 1e-12, &mut s).unwrap();
+        let got = blocked_at(x, DVec3::Y, &pj, &casters, &[], 1e-12, &mut s).unwrap();
         let shadow = square(0.2, 1.0, 0.1, 1.0, 1.0);
         let want = point_polygon(x, DVec3::Y, shadow.verts());
         assert!((got - want).abs() < 1e-14, "{got} vs {want}");
         // The two triangles' shadows share the diagonal: nothing counted twice.
         let x = dvec3(0.5, 0.0, 0.5);
-        let got = blocked_at(x, DVec3::Y, &pj, &casters, 1e-12, &mut s).unwrap();
+        let got = blocked_at(x, DVec3::Y, &pj, &casters, &[], 1e-12, &mut s).unwrap();
         let want = point_polygon(x, DVec3::Y, square(0.0, 1.0, 0.0, 1.0, 1.0).verts());
         assert!((got - want).abs() < 1e-14, "{got} vs {want}");
     }
@@ -841,18 +1180,21 @@ mod tests {
         let pj = square(0.0, 1.0, 0.0, 1.0, 1.0);
         let mut s = ShadowScratch::default();
         let one = casters_of_square(0.4, 0.6, 0.4, 0.6, 0.5);
-        let alone = blocked_at(x, DVec3::Y, &pj, &one, 1e-12, &mut s).unwrap();
+        let alone = blocked_at(x, DVec3::Y, &pj, &one, &[], 1e-12, &mut s).unwrap();
         // The same square again, and a smaller one inside its shadow cone.
         let mut many = one.clone();
         many.extend(casters_of_square(0.4, 0.6, 0.4, 0.6, 0.5));
         many.extend(casters_of_square(0.47, 0.53, 0.47, 0.53, 0.8));
-        let got = blocked_at(x, DVec3::Y, &pj, &many, 1e-12, &mut s).unwrap();
+        let got = blocked_at(x, DVec3::Y, &pj, &many, &[], 1e-12, &mut s).unwrap();
         assert!((got - alone).abs() < 1e-15, "{got} vs {alone}");
         // Below x, or beyond the receiver's plane: no shadow.
         let behind = casters_of_square(0.0, 1.0, 0.0, 1.0, -0.5);
         let beyond = casters_of_square(0.0, 1.0, 0.0, 1.0, 1.5);
         for c in [behind, beyond] {
-            assert_eq!(blocked_at(x, DVec3::Y, &pj, &c, 1e-12, &mut s), Some(0.0));
+            assert_eq!(
+                blocked_at(x, DVec3::Y, &pj, &c, &[], 1e-12, &mut s),
+                Some(0.0)
+            );
         }
     }
 
@@ -937,6 +1279,7 @@ mod tests {
                 ni: DVec3::Y,
                 pj: &pj,
                 casters: &casters,
+                solids: &[],
                 tol: 1e-12,
             };
             let Some(Blocked::Part(blocked, points)) = blocked_integral(&pair, tol, &mut s) else {

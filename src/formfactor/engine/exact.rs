@@ -5,6 +5,7 @@
 
 use super::{ClippedPair, RowEngine, Scratch};
 use crate::formfactor::shadow::{self, Blocked, Caster, Pair};
+use crate::formfactor::solids::NO_SOLID;
 #[cfg(doc)]
 use crate::formfactor::Visibility;
 
@@ -28,16 +29,17 @@ impl RowEngine {
     ) -> Option<f64> {
         let mut casters = std::mem::take(&mut scratch.casters);
         casters.clear();
-        casters.extend(
-            candidates
-                .iter()
-                .filter_map(|&k| Caster::new(self.occluders.world_triangle(k))),
-        );
+        casters.extend(candidates.iter().filter_map(|&k| {
+            let solid = self.solids.of.get(k as usize).copied();
+            Caster::new(self.occluders.world_triangle(k))
+                .map(|c| c.in_solid(solid.unwrap_or(NO_SOLID)))
+        }));
         let pair = Pair {
             pi,
             ni: gi.normal,
             pj,
             casters: &casters,
+            solids: &self.solids.solids,
             tol: self.tol,
         };
         let tol_abs = self.cfg.shadow_tol * f0 * gi.area;

@@ -34,6 +34,7 @@ use super::polygon::{EdgeSet, Polygon};
 use super::quadrature::{gauss_table, GaussTable};
 use super::scratch::{Counters, PairScratch};
 use super::shadow::{Caster, ShadowScratch};
+use super::solids::{Solids, NO_SOLID};
 use super::tree::PatchTree;
 use super::{
     mc, point, topk, visibility, FormFactorConfig, Method, TopKSearch, TopKTail, Visibility,
@@ -138,6 +139,8 @@ pub struct RowEngine {
     hide_margin: f64,
     /// The larger of the patches' and the occluders' diagonals (world units).
     span: f64,
+    /// The convex solids among the occluders (exact visibility only; empty otherwise).
+    solids: Solids,
     /// Whether the tree search skips the nodes a blocker polygon or an enclosing cell
     /// hides (`topk_tree` step 4; off only in tests, which check that it changes no
     /// kept entry).
@@ -152,6 +155,18 @@ pub struct RowEngine {
 pub(crate) const PAIR_LISTS_MAX_OCCLUDERS: usize = 256;
 
 impl RowEngine {
+    /// With exact visibility, how many convex solids the occluders hold and how many
+    /// triangles they are made of ([`super::solids`]); None otherwise.
+    pub fn solids_found(&self) -> Option<(usize, usize)> {
+        (self.cfg.visibility == Visibility::Exact).then(|| {
+            let s = &self.solids;
+            (
+                s.solids.len(),
+                s.of.iter().filter(|&&k| k != NO_SOLID).count(),
+            )
+        })
+    }
+
     /// Precomputes per-patch data. Patches with zero area (or no proper normal) get
     /// zero rows and columns. The configuration should have passed
     /// [`FormFactorConfig::validate`]; out-of-range values are clamped.
@@ -190,8 +205,17 @@ impl RowEngine {
             && cfg.top_k_search == TopKSearch::Tree
             && matches!(cfg.top_k_tail, TopKTail::Sampled(_)))
         .then(|| PatchTree::new(&geom, &valid, tol, bound_slack));
+        let solids = if cfg_visibility == Visibility::Exact {
+            let tris: Vec<[DVec3; 3]> = (0..occluders_len as u32)
+                .map(|k| occluders.world_triangle(k))
+                .collect();
+            Solids::find(&tris, tol)
+        } else {
+            Solids::default()
+        };
         static NEXT_ID: AtomicU64 = AtomicU64::new(0);
         RowEngine {
+            solids,
             id: NEXT_ID.fetch_add(1, Ordering::Relaxed),
             occluders,
             cfg,
