@@ -30,6 +30,12 @@ pub(crate) fn convex_holds(v: &[DVec3], normal: DVec3, y: DVec3, tol: f64) -> bo
     })
 }
 
+impl<const N: usize> Default for PolygonN<N> {
+    fn default() -> Self {
+        Self::EMPTY
+    }
+}
+
 impl<const N: usize> PolygonN<N> {
     /// No vertex.
     pub(crate) const EMPTY: Self = PolygonN {
@@ -87,23 +93,59 @@ impl<const N: usize> PolygonN<N> {
 
     /// [`PolygonN::clip_front`] into `out` (no copy of a whole polygon).
     pub(crate) fn clip_front_into(&self, normal: DVec3, offset: f64, tol: f64, out: &mut Self) {
+        let mut d = [0.0; N];
+        self.distances(normal, offset, tol, &mut d);
+        self.clip_by(&d, out);
+    }
+
+    /// [`PolygonN::clip_front`] in place, with the same result bit for bit; `spare` is
+    /// working memory. Nothing is copied when the plane does not cut the polygon, and
+    /// only the vertices kept when it does.
+    pub(crate) fn clip_front_in_place(
+        &mut self,
+        normal: DVec3,
+        offset: f64,
+        tol: f64,
+        spare: &mut Self,
+    ) {
+        let mut d = [0.0; N];
+        let (keep, drop) = self.distances(normal, offset, tol, &mut d);
+        if !drop {
+            return;
+        }
+        if !keep {
+            self.n = 0;
+            return;
+        }
+        self.clip_by(&d, spare);
+        self.v[..spare.n].copy_from_slice(&spare.v[..spare.n]);
+        self.n = spare.n;
+    }
+
+    /// The signed distances of the vertices to the plane, within `tol` of zero counted
+    /// as zero, into `d`; whether some vertex is kept (d ≥ 0) and some dropped (d < 0).
+    #[inline]
+    fn distances(&self, normal: DVec3, offset: f64, tol: f64, d: &mut [f64; N]) -> (bool, bool) {
+        let (mut keep, mut drop) = (false, false);
+        for (k, p) in self.verts().iter().enumerate() {
+            let x = normal.dot(*p) - offset;
+            d[k] = if x.abs() <= tol { 0.0 } else { x };
+            keep |= d[k] >= 0.0;
+            drop |= d[k] < 0.0;
+        }
+        (keep, drop)
+    }
+
+    /// Sutherland–Hodgman with the vertices' distances `d` given.
+    #[inline]
+    fn clip_by(&self, d: &[f64; N], out: &mut Self) {
         out.n = 0;
         if self.n == 0 {
             return;
         }
-        let dist = |p: DVec3| {
-            let d = normal.dot(p) - offset;
-            if d.abs() <= tol {
-                0.0
-            } else {
-                d
-            }
-        };
         let mut prev = self.v[self.n - 1];
-        let mut dprev = dist(prev);
-        for k in 0..self.n {
-            let cur = self.v[k];
-            let dcur = dist(cur);
+        let mut dprev = d[self.n - 1];
+        for (&cur, &dcur) in self.verts().iter().zip(d) {
             if dcur >= 0.0 {
                 if dprev < 0.0 && dcur > 0.0 {
                     out.push(prev + (cur - prev) * (dprev / (dprev - dcur)));
@@ -190,6 +232,27 @@ mod tests {
             dvec3(1.0, 1.0, 0.0),
             dvec3(0.0, 1.0, 0.0),
         ])
+    }
+
+    /// In place or into another polygon, a clip gives the same vertices bit for bit:
+    /// planes that miss, cut, touch (within the tolerance) and contain the square.
+    #[test]
+    fn clipping_in_place_equals_clipping_into() {
+        let sq = unit_square();
+        for (normal, offset) in [
+            (dvec3(1.0, 0.0, 0.0), 0.5),
+            (dvec3(1.0, 1.0, 0.0).normalize(), 0.3),
+            (dvec3(-1.0, 0.2, 0.0).normalize(), -0.1),
+            (dvec3(1.0, 0.0, 0.0), 1.0 + 1e-13),
+            (dvec3(1.0, 0.0, 0.0), -2.0),
+            (dvec3(1.0, 0.0, 0.0), 2.0),
+            (dvec3(0.0, 0.0, 1.0), 0.0),
+        ] {
+            let want = sq.clip_front(normal, offset, 1e-12);
+            let (mut got, mut spare) = (sq, Polygon::EMPTY);
+            got.clip_front_in_place(normal, offset, 1e-12, &mut spare);
+            assert_eq!(got.verts(), want.verts(), "{normal} {offset}");
+        }
     }
 
     #[test]

@@ -301,6 +301,8 @@ pub(crate) struct ShadowScratch {
     active: Vec<Caster>,
     loose: Vec<Caster>,
     cells: Vec<Piece>,
+    /// Working memory of the clips.
+    spare: Piece,
 }
 
 /// F(x → B_j(x)): the form factor from the point `x` (unit normal `n`) to the part of
@@ -359,23 +361,23 @@ fn shadow_part(
         return Some(());
     }
     // This shadow on P_j, then minus the cones of the shadows before it.
-    let (mut shadow, mut spare) = (*receiver, Piece::EMPTY);
-    for h in cone.halves() {
-        if shadow.n == shadow.v.len() {
-            return None;
-        }
-        shadow.clip_front_into(h.normal, h.offset, tol, &mut spare);
-        std::mem::swap(&mut shadow, &mut spare);
-        if !usable(&shadow) {
-            break;
-        }
-    }
     let ShadowScratch {
         cones,
         pieces,
         next,
+        spare,
         ..
     } = s;
+    let mut shadow = *receiver;
+    for h in cone.halves() {
+        if shadow.n == shadow.v.len() {
+            return None;
+        }
+        shadow.clip_front_in_place(h.normal, h.offset, tol, spare);
+        if !usable(&shadow) {
+            break;
+        }
+    }
     let earlier = cones.len();
     cones.push(*cone);
     if !usable(&shadow) {
@@ -386,7 +388,7 @@ fn shadow_part(
     for c in &cones[..earlier] {
         next.clear();
         for piece in pieces.iter() {
-            if !subtract(piece, c, tol, next) {
+            if !subtract(piece, c, tol, next, spare) {
                 return None;
             }
         }
@@ -405,23 +407,22 @@ fn shadow_part(
 }
 
 /// Appends the convex pieces of `p` outside the cone `c` to `out`; false when a piece
-/// would have more vertices than a [`Piece`] holds.
-fn subtract(p: &Piece, c: &Cone, tol: f64, out: &mut Vec<Piece>) -> bool {
+/// would have more vertices than a [`Piece`] holds. `spare`: working memory.
+fn subtract(p: &Piece, c: &Cone, tol: f64, out: &mut Vec<Piece>, spare: &mut Piece) -> bool {
     if c.misses(p, tol) {
         out.push(*p);
         return true;
     }
-    let (mut inside, mut spare, mut outside) = (*p, Piece::EMPTY, Piece::EMPTY);
+    let mut inside = *p;
     for h in c.halves() {
         if inside.n == inside.v.len() {
             return false;
         }
-        inside.clip_front_into(-h.normal, -h.offset, tol, &mut outside);
-        if usable(&outside) {
-            out.push(outside);
+        inside.clip_front_into(-h.normal, -h.offset, tol, spare);
+        if usable(spare) {
+            out.push(*spare);
         }
-        inside.clip_front_into(h.normal, h.offset, tol, &mut spare);
-        std::mem::swap(&mut inside, &mut spare);
+        inside.clip_front_in_place(h.normal, h.offset, tol, spare);
         if !usable(&inside) {
             return true;
         }
