@@ -128,9 +128,13 @@ enum SolidShadow {
 }
 
 impl Cone {
-    const EMPTY: Half = Half {
-        normal: DVec3::ZERO,
-        offset: 0.0,
+    /// No half-space yet.
+    const EMPTY: Cone = Cone {
+        h: [Half {
+            normal: DVec3::ZERO,
+            offset: 0.0,
+        }; MAX_HALVES],
+        n: 0,
     };
 
     fn halves(&self) -> &[Half] {
@@ -185,11 +189,8 @@ impl Cone {
         if side.abs() <= tol {
             return None;
         }
-        let mut c = Cone {
-            h: [Self::EMPTY; MAX_HALVES],
-            n: 1,
-        };
-        c.h[0] = Self::beyond(t.normal, t.offset, side, tol);
+        let mut c = Cone::EMPTY;
+        c.push(Self::beyond(t.normal, t.offset, side, tol));
         for k in 0..3 {
             let (p, q, r) = (t.v[k], t.v[(k + 1) % 3], t.v[(k + 2) % 3]);
             // x on the line of an edge: in the plane, edge-on.
@@ -321,10 +322,7 @@ pub(crate) fn blocked_at(
     let receiver = Piece::new(pj.verts());
     s.cones.clear();
     let mut total = 0.0;
-    let mut whole = Cone {
-        h: [Cone::EMPTY; MAX_HALVES],
-        n: 0,
-    };
+    let mut whole = Cone::EMPTY;
     for k in solids {
         match Cone::of_solid(x, k, &receiver, tol, &mut whole) {
             SolidShadow::Nothing => {}
@@ -1118,10 +1116,7 @@ mod tests {
                 compared += 1;
                 shaded += usize::from(b > 1e-6);
                 let receiver = Piece::new(pj.verts());
-                let mut cone = Cone {
-                    h: [Cone::EMPTY; MAX_HALVES],
-                    n: 0,
-                };
+                let mut cone = Cone::EMPTY;
                 whole += solids
                     .iter()
                     .filter(|k| {
