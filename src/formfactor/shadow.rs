@@ -790,7 +790,7 @@ fn cut_at_kinks(
         // crosses the edge itself.
         for (v, w) in edges.clone() {
             cut(cells, p0, v, w, tol, &|x| {
-                ray_meets_segment(x, p0, v, w) || ray_meets_segment(p0, x, v, w)
+                segment_meets_segment(x, p0, v, w)
             });
         }
     }
@@ -799,17 +799,30 @@ fn cut_at_kinks(
 /// True when the line from `x` through `v` meets the segment `a`–`b` (x, v, a, b
 /// coplanar) with v between x and the meeting point, give or take a margin.
 fn ray_meets_segment(x: DVec3, v: DVec3, a: DVec3, b: DVec3) -> bool {
+    line_meets_segment(x, v, a, b).is_some_and(|lambda| lambda >= 1.0 - 1e-9)
+}
+
+/// True when the segment `x`–`y` meets the segment `a`–`b` (all four coplanar), give
+/// or take a margin.
+fn segment_meets_segment(x: DVec3, y: DVec3, a: DVec3, b: DVec3) -> bool {
+    line_meets_segment(x, y, a, b).is_some_and(|lambda| (-1e-6..=1.0 + 1e-6).contains(&lambda))
+}
+
+/// Where the line x + λ (v − x) meets the segment `a`–`b` (all four coplanar), as λ;
+/// None when it misses the segment (by more than a margin) or runs parallel to it.
+fn line_meets_segment(x: DVec3, v: DVec3, a: DVec3, b: DVec3) -> Option<f64> {
     let (d, e) = (v - x, b - a);
     let c = d.cross(e);
     let cc = c.length_squared();
     if cc.is_nan() || cc <= 0.0 {
-        return false;
+        return None;
     }
     // x + λ d = a + t e.
     let w = a - x;
-    let lambda = w.cross(e).dot(c) / cc;
     let t = w.cross(d).dot(c) / cc;
-    lambda >= 1.0 - 1e-9 && (-1e-6..=1.0 + 1e-6).contains(&t)
+    (-1e-6..=1.0 + 1e-6)
+        .contains(&t)
+        .then(|| w.cross(e).dot(c) / cc)
 }
 
 /// Cuts the cells that the plane through `a`, `b`, `c` crosses, where `matters` holds
@@ -1159,6 +1172,40 @@ mod tests {
     /// diagonal, not its outline, also when the square is given twice, once facing each
     /// way (as `builtin:obstructed` gives its blocker when coplanar occluders are not
     /// merged).
+    /// A vertex of P_j seen across an occluder edge between the patches is a kink: the
+    /// cells are cut where the segment from x to that vertex crosses the edge. (The
+    /// test used to look for the edge beyond the vertex or behind x, and never cut.)
+    #[test]
+    fn a_receiver_corner_behind_an_occluder_edge_cuts_the_cells() {
+        // P_i: the unit square at y = 0; P_j: the unit square at y = 2; an occluder
+        // edge along x at y = 1, z = 0.25. From x = (·, 0, 0.5) the segment to P_j's
+        // corners at z = 0 crosses that edge: the one line where the kink lies.
+        let pi = square(0.0, 1.0, 0.0, 1.0, 0.0);
+        let pj = square(0.0, 1.0, 0.0, 1.0, 2.0);
+        let edge = (dvec3(-5.0, 1.0, 0.25), dvec3(5.0, 1.0, 0.25));
+        let mut cells = vec![Piece::new(pi.verts())];
+        cut_at_kinks(&mut cells, pj.verts(), &[], [edge].into_iter(), 1e-9);
+        assert_eq!(cells.len(), 2, "one cut, at z = 0.5");
+        for c in &cells {
+            let z: Vec<f64> = c.verts().iter().map(|v| v.z).collect();
+            let (lo, hi) = z
+                .iter()
+                .fold((f64::MAX, f64::MIN), |(a, b), &z| (a.min(z), b.max(z)));
+            assert!(
+                (lo.abs() < 1e-12 || (lo - 0.5).abs() < 1e-12)
+                    && ((hi - 0.5).abs() < 1e-12 || (hi - 1.0).abs() < 1e-12)
+                    && hi - lo > 0.49,
+                "cell spans z {lo}..{hi}"
+            );
+        }
+        // An edge beyond P_j (y = 3, z = −0.25) lines up with its corners at z = 0 from
+        // the same line of P_i, but behind P_j, where it hides nothing: no cut.
+        let beyond = (dvec3(-5.0, 3.0, -0.25), dvec3(5.0, 3.0, -0.25));
+        let mut cells = vec![Piece::new(pi.verts())];
+        cut_at_kinks(&mut cells, pj.verts(), &[], [beyond].into_iter(), 1e-9);
+        assert_eq!(cells.len(), 1);
+    }
+
     #[test]
     fn only_edges_between_coplanar_triangles_are_inner() {
         let one = casters_of_square(0.3, 0.8, 0.2, 0.6, 0.5);
