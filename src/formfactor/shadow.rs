@@ -450,6 +450,14 @@ const RADON: [([f64; 3], f64); 7] = {
     ]
 };
 
+/// The share of a pair's tolerance that the exact route treats as nothing: 1 /
+/// `UNRESOLVED` of it. A triangle of the outer rule whose samples see no shadow counts
+/// as unshadowed when what it could hold is below that, and a pair whose remainder is
+/// below that share of F⁰ × `--shadow-tol` is stored as hidden
+/// (`RowEngine::exact_occluded`). Tied to the tolerance itself, the snap was most of
+/// the error at loose tolerances (bench/PERF.md §28).
+pub(crate) const UNRESOLVED: u32 = 64;
+
 /// Deepest refinement of a triangle of the outer rule (4⁹ sub-triangles of each).
 const MAX_DEPTH: u32 = 9;
 
@@ -605,7 +613,7 @@ pub(crate) fn blocked_integral(
         loose: &loose,
         solids: &solids,
         density: tol_abs / area,
-        dark_floor: tol_abs / 64.0,
+        dark_floor: tol_abs / UNRESOLVED as f64,
         points: 0,
     };
     let mut total = Some(0.0);

@@ -6,7 +6,7 @@
 //! in `tests/data/occluded_refs.json`; docs/known-answers.md §8 describes them.
 
 use ffstream::formfactor::{FormFactorConfig, Scratch, Visibility};
-use glam::DVec3;
+use glam::{dvec3, DVec3};
 use serde_json::Value;
 
 use super::scenes::{all_rows, group_ff, Built};
@@ -193,6 +193,56 @@ fn split_occluders_merged_again_are_handled_exactly() {
         );
     }
     assert!(split_rays > 0, "the split occluders never needed rays");
+}
+
+/// A pair that shows less than 1 % of itself keeps it at `--shadow-tol 1e-2`: only a
+/// small share of the tolerance counts as nothing. (The snap was the whole tolerance
+/// once, and this pair came out 0.)
+#[test]
+fn a_small_visible_remainder_survives_a_loose_tolerance() {
+    // Unit squares 1 apart (y = 0 facing +y, y = 1 facing −y); a wall midway hides
+    // every segment whose ends' heights sum to less than 1.9: P_i sees only a corner of
+    // P_j, from near its own top edge.
+    let (o, x, y, z) = (DVec3::ZERO, DVec3::X, DVec3::Y, DVec3::Z);
+    let wall = [
+        dvec3(-3.0, 0.5, -3.0),
+        dvec3(4.0, 0.5, -3.0),
+        dvec3(4.0, 0.5, 0.95),
+        dvec3(-3.0, 0.5, 0.95),
+    ];
+    let c = Case {
+        name: "sliver".into(),
+        i: [o, z, x + z, x],
+        j: [y, y + x, y + x + z, y + z],
+        occluders: vec![[wall[0], wall[1], wall[2]], [wall[0], wall[2], wall[3]]],
+        f_ij: 0.0,
+        f_ji: 0.0,
+    };
+    let b = scene(&c, 1);
+    let entry = |tol: f64| {
+        let mut cfg = exact_cfg();
+        cfg.shadow_tol = tol;
+        let e = b.engine(cfg);
+        let mut s = Scratch::new();
+        let rows: Vec<_> = (0..e.n() as u32)
+            .map(|i| e.compute_row(i, &mut s))
+            .collect();
+        assert_eq!(s.counters().pairs_exact, 2, "{:?}", s.counters());
+        group_ff(&b.patches, &rows, 0, 1)
+    };
+    // F⁰ of two unit squares 1 apart (Howell C-11).
+    let f0 = 0.199_824_895_7;
+    let (tight, loose) = (entry(1e-6), entry(1e-2));
+    assert!(
+        tight > 1e-3 * f0 && tight < 1e-2 * f0,
+        "the case shows {:.2e} of F0, meant between 0.1 % and 1 %",
+        tight / f0
+    );
+    assert!(loose > 0.0, "snapped to 0 (tight {tight:.3e})");
+    assert!(
+        (loose - tight).abs() <= 1e-2 * f0,
+        "{loose:.3e} vs {tight:.3e}"
+    );
 }
 
 #[test]
