@@ -30,6 +30,11 @@ manager; close() releases the memory map):
   chunks (about 1 MiB raw each) are in memory at a time, never the whole file.
 - `to_csr()`: the matrix, the same as `read().matrix` (dense rows keep their non-zero
   entries, top-k rows every stored entry).
+- `routes`: how the pairs got their visibility (spec 6.1), a dict of `rows` (rows, or
+  half rows with --symmetric, that the counts cover: those computed by runs that
+  finished), `evaluated`, `unoccludable`, `exact`, `fallback`, `rays`,
+  `exact_visible`, `exact_hidden`, `exact_points`; None when the index has no such
+  record or the file was recovered by a scan.
 - `presence` (uint8 per row: 0 missing, 1 present, 2 skipped) comes from the index or
   the scan: no pass over the chunks. `dropped` (float32 per row) is stored in the
   chunks: its first use reads every chunk once (unless to_csr() already did), then it
@@ -81,6 +86,11 @@ __version__ = "0.1.0"
 FILE_MAGIC = b"\x89FFZ\r\n\x1a\n"  # spec 3.1
 CHUNK_MAGIC = b"FFZC"  # spec 5.1
 INDEX_MAGIC = b"FFZI"  # spec 6
+INDEX_FLAG_ROUTES = 1  # spec 6: a route record (6.1) follows the row table
+ROUTES_LEN = 72
+# spec 6.1, in file order (nine u64)
+ROUTE_FIELDS = ("rows", "evaluated", "unoccludable", "exact", "fallback", "rays",
+                "exact_visible", "exact_hidden", "exact_points")
 FOOTER_MAGIC = b"FFZ-END\n"  # spec 7
 HEADER_LEN, PATCH_LEN, CHUNK_HEADER_LEN, DIR_LEN, FOOTER_LEN = 64, 168, 40, 24, 32
 SHUFFLED, SKIPPED, SPARSE = 1, 1, 2
@@ -216,6 +226,7 @@ class FfzFile:
     chunks: int
     indexed: bool
     warnings: list = field(default_factory=list)
+    routes: Optional[dict] = None  # spec 6.1; see FfzReader.routes
 
     def true_row_sums(self) -> np.ndarray:
         """Stored + dropped per row (spec 5.6), float64."""
@@ -495,6 +506,7 @@ class FfzReader:
         self.verify = verify
         self.threads = _default_threads() if threads is None else max(1, int(threads))
         self.warnings: list = []
+        self.routes = None
         self._crc = crc32c if verify else None
         self._cache = collections.OrderedDict()
         self._cache_size = max(0, int(cache_chunks))
@@ -585,10 +597,14 @@ class FfzReader:
         ix = buf[ioff:f]
         if not self._crc_ok(ix, icrc):
             raise ValueError(f"byte {f + 16}: index checksum mismatch")
-        if ix[:4] != INDEX_MAGIC or _u32(ix, 4) != 0:
+        if ix[:4] != INDEX_MAGIC:
             raise ValueError(f"byte {ioff}: bad index magic")
+        flags = _u32(ix, 4)
+        if flags & ~INDEX_FLAG_ROUTES:
+            raise ValueError(f"byte {ioff + 4}: unknown index flags {flags:#x}")
         nch, nrows = _u64(ix, 8), _u64(ix, 16)
-        if nrows != n or ilen != 24 + 8 * nch + 8 * nrows:
+        extra = ROUTES_LEN if flags & INDEX_FLAG_ROUTES else 0
+        if nrows != n or ilen != 24 + 8 * nch + 8 * nrows + extra:
             raise ValueError(f"byte {ioff + 8}: index sizes disagree with n = {n}")
         offsets = np.frombuffer(ix, dtype="<u8", count=nch, offset=24).astype(np.int64)
         if nch and (offsets[0] < meta_len or np.any(np.diff(offsets) <= 0) or offsets[-1] + CHUNK_HEADER_LEN > ioff):
@@ -599,6 +615,15 @@ class FfzReader:
         if not np.all(ok):
             bad = int(np.argmin(ok))
             raise ValueError(f"byte {ioff + 24 + 8 * nch + 8 * bad}: row {bad} entry invalid")
+        routes = None
+        if extra:
+            at = 24 + 8 * nch + 8 * n
+            routes = dict(zip(ROUTE_FIELDS, struct.unpack_from("<9Q", ix, at)))
+            r = routes
+            if (r["rows"] > n or r["unoccludable"] + r["exact"] + r["rays"] > r["evaluated"]
+                    or r["fallback"] > r["rays"] or r["exact_visible"] + r["exact_hidden"] > r["exact"]):
+                raise ValueError(f"byte {ioff + at}: route record counts that cannot hold together")
+        self.routes = routes
         return offsets.tolist(), chunk.copy(), state.astype(np.uint8), ioff
 
     def _read_index_or_scan(self):
@@ -607,6 +632,7 @@ class FfzReader:
             offsets, row_chunk, presence, area_end = self._read_index()
         except ValueError as why:
             self.indexed = False
+            self.routes = None
             spans, bad, dirs = self._scan()
             self._spans = spans
             row_chunk = np.full(n, NO_CHUNK, dtype=np.uint32)
@@ -934,6 +960,7 @@ class FfzReader:
             chunks=self.n_chunks,
             indexed=self.indexed,
             warnings=list(self.warnings),
+            routes=None if self.routes is None else dict(self.routes),
         )
 
     def close(self):

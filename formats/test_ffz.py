@@ -148,18 +148,24 @@ def test_cut_file_recovers_complete_chunks(tmp_path):
 TINY_TABLE = [(1, ffz.PRESENT), (0, ffz.SKIPPED_STATE), (0, ffz.PRESENT)]
 
 
-def reindex(data, table, n_chunks=None):
+def reindex(data, table, n_chunks=None, routes=None, flags=None):
     """The finished file `data` with a new index (spec 6) whose row table is `table`
-    [(chunk, state) per row], keeping only its first n_chunks chunks (the rest cut away);
-    index checksum and footer (spec 7) recomputed, so only what `table` says is wrong."""
+    [(chunk, state) per row], keeping only its first n_chunks chunks (the rest cut away),
+    with a route record (spec 6.1: nine counts) when `routes` is given; index checksum
+    and footer (spec 7) recomputed, so only what `table` (or `routes`, `flags`) says is
+    wrong."""
     ioff = struct.unpack_from("<Q", data, len(data) - 32)[0]
     nch = struct.unpack_from("<Q", data, ioff + 8)[0]
     offsets = list(struct.unpack_from(f"<{nch}Q", data, ioff + 24))
     end = ioff
     if n_chunks is not None and n_chunks < nch:
         end, offsets = offsets[n_chunks], offsets[:n_chunks]
-    ix = ffz.INDEX_MAGIC + struct.pack("<IQQ", 0, len(offsets), len(table))
+    if flags is None:
+        flags = 0 if routes is None else ffz.INDEX_FLAG_ROUTES
+    ix = ffz.INDEX_MAGIC + struct.pack("<IQQ", flags, len(offsets), len(table))
     ix += struct.pack(f"<{len(offsets)}Q", *offsets) + b"".join(struct.pack("<II", c, s) for c, s in table)
+    if routes is not None:
+        ix += struct.pack("<9Q", *routes)
     foot = struct.pack("<QQI", end, len(ix), ffz.crc32c(ix))
     foot += struct.pack("<I", ffz.crc32c(foot)) + ffz.FOOTER_MAGIC
     return data[:end] + ix + foot
@@ -171,6 +177,52 @@ def read_reindexed(tmp_path, table, n_chunks=None):
     p = tmp_path / "bad.ffz"
     p.write_bytes(reindex(good, table, n_chunks))
     return ffz.read(p)
+
+
+# rows, evaluated, unoccludable, exact, fallback, rays, exact_visible, exact_hidden, points
+ROUTES = (2, 10, 2, 5, 1, 3, 1, 2, 500)
+
+
+def test_route_record_reads_back(tmp_path):
+    good = (HERE / "golden" / "tiny-v1.ffz").read_bytes()
+    p = tmp_path / "routes.ffz"
+    p.write_bytes(reindex(good, TINY_TABLE, routes=ROUTES))
+    with ffz.open(p) as r:
+        assert r.indexed and not r.warnings
+        assert r.routes == dict(zip(ffz.ROUTE_FIELDS, ROUTES))
+    f = ffz.read(p)
+    assert f.routes == dict(zip(ffz.ROUTE_FIELDS, ROUTES))
+    assert ffz.read(HERE / "golden" / "tiny-v1.ffz").routes is None
+
+
+@pytest.mark.parametrize(
+    "routes, flags",
+    [
+        ((4,) + ROUTES[1:], None),  # more rows than the file has (n = 3)
+        (ROUTES[:1] + (8,) + ROUTES[2:], None),  # 2 + 5 + 3 routed of 8 evaluated
+        (ROUTES[:4] + (4,) + ROUTES[5:], None),  # 4 fallbacks, 3 pairs by rays
+        (ROUTES[:6] + (4,) + ROUTES[7:], None),  # 4 + 2 proven of 5 exact
+        (ROUTES, 3),  # an unknown flag
+        (None, 1),  # the flag without its record: the length is off
+    ],
+    ids=["rows", "routed", "fallback", "proven", "flag", "short"],
+)
+def test_impossible_route_record_means_no_index(tmp_path, routes, flags):
+    good = (HERE / "golden" / "tiny-v1.ffz").read_bytes()
+    p = tmp_path / "bad-routes.ffz"
+    p.write_bytes(reindex(good, TINY_TABLE, routes=routes, flags=flags))
+    f = ffz.read(p)
+    assert not f.indexed and f.routes is None and "recovered 2 chunks" in f.warnings[0]
+    assert list(f.presence) == [ffz.PRESENT, ffz.SKIPPED_STATE, ffz.PRESENT]
+
+
+@pytest.mark.skipif(not os.environ.get("FFZ_FILE"), reason="set FFZ_FILE to a Rust-written file")
+def test_rust_file_keeps_its_route_counts():
+    # FFZ_FILE is a whole `ffstream compute` run: every row counted.
+    f = ffz.read(os.environ["FFZ_FILE"])
+    r = f.routes
+    assert r is not None and r["rows"] == f.n and r["evaluated"] > 0
+    assert r["unoccludable"] + r["exact"] + r["rays"] <= r["evaluated"]
 
 
 @pytest.mark.parametrize("state", [ffz.PRESENT, ffz.SKIPPED_STATE], ids=["present", "skipped"])

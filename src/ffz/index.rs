@@ -2,6 +2,7 @@
 //! starts and which chunk holds each row.
 
 use super::presence::{RowPresence, RowState};
+use super::routes::StoredRoutes;
 use super::spec::{self, FooterV1, IndexV1, Le};
 
 /// The index in memory: O(chunks + n).
@@ -14,6 +15,8 @@ pub(crate) struct IndexData {
     pub(crate) presence: RowPresence,
     /// Offset of the index = end of the chunk area.
     pub(crate) index_offset: u64,
+    /// How the counted rows' pairs got their visibility, when the index says.
+    pub(crate) routes: Option<StoredRoutes>,
 }
 
 /// Stream the index bytes (spec §6) to `sink` in pieces, so that no second O(n) buffer
@@ -22,10 +25,17 @@ pub(crate) fn write_index(
     chunk_offsets: &[u64],
     row_chunk: &[u32],
     presence: &RowPresence,
+    routes: Option<&StoredRoutes>,
     sink: &mut dyn FnMut(&[u8]) -> std::io::Result<()>,
 ) -> std::io::Result<u64> {
     let mut head = Vec::with_capacity(spec::INDEX_FIXED_LEN);
+    let flags = if routes.is_some() {
+        spec::INDEX_FLAG_ROUTES
+    } else {
+        0
+    };
     IndexV1 {
+        flags,
         n_chunks: chunk_offsets.len() as u64,
         n_rows: row_chunk.len() as u64,
     }
@@ -52,8 +62,14 @@ pub(crate) fn write_index(
             buf.clear();
         }
     }
+    if let Some(r) = routes {
+        buf.extend_from_slice(&r.encode());
+    }
     sink(&buf)?;
-    Ok(spec::INDEX_FIXED_LEN as u64 + 8 * chunk_offsets.len() as u64 + 8 * row_chunk.len() as u64)
+    Ok(
+        IndexV1::total_len(chunk_offsets.len() as u64, row_chunk.len() as u64, flags)
+            .expect("an index of chunks and rows in memory has a length"),
+    )
 }
 
 /// Read footer and index from a whole file image (spec §7 then §6). `Err` holds the
@@ -98,11 +114,14 @@ pub(crate) fn read_index(file: &[u8], n: u32, meta_len: u64) -> Result<IndexData
         return Err((f.index_offset, format!("bad index magic {magic:02x?}")));
     }
     let short = |r: &Le<'_>| (at(r), "index cut short".to_string());
-    let reserved = r.u32().ok_or_else(|| short(&r))?;
+    let flags = r.u32().ok_or_else(|| short(&r))?;
     let n_chunks = r.u64().ok_or_else(|| short(&r))?;
     let n_rows = r.u64().ok_or_else(|| short(&r))?;
-    if reserved != 0 {
-        return Err((f.index_offset + 4, "reserved index field is not 0".into()));
+    if flags & !spec::INDEX_FLAG_ROUTES != 0 {
+        return Err((
+            f.index_offset + 4,
+            format!("unknown index flags {flags:#x}"),
+        ));
     }
     if n_rows != n as u64 {
         return Err((
@@ -110,7 +129,7 @@ pub(crate) fn read_index(file: &[u8], n: u32, meta_len: u64) -> Result<IndexData
             format!("index has {n_rows} rows, header says n = {n}"),
         ));
     }
-    if IndexV1::total_len(n_chunks, n_rows) != Some(f.index_len) {
+    if IndexV1::total_len(n_chunks, n_rows, flags) != Some(f.index_len) {
         return Err((
             f.index_offset + 8,
             format!(
@@ -153,10 +172,17 @@ pub(crate) fn read_index(file: &[u8], n: u32, meta_len: u64) -> Result<IndexData
         presence.set(i, state);
         row_chunk.push(c);
     }
+    let routes = if flags & spec::INDEX_FLAG_ROUTES != 0 {
+        let pos = at(&r);
+        Some(StoredRoutes::decode(&mut r, n).map_err(|(o, why)| (pos + o as u64, why))?)
+    } else {
+        None
+    };
     Ok(IndexData {
         chunk_offsets,
         row_chunk,
         presence,
         index_offset: f.index_offset,
+        routes,
     })
 }

@@ -17,6 +17,7 @@
 //! | `npz.rs` | `export --npz`: the CSR arrays as `scipy.sparse.save_npz` writes them |
 //! | `tools.rs` | `info`, `verify`, `export` for the command line |
 //! | `presence.rs` | [`RowPresence`]: which rows a file holds |
+//! | `routes.rs` | [`PairRoutes`]: how the pairs got their visibility, kept in the index |
 
 mod chunk;
 mod error;
@@ -26,6 +27,7 @@ pub mod npz;
 mod presence;
 mod reader;
 mod recover;
+mod routes;
 pub mod size;
 pub mod spec;
 pub mod tools;
@@ -42,6 +44,7 @@ pub use meta::{FileMeta, Layout};
 pub use presence::{RowPresence, RowState};
 pub use reader::FfzReader;
 pub use recover::{torn_header, BadRegion};
+pub use routes::{PairRoutes, StoredRoutes};
 pub use unoccluded::{unoccluded_excess, UnoccludedReport, UNOCCLUDED_ABS_TOL};
 pub use verify::{compare, BadChunk, CompareReport, VerifyOptions, VerifyReport, ROW_SUM_TOL};
 pub use writer::{FfzWriter, WriterOptions, WriterStats};

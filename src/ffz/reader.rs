@@ -14,6 +14,7 @@ use super::index;
 use super::meta::{self, FileMeta, Layout};
 use super::presence::{RowPresence, RowState};
 use super::recover::{self, BadRegion};
+use super::routes::StoredRoutes;
 use super::spec::{self, HeaderV1};
 use crate::rows::Row;
 
@@ -39,6 +40,8 @@ pub struct FfzReader {
     bad_regions: Vec<BadRegion>,
     warnings: Vec<String>,
     cache: Mutex<Vec<(u32, Arc<DecodedChunk>)>>,
+    /// The index's route record (spec §6.1), when it has one.
+    routes: Option<StoredRoutes>,
 }
 
 /// Map a file and check the header and meta block: shared by the reader and `resume`.
@@ -119,6 +122,7 @@ impl FfzReader {
             bad_regions: Vec::new(),
             warnings: Vec::new(),
             cache: Mutex::new(Vec::new()),
+            routes: None,
             map,
         };
         match index::read_index(&r.map, n, r.header.meta_len) {
@@ -127,6 +131,7 @@ impl FfzReader {
                 r.row_chunk = ix.row_chunk;
                 r.presence = ix.presence;
                 r.chunk_area_end = ix.index_offset;
+                r.routes = ix.routes;
                 r.indexed = true;
             }
             Err((offset, why)) => r.recover(offset, &why),
@@ -209,6 +214,13 @@ impl FfzReader {
     /// unreadable regions). Empty for a good, finished file.
     pub fn warnings(&self) -> &[String] {
         &self.warnings
+    }
+
+    /// How the pairs of the counted rows got their visibility (spec §6.1): None when
+    /// the index has no route record (a file written before there was one, or by a
+    /// writer that counted nothing) or the file was recovered by a scan.
+    pub fn routes(&self) -> Option<&StoredRoutes> {
+        self.routes.as_ref()
     }
 
     /// True when the footer and index were valid (no recovery scan was needed).

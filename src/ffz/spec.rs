@@ -15,6 +15,8 @@ pub(crate) const VERSION: u32 = 1;
 pub(crate) const CHUNK_MAGIC: [u8; 4] = *b"FFZC";
 /// Index magic (spec §6).
 pub(crate) const INDEX_MAGIC: [u8; 4] = *b"FFZI";
+/// Index flag (spec §6): a route record (§6.1) follows the row table.
+pub(crate) const INDEX_FLAG_ROUTES: u32 = 1;
 /// Footer magic, the last 8 bytes of a complete file (spec §7).
 pub(crate) const FOOTER_MAGIC: [u8; 8] = *b"FFZ-END\n";
 
@@ -428,7 +430,8 @@ impl RowDirEntryV1 {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(crate) struct IndexV1 {
     // 0: magic [4] = INDEX_MAGIC
-    // 4: reserved u32 = 0
+    /// 4: flags u32: [`INDEX_FLAG_ROUTES`] or 0.
+    pub(crate) flags: u32,
     /// 8: n_chunks u64.
     pub(crate) n_chunks: u64,
     /// 16: n_rows u64, must equal the header's n.
@@ -438,18 +441,24 @@ pub(crate) struct IndexV1 {
 impl IndexV1 {
     pub(crate) fn encode_into(&self, out: &mut Vec<u8>) {
         out.extend_from_slice(&INDEX_MAGIC);
-        out.extend_from_slice(&0u32.to_le_bytes());
+        out.extend_from_slice(&self.flags.to_le_bytes());
         out.extend_from_slice(&self.n_chunks.to_le_bytes());
         out.extend_from_slice(&self.n_rows.to_le_bytes());
     }
 
-    /// Total index length for this many chunks and rows (spec §6).
-    pub(crate) fn total_len(n_chunks: u64, n_rows: u64) -> Option<u64> {
+    /// Total index length for this many chunks and rows, with these flags (spec §6).
+    pub(crate) fn total_len(n_chunks: u64, n_rows: u64, flags: u32) -> Option<u64> {
         let chunk_table = n_chunks.checked_mul(8)?;
         let row_table = n_rows.checked_mul(8)?;
+        let routes = if flags & INDEX_FLAG_ROUTES != 0 {
+            super::routes::ROUTES_LEN as u64
+        } else {
+            0
+        };
         (INDEX_FIXED_LEN as u64)
             .checked_add(chunk_table)?
-            .checked_add(row_table)
+            .checked_add(row_table)?
+            .checked_add(routes)
     }
 }
 

@@ -109,6 +109,21 @@ pub fn info(path: &Path, out: &mut dyn Write) -> Result<()> {
         }
     )
     .map_err(&e)?;
+    // How the pairs got their visibility (spec §6.1): what `compute` printed at its
+    // end, kept in the index and added up over the runs that finished the file.
+    match r.routes() {
+        Some(rt) => writeln!(
+            out,
+            "routes:        over the {} rows computed by runs that finished (half rows with --symmetric), {}",
+            rt.rows,
+            rt.pairs.summary()
+        ),
+        None => writeln!(
+            out,
+            "routes:        not recorded (a file from before ffstream kept them, a run that did not finish, or an index rebuilt by a scan)"
+        ),
+    }
+    .map_err(&e)?;
     writeln!(out, "{}", sky_view_summary(&r)).map_err(&e)?;
     for w in r.warnings() {
         writeln!(out, "warning: {w}").map_err(&e)?;

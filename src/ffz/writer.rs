@@ -17,6 +17,7 @@ use super::meta::{self, FileMeta, Layout};
 use super::presence::{RowPresence, RowState};
 use super::reader::map_and_meta;
 use super::recover;
+use super::routes::StoredRoutes;
 use super::spec;
 use crate::rows::Row;
 
@@ -75,6 +76,10 @@ pub struct FfzWriter {
     poisoned: bool,
     finished: bool,
     warnings: Vec<String>,
+    /// How the pairs of the counted rows got their visibility (spec §6.1): a resumed
+    /// file's, plus what [`FfzWriter::add_routes`] adds. None: the index gets no route
+    /// record.
+    routes: Option<StoredRoutes>,
 }
 
 /// One writer per file: take an exclusive advisory lock (`flock`) for the lifetime of
@@ -193,6 +198,9 @@ struct KeptChunks {
     /// The kept chunks tile the file from the meta block to its end: nothing to drop.
     whole: bool,
     warnings: Vec<String>,
+    /// The old index's route record (none when the file was scanned: a run that did
+    /// not finish counted nothing).
+    routes: Option<StoredRoutes>,
 }
 
 impl FfzWriter {
@@ -251,6 +259,7 @@ impl FfzWriter {
             poisoned: false,
             finished: false,
             warnings: Vec::new(),
+            routes: None,
         }
     }
 
@@ -294,8 +303,15 @@ impl FfzWriter {
         w.presence = kept.presence;
         w.raw_bytes = kept.raw_bytes;
         w.warnings = kept.warnings;
+        w.routes = kept.routes;
         let presence = w.presence.clone();
         Ok((w, presence))
+    }
+
+    /// Count the pairs of `r.rows` more rows in the route record `finish` writes
+    /// (spec §6.1): a run adds what its workers reported, once, before `finish`.
+    pub fn add_routes(&mut self, r: &StoredRoutes) {
+        self.routes.get_or_insert_with(StoredRoutes::default).add(r);
     }
 
     /// Notes from `resume` (bytes dropped, ...).
@@ -477,6 +493,7 @@ impl FfzWriter {
             &self.chunk_offsets,
             &self.row_chunk,
             &self.presence,
+            self.routes.as_ref(),
             &mut sink,
         )
         .and_then(|len| {
@@ -623,6 +640,7 @@ fn kept_chunks(path: &Path, map: &[u8], n: u32, meta_len: u64, layout: Layout) -
             // The old index and footer are dropped (`finish` writes new ones).
             whole: false,
             warnings: Vec::new(),
+            routes: ix.routes,
         };
     }
     let scan = recover::scan_chunks(map, meta_len, map.len() as u64, n, layout);
@@ -633,6 +651,7 @@ fn kept_chunks(path: &Path, map: &[u8], n: u32, meta_len: u64, layout: Layout) -
         raw_bytes: 0,
         whole: scan.bad.is_empty(),
         warnings: Vec::new(),
+        routes: None,
     };
     for c in &scan.chunks {
         if let Some(e) = c
@@ -796,6 +815,79 @@ mod tests {
         let st = w.finish().unwrap();
         assert_eq!((st.rows, st.chunks), (1, 1));
         assert_eq!(st.bytes_on_disk, std::fs::metadata(&path).unwrap().len());
+    }
+
+    /// The route record (spec §6.1): written only when a run counted something, read
+    /// back, added to by a resume, and lost (not guessed) when a scan rebuilds the
+    /// index.
+    #[test]
+    fn route_counts_survive_a_resume_and_add_up() {
+        use crate::ffz::{PairRoutes, StoredRoutes};
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("r.ffz");
+        let m = meta(3);
+        let opts = WriterOptions {
+            fsync: false,
+            ..Default::default()
+        };
+        let counts = |rows: u64, evaluated: u64, exact: u64| StoredRoutes {
+            rows,
+            pairs: PairRoutes {
+                evaluated,
+                unoccludable: 1,
+                exact,
+                exact_points: 100 * exact,
+                ..Default::default()
+            },
+        };
+        // No counts: no record, the index as before.
+        let mut w = FfzWriter::create(&path, &m, opts).unwrap();
+        w.push_row(Row::dense(0, vec![0.0, 0.5, 0.25])).unwrap();
+        let plain = w.finish().unwrap().bytes_on_disk;
+        assert_eq!(FfzReader::open(&path).unwrap().routes(), None);
+        // A run that counted its row.
+        let mut w = FfzWriter::create(&path, &m, opts).unwrap();
+        w.push_row(Row::dense(0, vec![0.0, 0.5, 0.25])).unwrap();
+        w.add_routes(&counts(1, 2, 1));
+        let with = w.finish().unwrap().bytes_on_disk;
+        assert_eq!(with, plain + super::super::routes::ROUTES_LEN as u64);
+        let r = FfzReader::open(&path).unwrap();
+        assert!(
+            r.is_indexed() && r.warnings().is_empty(),
+            "{:?}",
+            r.warnings()
+        );
+        assert_eq!(r.routes(), Some(&counts(1, 2, 1)));
+        drop(r);
+        // A resume adds the rows it computes.
+        let (mut w, present) = FfzWriter::resume(&path, &m, opts).unwrap();
+        assert_eq!(present.present_count(), 1);
+        w.push_row(Row::dense(1, vec![0.5, 0.0, 0.25])).unwrap();
+        w.push_row(Row::dense(2, vec![0.25, 0.25, 0.0])).unwrap();
+        w.add_routes(&counts(2, 4, 2));
+        w.finish().unwrap();
+        let r = FfzReader::open(&path).unwrap();
+        let want = StoredRoutes {
+            rows: 3,
+            pairs: PairRoutes {
+                evaluated: 6,
+                unoccludable: 2,
+                exact: 3,
+                exact_points: 300,
+                ..Default::default()
+            },
+        };
+        assert_eq!(r.routes(), Some(&want));
+        drop(r);
+        // Cut the footer off: the scan finds the rows, and no counts.
+        let len = std::fs::metadata(&path).unwrap().len();
+        let f = std::fs::OpenOptions::new().write(true).open(&path).unwrap();
+        f.set_len(len - 1).unwrap();
+        drop(f);
+        let r = FfzReader::open(&path).unwrap();
+        assert!(!r.is_indexed());
+        assert_eq!(r.presence().present_count(), 3);
+        assert_eq!(r.routes(), None);
     }
 
     #[test]

@@ -3,7 +3,7 @@
 use std::path::PathBuf;
 use std::sync::Arc;
 
-use crate::ffz::{FileMeta, WriterOptions};
+use crate::ffz::{FileMeta, PairRoutes, WriterOptions};
 use crate::formfactor::RowEngine;
 use crate::patch::PatchSet;
 use crate::service::schedule::Schedule;
@@ -72,104 +72,6 @@ pub struct WorkerStats {
     pub(crate) peak_rss: u64,
     /// How the visibility of its pairs was found.
     pub(crate) pairs: PairRoutes,
-}
-
-/// How many evaluated pairs got their visibility which way (from the row engine's
-/// [`Counters`](crate::formfactor::Counters), summed over a worker's threads).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct PairRoutes {
-    /// Pairs whose kernel was evaluated.
-    pub evaluated: u64,
-    /// Of those, pairs no occluder can come between: no visibility work at all.
-    pub unoccludable: u64,
-    /// Pairs whose blocked part was clipped exactly (`--visibility exact`).
-    pub exact: u64,
-    /// Pairs meant for exact visibility that went to rays.
-    pub fallback: u64,
-    /// Pairs whose visibility rays estimated (the fallbacks included).
-    pub rays: u64,
-    /// Of the exact pairs, those proven fully visible: no outer points.
-    pub exact_visible: u64,
-    /// Of the exact pairs, those proven fully hidden: no outer points.
-    pub exact_hidden: u64,
-    /// Outer points the other (partly shadowed) exact pairs took, together.
-    pub exact_points: u64,
-}
-
-impl PairRoutes {
-    pub(crate) fn of(c: &crate::formfactor::Counters) -> Self {
-        PairRoutes {
-            evaluated: c.pairs_evaluated,
-            unoccludable: c.pairs_unoccludable,
-            exact: c.pairs_exact,
-            fallback: c.pairs_exact_fallback,
-            rays: c.pairs_rays,
-            exact_visible: c.pairs_exact_visible,
-            exact_hidden: c.pairs_exact_hidden,
-            exact_points: c.exact_points,
-        }
-    }
-
-    pub(crate) fn add(&mut self, o: &PairRoutes) {
-        self.evaluated += o.evaluated;
-        self.unoccludable += o.unoccludable;
-        self.exact += o.exact;
-        self.fallback += o.fallback;
-        self.rays += o.rays;
-        self.exact_visible += o.exact_visible;
-        self.exact_hidden += o.exact_hidden;
-        self.exact_points += o.exact_points;
-    }
-
-    /// Evaluated pairs whose visibility neither route worked out because their
-    /// unoccluded value alone decided them: it came out 0 (a sliver of a clipped
-    /// pair), or in top-k rows it kept them out of the row (a sampled tail needs no
-    /// visibility for them).
-    pub(crate) fn undecided(&self) -> u64 {
-        self.evaluated
-            .saturating_sub(self.unoccludable)
-            .saturating_sub(self.exact)
-            .saturating_sub(self.rays)
-    }
-
-    /// One line for the report.
-    pub(crate) fn summary(&self) -> String {
-        let share = |x: u64| 100.0 * x as f64 / self.evaluated.max(1) as f64;
-        let mut line = format!(
-            "pairs: {} evaluated; visibility: {} ({:.1}%) need none, {} ({:.1}%) exact, {} ({:.1}%) by rays ({} of them fell back from exact)",
-            self.evaluated,
-            self.unoccludable,
-            share(self.unoccludable),
-            self.exact,
-            share(self.exact),
-            self.rays,
-            share(self.rays),
-            self.fallback
-        );
-        let rest = self.undecided();
-        if rest > 0 {
-            line += &format!(
-                ", {rest} ({:.1}%) decided by their unoccluded value alone (0, or too small for a top-k row)",
-                share(rest)
-            );
-        }
-        if self.exact > 0 {
-            // Where the exact route's time goes: the shortcuts cost no outer points,
-            // the partly shadowed pairs cost their points (each a cut of j by every
-            // candidate's shadow).
-            let partly = self
-                .exact
-                .saturating_sub(self.exact_visible)
-                .saturating_sub(self.exact_hidden);
-            line += &format!(
-                "; of the exact: {} fully visible, {} fully hidden, {partly} partly shadowed ({:.1} outer points each on average)",
-                self.exact_visible,
-                self.exact_hidden,
-                self.exact_points as f64 / partly.max(1) as f64
-            );
-        }
-        line
-    }
 }
 
 /// What a finished compute run reports.

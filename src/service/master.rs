@@ -13,7 +13,7 @@ use std::time::{Duration, Instant};
 
 use crossbeam::channel::{bounded, Sender};
 
-use crate::ffz::{encode_chunk, EncodedChunk, FfzWriter, Layout, WriterStats};
+use crate::ffz::{encode_chunk, EncodedChunk, FfzWriter, Layout, StoredRoutes, WriterStats};
 use crate::rows::Row;
 use crate::service::link::{MasterLink, ToMaster};
 use crate::service::progress::Progress;
@@ -64,6 +64,9 @@ enum WriterJob {
     Piece(EncodedChunk),
     /// `--symmetric`: this row block is complete; merge it into rows and write them.
     Merge(u32),
+    /// The run is over: how the pairs of the rows its workers reported got their
+    /// visibility, for the index (spec §6.1).
+    Routes(StoredRoutes),
 }
 
 /// Shared counters the writer thread updates for the progress display.
@@ -119,6 +122,17 @@ pub(crate) fn run_master(
         .map_err(|e| ServiceError::Transport(format!("cannot start the writer thread: {e}")))?;
 
     let result = master_loop(link, &tx, &counters, plan, start);
+    // Only the workers that reported count: the rows of one that failed stay in the
+    // file, uncounted (the record says how many rows it covers).
+    let mut routes = StoredRoutes::default();
+    for w in &result.0.workers {
+        routes.add(&StoredRoutes {
+            rows: w.rows,
+            pairs: w.pairs,
+        });
+    }
+    // (A writer thread that has stopped has its own error to report.)
+    let _ = tx.send(WriterJob::Routes(routes));
     drop(tx);
     let written = writer_thread
         .join()
@@ -146,6 +160,7 @@ fn write_jobs(
             (WriterJob::Chunk(chunk), _) => writer.append_chunk(chunk)?,
             (WriterJob::Piece(piece), Some(s)) => s.append(&piece)?,
             (WriterJob::Merge(j), Some(s)) => s.merge(j, |row| writer.push_row(row))?,
+            (WriterJob::Routes(r), _) => writer.add_routes(&r),
             (WriterJob::Piece(_) | WriterJob::Merge(_), None) => {
                 return Err(ServiceError::Transport(
                     "a half-row piece reached a run without --symmetric".into(),

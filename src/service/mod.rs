@@ -28,6 +28,7 @@ pub mod schedule;
 pub mod symmetric;
 pub(crate) mod worker;
 
+pub use crate::ffz::PairRoutes;
 pub use error::ServiceError;
-pub use job::{ComputeJob, ComputeReport, PairRoutes, RowSelection, WorkerStats};
+pub use job::{ComputeJob, ComputeReport, RowSelection, WorkerStats};
 pub use schedule::Schedule;

@@ -468,7 +468,7 @@ fn dump_file(b: &[u8]) -> (String, Vec<String>) {
     let nch = u64::from_le_bytes(b[p + 8..p + 16].try_into().unwrap()) as usize;
     let nrows = u64::from_le_bytes(b[p + 16..p + 24].try_into().unwrap()) as usize;
     d.field(&b[p..p + 4], "§6 index magic \"FFZI\"");
-    d.field(&b[p + 4..p + 8], "  reserved = 0");
+    d.field(&b[p + 4..p + 8], "  flags = 0");
     d.field(&b[p + 8..p + 16], &format!("  n_chunks = {nch}"));
     d.field(&b[p + 16..p + 24], &format!("  n_rows = {nrows}"));
     p += 24;

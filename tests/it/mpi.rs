@@ -99,6 +99,15 @@ fn rows_are_identical_for_2_3_5_ranks_and_embedded() {
                 "rank 0 reports each worker: {stderr}"
             );
             assert_same_rows(&reference, &f);
+            // The index keeps the workers' pair counts (formats/ffz-v1.md §6.1): each
+            // pair is evaluated once whichever rank has it.
+            let routes = |p: &Path| FfzReader::open(p).unwrap().routes().copied();
+            assert_eq!(
+                routes(&f),
+                routes(&reference),
+                "-n {ranks} --symmetric {mode}"
+            );
+            assert!(routes(&f).is_some_and(|r| r.rows == 297 && r.pairs.evaluated > 0));
         }
     }
 }

@@ -143,17 +143,7 @@ pub(crate) fn encode_done(s: &WorkerStats) -> Vec<u8> {
     v.extend_from_slice(&s.busy_seconds.to_le_bytes());
     v.extend_from_slice(&s.threads.to_le_bytes());
     v.extend_from_slice(&s.peak_rss.to_le_bytes());
-    let p = &s.pairs;
-    for x in [
-        p.evaluated,
-        p.unoccludable,
-        p.exact,
-        p.fallback,
-        p.rays,
-        p.exact_visible,
-        p.exact_hidden,
-        p.exact_points,
-    ] {
+    for x in s.pairs.to_words() {
         v.extend_from_slice(&x.to_le_bytes());
     }
     v
@@ -181,16 +171,7 @@ pub(crate) fn decode_done(v: &[u8], rank: i32) -> Result<WorkerStats, ServiceErr
         busy_seconds: f64::from_bits(u64_at(8)),
         threads: u32::from_le_bytes([v[16], v[17], v[18], v[19]]),
         peak_rss: u64_at(20),
-        pairs: PairRoutes {
-            evaluated: u64_at(28),
-            unoccludable: u64_at(36),
-            exact: u64_at(44),
-            fallback: u64_at(52),
-            rays: u64_at(60),
-            exact_visible: u64_at(68),
-            exact_hidden: u64_at(76),
-            exact_points: u64_at(84),
-        },
+        pairs: PairRoutes::from_words(std::array::from_fn(|k| u64_at(28 + 8 * k))),
     })
 }
 

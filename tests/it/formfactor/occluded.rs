@@ -342,6 +342,27 @@ fn compute_reports_the_pairs_handled_each_way_and_exact_rows_ignore_the_seed() {
         exact2 == 0 && rays2 == exact && none2 == none && n2 == n && none2 + rays2 == n2,
         "rays run: {n2} {none2} {exact2} {rays2}"
     );
+    // The file keeps what the run printed, and `info` prints it (formats/ffz-v1.md
+    // §6.1): the same line, over all the rows.
+    let printed = said
+        .lines()
+        .find(|l| l.starts_with("pairs: "))
+        .expect("the pairs line");
+    let info = |name: &str| {
+        let out = crate::common::ffstream(&["info", path_str(&file(name))]);
+        assert!(out.status.success(), "{out:?}");
+        String::from_utf8_lossy(&out.stdout).into_owned()
+    };
+    let shown = info("x1.ffz");
+    let rows = ffstream::ffz::FfzReader::open(file("x1.ffz")).unwrap().n();
+    let routes = shown
+        .lines()
+        .find(|l| l.starts_with("routes:"))
+        .unwrap_or_else(|| panic!("no routes line in\n{shown}"));
+    assert!(
+        routes.contains(&format!("over the {rows} rows")) && routes.ends_with(printed),
+        "{routes}\nvs what compute printed:\n{printed}"
+    );
 }
 
 /// builtin:obstructed (unit squares 1 apart facing each other, a square blocker

@@ -1,0 +1,249 @@
+//! How the pairs of a run got their visibility (spec §6.1): the counts `compute`
+//! reports at its end and the index of the file keeps, so that `ffstream info` can
+//! say it later, added up over the runs that wrote the file (`--resume`).
+
+use super::spec::Le;
+
+/// How many evaluated pairs got their visibility which way (from the row engine's
+/// [`Counters`](crate::formfactor::Counters), summed over a worker's threads, then
+/// over the workers).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct PairRoutes {
+    /// Pairs whose kernel was evaluated.
+    pub evaluated: u64,
+    /// Of those, pairs no occluder can come between: no visibility work at all.
+    pub unoccludable: u64,
+    /// Pairs whose blocked part was clipped exactly (`--visibility exact`).
+    pub exact: u64,
+    /// Pairs meant for exact visibility that went to rays.
+    pub fallback: u64,
+    /// Pairs whose visibility rays estimated (the fallbacks included).
+    pub rays: u64,
+    /// Of the exact pairs, those proven fully visible: no outer points.
+    pub exact_visible: u64,
+    /// Of the exact pairs, those proven fully hidden: no outer points.
+    pub exact_hidden: u64,
+    /// Outer points the other (partly shadowed) exact pairs took, together.
+    pub exact_points: u64,
+}
+
+impl PairRoutes {
+    pub(crate) fn of(c: &crate::formfactor::Counters) -> Self {
+        PairRoutes {
+            evaluated: c.pairs_evaluated,
+            unoccludable: c.pairs_unoccludable,
+            exact: c.pairs_exact,
+            fallback: c.pairs_exact_fallback,
+            rays: c.pairs_rays,
+            exact_visible: c.pairs_exact_visible,
+            exact_hidden: c.pairs_exact_hidden,
+            exact_points: c.exact_points,
+        }
+    }
+
+    /// The eight counts in the order of the route record and of MPI's DONE message.
+    pub(crate) fn to_words(self) -> [u64; 8] {
+        [
+            self.evaluated,
+            self.unoccludable,
+            self.exact,
+            self.fallback,
+            self.rays,
+            self.exact_visible,
+            self.exact_hidden,
+            self.exact_points,
+        ]
+    }
+
+    /// [`PairRoutes::to_words`] read back.
+    pub(crate) fn from_words(w: [u64; 8]) -> Self {
+        let [evaluated, unoccludable, exact, fallback, rays, exact_visible, exact_hidden, exact_points] =
+            w;
+        PairRoutes {
+            evaluated,
+            unoccludable,
+            exact,
+            fallback,
+            rays,
+            exact_visible,
+            exact_hidden,
+            exact_points,
+        }
+    }
+
+    pub(crate) fn add(&mut self, o: &PairRoutes) {
+        self.evaluated += o.evaluated;
+        self.unoccludable += o.unoccludable;
+        self.exact += o.exact;
+        self.fallback += o.fallback;
+        self.rays += o.rays;
+        self.exact_visible += o.exact_visible;
+        self.exact_hidden += o.exact_hidden;
+        self.exact_points += o.exact_points;
+    }
+
+    /// Evaluated pairs whose visibility neither route worked out because their
+    /// unoccluded value alone decided them: it came out 0 (a sliver of a clipped
+    /// pair), or in top-k rows it kept them out of the row (a sampled tail needs no
+    /// visibility for them).
+    pub(crate) fn undecided(&self) -> u64 {
+        self.evaluated
+            .saturating_sub(self.unoccludable)
+            .saturating_sub(self.exact)
+            .saturating_sub(self.rays)
+    }
+
+    /// One line for the report.
+    pub(crate) fn summary(&self) -> String {
+        let share = |x: u64| 100.0 * x as f64 / self.evaluated.max(1) as f64;
+        let mut line = format!(
+            "pairs: {} evaluated; visibility: {} ({:.1}%) need none, {} ({:.1}%) exact, {} ({:.1}%) by rays ({} of them fell back from exact)",
+            self.evaluated,
+            self.unoccludable,
+            share(self.unoccludable),
+            self.exact,
+            share(self.exact),
+            self.rays,
+            share(self.rays),
+            self.fallback
+        );
+        let rest = self.undecided();
+        if rest > 0 {
+            line += &format!(
+                ", {rest} ({:.1}%) decided by their unoccluded value alone (0, or too small for a top-k row)",
+                share(rest)
+            );
+        }
+        if self.exact > 0 {
+            // Where the exact route's time goes: the shortcuts cost no outer points,
+            // the partly shadowed pairs cost their points (each a cut of j by every
+            // candidate's shadow).
+            let partly = self
+                .exact
+                .saturating_sub(self.exact_visible)
+                .saturating_sub(self.exact_hidden);
+            line += &format!(
+                "; of the exact: {} fully visible, {} fully hidden, {partly} partly shadowed ({:.1} outer points each on average)",
+                self.exact_visible,
+                self.exact_hidden,
+                self.exact_points as f64 / partly.max(1) as f64
+            );
+        }
+        line
+    }
+}
+
+/// The route counts an index keeps (spec §6.1): [`PairRoutes`] over the pairs of
+/// `rows` rows, those computed by the runs that finished the file (a run that was
+/// killed, or a worker that failed, leaves its rows present but not counted).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct StoredRoutes {
+    /// Rows (half rows with `--symmetric`) whose pairs are counted.
+    pub rows: u64,
+    pub pairs: PairRoutes,
+}
+
+/// Bytes of a route record (spec §6.1): nine u64.
+pub(crate) const ROUTES_LEN: usize = 72;
+
+impl StoredRoutes {
+    pub(crate) fn add(&mut self, o: &StoredRoutes) {
+        self.rows += o.rows;
+        self.pairs.add(&o.pairs);
+    }
+
+    pub(crate) fn encode(&self) -> [u8; ROUTES_LEN] {
+        let mut out = [0u8; ROUTES_LEN];
+        let words = std::iter::once(self.rows).chain(self.pairs.to_words());
+        for (k, v) in words.enumerate() {
+            out[8 * k..8 * k + 8].copy_from_slice(&v.to_le_bytes());
+        }
+        out
+    }
+
+    /// The record at the reader's position, checked: counts that cannot hold together
+    /// (more routed pairs than evaluated ones, more rows than the file has) make the
+    /// index unusable, as any other damage does. Err: the byte offset inside the
+    /// record and the reason.
+    pub(crate) fn decode(r: &mut Le<'_>, n: u32) -> Result<Self, (usize, String)> {
+        let mut v = [0u64; 9];
+        for (k, x) in v.iter_mut().enumerate() {
+            *x = r
+                .u64()
+                .ok_or((8 * k, "route record cut short".to_string()))?;
+        }
+        let [rows, pairs @ ..] = v;
+        let s = StoredRoutes {
+            rows,
+            pairs: PairRoutes::from_words(pairs),
+        };
+        let p = s.pairs;
+        let routed = p
+            .unoccludable
+            .checked_add(p.exact)
+            .and_then(|x| x.checked_add(p.rays));
+        if rows > u64::from(n) {
+            return Err((
+                0,
+                format!("route record counts {rows} rows, the file has {n}"),
+            ));
+        }
+        if routed.is_none_or(|x| x > p.evaluated) {
+            return Err((
+                8,
+                format!(
+                    "route record: {} + {} + {} routed pairs exceed the {} evaluated",
+                    p.unoccludable, p.exact, p.rays, p.evaluated
+                ),
+            ));
+        }
+        let proven = p.exact_visible.checked_add(p.exact_hidden);
+        if p.fallback > p.rays || proven.is_none_or(|x| x > p.exact) {
+            return Err((
+                32,
+                "route record: fallbacks above the rays' pairs, or proven pairs above the exact ones".into(),
+            ));
+        }
+        Ok(s)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn sample() -> StoredRoutes {
+        StoredRoutes {
+            rows: 7,
+            pairs: PairRoutes {
+                evaluated: 100,
+                unoccludable: 30,
+                exact: 50,
+                fallback: 2,
+                rays: 15,
+                exact_visible: 5,
+                exact_hidden: 20,
+                exact_points: 12_345,
+            },
+        }
+    }
+
+    #[test]
+    fn a_route_record_reads_back_and_impossible_counts_are_refused() {
+        let s = sample();
+        let bytes = s.encode();
+        assert_eq!(StoredRoutes::decode(&mut Le::new(&bytes), 10), Ok(s));
+        // More rows than the file has.
+        assert!(StoredRoutes::decode(&mut Le::new(&bytes), 6).is_err());
+        // More routed pairs than evaluated, fallbacks above rays, proven above exact.
+        for (field, value) in [(1, 90u64), (4, 16), (7, 46)] {
+            let mut b = bytes;
+            b[8 * field..8 * field + 8].copy_from_slice(&value.to_le_bytes());
+            assert!(
+                StoredRoutes::decode(&mut Le::new(&b), 10).is_err(),
+                "field {field}"
+            );
+        }
+        assert!(StoredRoutes::decode(&mut Le::new(&bytes[..70]), 10).is_err());
+    }
+}
