@@ -203,7 +203,7 @@ pub(super) fn scene_warnings(input: &SceneInput, scene: &Scene, print: bool) -> 
     }
     if print {
         for w in warnings {
-            eprintln!("ffstream: warning: {w}");
+            super::say(&format!("ffstream: warning: {w}"));
         }
     }
     Ok(())
@@ -218,8 +218,9 @@ pub(super) enum Role {
     /// builds no occluder hierarchy and no row engine (only what the file header
     /// needs, e.g. the number of occluder triangles).
     Master,
-    /// An MPI worker: computes rows and prints nothing of the set-up.
-    Worker,
+    /// An MPI worker (its rank): computes rows and prints nothing of the set-up but
+    /// what only an engine knows (the first worker says which convex solids it found).
+    Worker(i32),
 }
 
 /// Everything built from the scene: patches and, unless `role` is the I/O master, the
@@ -234,11 +235,12 @@ pub(super) fn build_job(
     let cfg = form_factor_config(o)?;
     let setup_start = std::time::Instant::now();
     let scene = tracing::info_span!("load_scene").in_scope(|| load_scene(&input.scene))?;
-    scene_warnings(input, &scene, role != Role::Worker)?;
+    let announce = !matches!(role, Role::Worker(_));
+    scene_warnings(input, &scene, announce)?;
     let symmetric = symmetric_mode(o, &cfg)?;
     let threads = o.threads_or_all();
     let (count, max_edge) = patch_budget(input, &scene)?;
-    if role != Role::Worker {
+    if announce {
         // Printed and checked before subdividing: a file the disk cannot hold costs no
         // subdivision.
         super::plan::Plan {
@@ -258,8 +260,8 @@ pub(super) fn build_job(
         }
         .check()?;
     }
-    let patches = subdivided(input, &scene, max_edge, role != Role::Worker)?;
-    let (engine, description) = engine_for(role, o, &scene, &patches, &cfg, role != Role::Worker)?;
+    let patches = subdivided(input, &scene, max_edge, announce)?;
+    let (engine, description) = engine_for(role, o, &scene, &patches, &cfg, announce)?;
     let took = setup_start.elapsed().as_secs_f64();
     match role {
         // Every process that computes does this set-up itself; this is its cost
@@ -267,11 +269,11 @@ pub(super) fn build_job(
         Role::Alone => {
             eprintln!("ffstream: set-up (load, subdivide, Bvh, engine) took {took:.3} s")
         }
-        Role::Master => eprintln!(
+        Role::Master => super::say(&format!(
             "ffstream: set-up of rank 0 (load, subdivide) took {took:.3} s; it builds no \
              Bvh or engine, every worker builds its own"
-        ),
-        Role::Worker => {}
+        )),
+        Role::Worker(_) => {}
     }
     let meta = FileMeta {
         layout: layout_of(&cfg, patches.len()),
@@ -366,11 +368,11 @@ fn subdivided(
         } else {
             "chosen for about --patches"
         };
-        eprintln!(
+        super::say(&format!(
             "ffstream: {} faces -> {} patches (max edge {max_edge:.6} scene units, {how})",
             scene.faces.len(),
             patches.len()
-        );
+        ));
     }
     if patches.is_empty() {
         bail!("{}: the scene has no patches", input.scene);
@@ -482,11 +484,11 @@ fn engine_for(
         )
     });
     if let (Some((groups, kept)), true) = (mesh.merged, announce) {
-        eprintln!(
+        super::say(&format!(
             "ffstream: occluders: {} triangles, those of {groups} planes merged: {kept} \
              triangles block the same (--no-merge-occluders keeps them as given)",
             mesh.given
-        );
+        ));
     }
     let description =
         RowEngine::description(cfg, mesh.given, mesh.other_mesh) + &mesh.header_note() + &foreign;
@@ -496,11 +498,19 @@ fn engine_for(
     let occluders = Arc::new(tracing::info_span!("build_bvh").in_scope(|| mesh.build()));
     let engine = tracing::info_span!("prepare_engine")
         .in_scope(|| RowEngine::new(patches, occluders, cfg.clone()));
-    if let (Some((solids, triangles)), true) = (engine.solids_found(), announce) {
-        eprintln!(
-            "ffstream: exact visibility: {solids} convex solids ({triangles} occluder \
+    // Under mpirun rank 0 builds no engine: the first worker says it (every rank
+    // finds the same solids in the same scene).
+    let who = match role {
+        Role::Worker(1) => "rank 1: ",
+        _ => "",
+    };
+    if let (Some((solids, triangles)), true) =
+        (engine.solids_found(), announce || role == Role::Worker(1))
+    {
+        super::say(&format!(
+            "ffstream: {who}exact visibility: {solids} convex solids ({triangles} occluder \
              triangles) cast their shadows whole"
-        );
+        ));
     }
     Ok((Some(Arc::new(engine)), description))
 }
@@ -638,7 +648,7 @@ fn execute_mpi(input: &SceneInput, output: PathBuf, o: &ComputeOptions) -> anyho
     let role = match (rank, o.gather) {
         (0, true) => Role::Alone, // the paper's baseline: rank 0 computes its share
         (0, false) => Role::Master,
-        _ => Role::Worker,
+        (rank, _) => Role::Worker(rank),
     };
     let built = build_job(&input, output, o, role).map_err(|e| format!("{e:#}"));
     let result = agree_on_job(&ctx, built).and_then(|job| {

@@ -115,7 +115,7 @@ impl Plan<'_> {
         let disk = free_disk(self.output);
         let mem = self.memory_bytes();
         let available = mem_available();
-        eprintln!(
+        super::say(&format!(
             "ffstream: plan: {n} patches, {pairs}; file up to {} ({rows}, before compression){spill}; {}; memory about {} per computing process ({} threads){}",
             human_bytes(file),
             match &disk {
@@ -125,7 +125,7 @@ impl Plan<'_> {
             human_bytes(mem),
             self.threads,
             available.map_or(String::new(), |a| format!(", {} available here", human_bytes(a)))
-        );
+        ));
         if let Some(a) = available {
             if mem > a {
                 eprintln!(

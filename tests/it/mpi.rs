@@ -112,6 +112,44 @@ fn rows_are_identical_for_2_3_5_ranks_and_embedded() {
     }
 }
 
+/// Under mpirun rank 0 builds no engine: the first worker says which convex solids it
+/// found, once, and the set-up lines of the ranks come out whole (each is one write:
+/// `eprintln!` wrote the plan line in pieces, and another rank's line landed inside).
+#[test]
+fn the_first_worker_names_the_solids_and_set_up_lines_stay_whole() {
+    if !need_mpi() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let exact = ["--visibility", "exact", "--patches", "150"];
+    let embedded = dir.path().join("e.ffz");
+    let mut args = vec![
+        "compute",
+        "builtin:cornell",
+        "-q",
+        "-o",
+        path_str(&embedded),
+    ];
+    args.extend_from_slice(&exact);
+    let said = ok(&args);
+    let line = "exact visibility: 3 convex solids (30 occluder triangles) cast their shadows whole";
+    assert!(said.contains(&format!("ffstream: {line}")), "{said}");
+    for round in 0..3 {
+        let f = dir.path().join(format!("m{round}.ffz"));
+        let out = mpi_compute_scene(3, &["builtin:cornell", "-q"], &f, &exact);
+        assert_ok(&out, "mpirun -n 3 --visibility exact");
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        let solids: Vec<&str> = stderr.lines().filter(|l| l.contains(line)).collect();
+        assert_eq!(solids, [format!("ffstream: rank 1: {line}")], "{stderr}");
+        for l in stderr.lines() {
+            assert!(
+                l.matches("ffstream:").count() <= 1,
+                "two lines ran into each other: {l}"
+            );
+        }
+    }
+}
+
 #[test]
 fn folded_schedule_and_gather_baseline_give_the_same_rows() {
     if !need_mpi() {
