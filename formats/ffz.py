@@ -81,7 +81,7 @@ import numpy as np
 import scipy.sparse
 import zstandard
 
-__version__ = "0.1.0"
+__version__ = "0.2.0"
 
 FILE_MAGIC = b"\x89FFZ\r\n\x1a\n"  # spec 3.1
 CHUNK_MAGIC = b"FFZC"  # spec 5.1
