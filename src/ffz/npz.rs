@@ -16,9 +16,11 @@
 //! row order (positioned reads, one row at a time). Memory is O(n) whatever the number of entries; disk is the
 //! archive plus a spill of 8 bytes per entry, removed afterwards.
 
+use std::cell::Cell;
 use std::fs::File;
-use std::io::{BufWriter, Write};
+use std::io::{BufWriter, Seek, SeekFrom, Write};
 use std::path::{Path, PathBuf};
+use std::rc::Rc;
 
 use super::error::{FfzError, Result};
 
@@ -85,25 +87,50 @@ impl Spill {
             .flush()
             .map_err(|e| FfzError::io(&self.path, "write", e))?;
         let spill = File::open(&self.path).map_err(|e| FfzError::io(&self.path, "open", e))?;
+        // A device (`/dev/full`, a pipe) is written to but never removed.
+        let regular = std::fs::metadata(npz).map_or(true, |m| m.is_file());
+        let f = File::create(npz).map_err(|e| FfzError::io(npz, "create", e))?;
+        let failed = Rc::new(Cell::new(false));
+        let mut zip = zip::ZipWriter::new(Quiet::new(f, Rc::clone(&failed)));
+        let result = self.fill(&mut zip, npz, &spill).and_then(|()| {
+            let mut inner = zip.finish().map_err(|err| zip_error(npz, err))?;
+            inner
+                .flush()
+                .map_err(|err| FfzError::io(npz, "write", err))?;
+            inner
+                .file
+                .get_ref()
+                .sync_all()
+                .map_err(|err| FfzError::io(npz, "write", err))
+        });
+        if result.is_err() {
+            // What was written is no archive: remove it rather than leave a file that
+            // looks like one, and keep the zip writer (dropped unfinished when the
+            // error came before `finish`) from writing or printing more.
+            failed.set(true);
+            if regular {
+                let _ = std::fs::remove_file(npz);
+            }
+        }
+        result
+    }
+
+    /// The five arrays into `zip`, the rows read back from `spill`.
+    fn fill(&self, zip: &mut Zip, npz: &Path, spill: &File) -> Result<()> {
         // Row i's columns and values, read back with positioned reads (not a map, so
         // the spill's pages count in the page cache, not in this process's memory).
         let mut buf = Vec::new();
         let read_row = |i: usize, buf: &mut Vec<u8>| -> Result<()> {
             buf.resize(8 * self.counts[i] as usize, 0);
-            std::os::unix::fs::FileExt::read_exact_at(&spill, buf, self.offsets[i])
+            std::os::unix::fs::FileExt::read_exact_at(spill, buf, self.offsets[i])
                 .map_err(|e| FfzError::io(&self.path, "read", e))
         };
         let n = self.counts.len() as u64;
         let nnz: u64 = self.counts.iter().sum();
         let wide = nnz > i32::MAX as u64 || n > i32::MAX as u64;
         let index_type = if wide { "<i8" } else { "<i4" };
-        let zerr = |err: zip::result::ZipError| {
-            FfzError::io(npz, "write", std::io::Error::other(err.to_string()))
-        };
+        let zerr = |err: zip::result::ZipError| zip_error(npz, err);
         let ioerr = |err| FfzError::io(npz, "write", err);
-        let f = File::create(npz).map_err(|e| FfzError::io(npz, "create", e))?;
-        let mut zip = zip::ZipWriter::new(BufWriter::with_capacity(1 << 20, f));
-
         let index_bytes = |count: u64| count * if wide { 8 } else { 4 };
         let entry = |zip: &mut Zip, name: &str, descr: &str, shape: &str, data_len: u64| {
             let head = npy_header(descr, shape);
@@ -114,9 +141,9 @@ impl Spill {
             zip.write_all(&head).map_err(ioerr)
         };
 
-        entry(&mut zip, "format.npy", "|S3", "()", 3)?;
+        entry(zip, "format.npy", "|S3", "()", 3)?;
         zip.write_all(b"csr").map_err(ioerr)?;
-        entry(&mut zip, "shape.npy", "<i8", "(2,)", 16)?;
+        entry(zip, "shape.npy", "<i8", "(2,)", 16)?;
         for _ in 0..2 {
             zip.write_all(&(n as i64).to_le_bytes()).map_err(ioerr)?;
         }
@@ -128,21 +155,21 @@ impl Spill {
             }
         };
         entry(
-            &mut zip,
+            zip,
             "indptr.npy",
             index_type,
             &format!("({},)", n + 1),
             index_bytes(n + 1),
         )?;
         let mut at = 0u64;
-        put_index(&mut zip, 0).map_err(ioerr)?;
+        put_index(zip, 0).map_err(ioerr)?;
         for &c in &self.counts {
             at += c;
-            put_index(&mut zip, at).map_err(ioerr)?;
+            put_index(zip, at).map_err(ioerr)?;
         }
         // Columns, then values, of each row in row order from the spill.
         entry(
-            &mut zip,
+            zip,
             "indices.npy",
             index_type,
             &format!("({nnz},)"),
@@ -153,22 +180,104 @@ impl Spill {
             let c = self.counts[i] as usize;
             for w in buf[..4 * c].chunks_exact(4) {
                 let c = u32::from_le_bytes(w.try_into().expect("4 bytes"));
-                put_index(&mut zip, u64::from(c)).map_err(ioerr)?;
+                put_index(zip, u64::from(c)).map_err(ioerr)?;
             }
         }
-        entry(&mut zip, "data.npy", "<f4", &format!("({nnz},)"), 4 * nnz)?;
+        entry(zip, "data.npy", "<f4", &format!("({nnz},)"), 4 * nnz)?;
         for i in 0..self.counts.len() {
             read_row(i, &mut buf)?;
             let c = self.counts[i] as usize;
             zip.write_all(&buf[4 * c..]).map_err(ioerr)?;
         }
-        let mut inner = zip.finish().map_err(zerr)?;
-        inner.flush().map_err(ioerr)?;
-        inner.get_ref().sync_all().map_err(ioerr)
+        Ok(())
     }
 }
 
-type Zip = zip::ZipWriter<BufWriter<File>>;
+fn zip_error(npz: &Path, err: zip::result::ZipError) -> FfzError {
+    FfzError::io(npz, "write", std::io::Error::other(err.to_string()))
+}
+
+type Zip = zip::ZipWriter<Quiet>;
+
+/// The archive's file, quiet once a write to it has failed or the export has: a zip
+/// writer dropped unfinished finishes the archive itself and prints to stderr when it
+/// cannot (a full disk), which gave a second, unterminated message before ffstream's
+/// own. Once failed, writes and seeks only move a position kept here, so that the
+/// writer's last finish succeeds into nothing.
+struct Quiet {
+    file: BufWriter<File>,
+    failed: Rc<Cell<bool>>,
+    /// Where the next write goes, and the end of what was written.
+    pos: u64,
+    end: u64,
+}
+
+impl Quiet {
+    fn new(file: File, failed: Rc<Cell<bool>>) -> Self {
+        Quiet {
+            file: BufWriter::with_capacity(1 << 20, file),
+            failed,
+            pos: 0,
+            end: 0,
+        }
+    }
+
+    /// A failed write fails the export (an interrupted one is retried).
+    fn note<T>(&self, r: &std::io::Result<T>) {
+        if r.as_ref()
+            .is_err_and(|e| e.kind() != std::io::ErrorKind::Interrupted)
+        {
+            self.failed.set(true);
+        }
+    }
+
+    fn moved(&mut self, to: u64) -> u64 {
+        self.pos = to;
+        self.end = self.end.max(to);
+        to
+    }
+}
+
+impl Write for Quiet {
+    fn write(&mut self, b: &[u8]) -> std::io::Result<usize> {
+        if self.failed.get() {
+            self.moved(self.pos + b.len() as u64);
+            return Ok(b.len());
+        }
+        let r = self.file.write(b);
+        self.note(&r);
+        if let Ok(k) = r {
+            self.moved(self.pos + k as u64);
+        }
+        r
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        if self.failed.get() {
+            return Ok(());
+        }
+        let r = self.file.flush();
+        self.note(&r);
+        r
+    }
+}
+
+impl Seek for Quiet {
+    fn seek(&mut self, to: SeekFrom) -> std::io::Result<u64> {
+        if self.failed.get() {
+            let at = match to {
+                SeekFrom::Start(p) => Some(p),
+                SeekFrom::Current(d) => self.pos.checked_add_signed(d),
+                SeekFrom::End(d) => self.end.checked_add_signed(d),
+            };
+            return Ok(self.moved(at.unwrap_or(0)));
+        }
+        // (A seek writes out what the buffer holds: it fails as a write does.)
+        let r = self.file.seek(to);
+        self.note(&r);
+        r.map(|p| self.moved(p))
+    }
+}
 
 /// A `.npy` version 1.0 header for an array of dtype `descr` and shape `shape` (a
 /// Python tuple), padded with spaces and a newline to a multiple of 64 bytes.

@@ -147,27 +147,24 @@ fn kill_mid_stream_then_resume() {
 /// the write fails with EFBIG instead of killing the process).
 #[test]
 fn full_disk_error_names_the_path_and_keeps_chunks() {
-    use crate::common::{need_tool, runs};
-    if !need_tool(
-        "prlimit (util-linux) and bash",
-        runs("prlimit") && runs("bash"),
-        "FFSTREAM_SKIP_PRLIMIT",
-    ) {
-        return;
-    }
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("full.ffz");
     let limit = 200_000; // meta block ~67 kB, then about 25 chunks of 4.8 kB raw
     let exe = std::env::current_exe().unwrap();
-    let out = Command::new("bash")
-        .arg("-c")
-        .arg(format!(
-            "trap '' XFSZ; exec prlimit --fsize={limit} \"$0\" ffz_kill::child_writer --exact --ignored --nocapture --test-threads=1"
-        ))
-        .arg(&exe)
-        .env("FFZ_CHILD_PATH", &path)
-        .output()
-        .unwrap();
+    let Some(out) = under_file_size_limit(
+        limit,
+        &exe,
+        &[
+            "ffz_kill::child_writer",
+            "--exact",
+            "--ignored",
+            "--nocapture",
+            "--test-threads=1",
+        ],
+        &[("FFZ_CHILD_PATH", path.as_os_str())],
+    ) else {
+        return;
+    };
     let stdout = String::from_utf8_lossy(&out.stdout);
     let err_line = stdout.lines().find(|l| l.starts_with("FFZ-ERROR"));
     let Some(err_line) = err_line else {
@@ -192,4 +189,98 @@ fn full_disk_error_names_the_path_and_keeps_chunks() {
         );
     }
     check_against(&rd, &|i| row(SEED, i, N, LAYOUT));
+}
+
+/// `export --npz` onto a full disk (a file-size limit that the spill file fits under
+/// and the archive does not; then `/dev/full`): one error line naming the archive, no
+/// archive left that looks like one, no spill left, and a device is not removed. The
+/// zip writer, dropped unfinished, used to print its own unterminated message first,
+/// and the cut archive stayed.
+#[test]
+fn npz_export_onto_a_full_disk_is_one_error_and_leaves_no_archive() {
+    use crate::common::{ffstream as run, ok, path_str};
+    let dir = tempfile::tempdir().unwrap();
+    let ffz = dir.path().join("c.ffz");
+    ok(&[
+        "compute",
+        "builtin:cornell",
+        "--patches",
+        "150",
+        "-q",
+        "-o",
+        path_str(&ffz),
+    ]);
+    let r = FfzReader::open(&ffz).unwrap();
+    let n = r.n() as usize;
+    let nnz: usize = (0..r.n())
+        .map(|i| {
+            let row = r.row(i).unwrap().unwrap();
+            row.to_dense(n).iter().filter(|&&v| v != 0.0).count()
+        })
+        .sum();
+    // The spill holds 8 bytes an entry; the archive that and n + 1 offsets more.
+    let limit = 8 * nnz + 64;
+    let npz = dir.path().join("c.npz");
+    let Some(out) = under_file_size_limit(
+        limit,
+        &crate::common::exe(),
+        &["export", path_str(&ffz), "--npz", path_str(&npz)],
+        &[],
+    ) else {
+        return;
+    };
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    let lines: Vec<&str> = stderr.lines().collect();
+    assert!(!out.status.success(), "the export must fail: {stderr}");
+    assert!(
+        lines.len() == 1 && lines[0].starts_with("ffstream: error: ") && lines[0].contains("c.npz"),
+        "one error line naming the archive expected:\n{stderr}"
+    );
+    assert!(!npz.exists(), "a cut archive was left behind");
+    assert!(
+        !dir.path().join("c.npz.spill").exists(),
+        "the spill was left"
+    );
+    // A device: written to, failing, and still there.
+    let full = std::path::Path::new("/dev/full");
+    let out = run(&["export", path_str(&ffz), "--npz", "/dev/full"]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert_eq!(stderr.lines().count(), 1, "{stderr}");
+    assert!(stderr.starts_with("ffstream: error: /dev/full"), "{stderr}");
+    use std::os::unix::fs::FileTypeExt;
+    assert!(std::fs::metadata(full)
+        .unwrap()
+        .file_type()
+        .is_char_device());
+}
+
+/// Runs `exe args` (with `env`) under a file-size limit of `limit` bytes, SIGXFSZ
+/// ignored so that a write past it fails with EFBIG, as on a full disk. None when
+/// prlimit or bash is missing and `FFSTREAM_SKIP_PRLIMIT` says to skip.
+fn under_file_size_limit(
+    limit: usize,
+    exe: &std::path::Path,
+    args: &[&str],
+    env: &[(&str, &std::ffi::OsStr)],
+) -> Option<std::process::Output> {
+    use crate::common::{need_tool, runs};
+    if !need_tool(
+        "prlimit (util-linux) and bash",
+        runs("prlimit") && runs("bash"),
+        "FFSTREAM_SKIP_PRLIMIT",
+    ) {
+        return None;
+    }
+    let mut cmd = Command::new("bash");
+    cmd.arg("-c")
+        .arg(format!(
+            "trap '' XFSZ; exec prlimit --fsize={limit} \"$0\" \"$@\""
+        ))
+        .arg(exe)
+        .args(args);
+    for (k, v) in env {
+        cmd.env(k, v);
+    }
+    Some(cmd.output().unwrap())
 }
