@@ -266,9 +266,9 @@ pub(super) fn build_job(
     match role {
         // Every process that computes does this set-up itself; this is its cost
         // (README: why ranks load the scene rather than receive it).
-        Role::Alone => {
-            eprintln!("ffstream: set-up (load, subdivide, Bvh, engine) took {took:.3} s")
-        }
+        Role::Alone => super::say(&format!(
+            "ffstream: set-up (load, subdivide, Bvh, engine) took {took:.3} s"
+        )),
         Role::Master => super::say(&format!(
             "ffstream: set-up of rank 0 (load, subdivide) took {took:.3} s; it builds no \
              Bvh or engine, every worker builds its own"
@@ -663,24 +663,19 @@ fn execute_mpi(input: &SceneInput, output: PathBuf, o: &ComputeOptions) -> anyho
         Ok(None) => Ok(Outcome::Worker),
         Err(e) if rank == 0 => {
             // Rank 0 has finished the file with what it had; stop every rank.
-            let mut say = format!("ffstream: error: {e}\n");
+            let mut message = format!("ffstream: error: {e}");
             if matches!(
                 e,
                 ServiceError::WorkerFailed { .. }
                     | ServiceError::WorkerStalled { .. }
                     | ServiceError::Transport(_)
             ) {
-                say += "ffstream: rows written so far are kept: rerun with --resume to complete the file\n";
+                message += "\nffstream: rows written so far are kept: rerun with --resume to complete the file";
             }
             // One write, then a moment for mpirun to forward it: on MPI_Abort, Open MPI
             // stops forwarding a rank's stderr, and a message written piece by piece was
             // seen cut after "ffstream: error: rank " (1 run in about 40).
-            {
-                use std::io::Write;
-                let mut err = std::io::stderr().lock();
-                let _ = err.write_all(say.as_bytes());
-                let _ = err.flush();
-            }
+            super::say(&message);
             std::thread::sleep(std::time::Duration::from_millis(300));
             ctx.abort(1)
         }
@@ -690,8 +685,8 @@ fn execute_mpi(input: &SceneInput, output: PathBuf, o: &ComputeOptions) -> anyho
             // twice.
             match e {
                 ServiceError::WorkerFailed { .. } => {}
-                ServiceError::Setup { .. } => eprintln!("ffstream: {e}"),
-                _ => eprintln!("ffstream: rank {rank}: {e}"),
+                ServiceError::Setup { .. } => super::say(&format!("ffstream: {e}")),
+                _ => super::say(&format!("ffstream: rank {rank}: {e}")),
             }
             ctx.await_abort(AWAIT_ABORT)
         }

@@ -14,6 +14,8 @@ mod solve;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
+use clap::{Args, Parser, Subcommand};
+
 /// Print `line` and a newline to stderr in one write. Under mpirun several ranks print
 /// while the job sets up, and Open MPI forwards whatever each write gives it: a line
 /// that `eprintln!` writes piece by piece came out with another rank's line inside it.
@@ -24,8 +26,6 @@ pub(crate) fn say(line: &str) {
     out.push('\n');
     let _ = std::io::stderr().lock().write_all(out.as_bytes());
 }
-
-use clap::{Args, Parser, Subcommand};
 
 #[derive(Parser, Debug)]
 #[command(

@@ -77,14 +77,14 @@ impl Plan<'_> {
         let n = self.n;
         if let Some(target) = self.target {
             if n > FAR_ABOVE * target && self.faces > target {
-                eprintln!(
+                super::say(&format!(
                     "ffstream: warning: {}: {n} patches, {:.0}× the --patches target {target}: \
                      the scene has {} faces and a face is never merged with another, so each \
                      is at least one patch (only a coarser mesh makes fewer)",
                     self.scene,
                     n as f64 / target as f64,
                     self.faces
-                );
+                ));
             }
         }
         let pairs = if self.symmetric {
@@ -128,11 +128,11 @@ impl Plan<'_> {
         ));
         if let Some(a) = available {
             if mem > a {
-                eprintln!(
+                super::say(&format!(
                     "ffstream: warning: a computing process needs about {} and this machine has {} available: the run may be killed for memory (fewer --threads, --top-k, or ranks on more nodes)",
                     human_bytes(mem),
                     human_bytes(a)
-                );
+                ));
             }
         }
         let Some(d) = disk else { return Ok(()) };

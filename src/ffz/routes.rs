@@ -72,14 +72,8 @@ impl PairRoutes {
     }
 
     pub(crate) fn add(&mut self, o: &PairRoutes) {
-        self.evaluated += o.evaluated;
-        self.unoccludable += o.unoccludable;
-        self.exact += o.exact;
-        self.fallback += o.fallback;
-        self.rays += o.rays;
-        self.exact_visible += o.exact_visible;
-        self.exact_hidden += o.exact_hidden;
-        self.exact_points += o.exact_points;
+        let (a, b) = (self.to_words(), o.to_words());
+        *self = Self::from_words(std::array::from_fn(|k| a[k] + b[k]));
     }
 
     /// Evaluated pairs whose visibility neither route worked out because their

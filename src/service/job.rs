@@ -3,7 +3,7 @@
 use std::path::PathBuf;
 use std::sync::Arc;
 
-use crate::ffz::{FileMeta, PairRoutes, WriterOptions};
+use crate::ffz::{FileMeta, PairRoutes, StoredRoutes, WriterOptions};
 use crate::formfactor::RowEngine;
 use crate::patch::PatchSet;
 use crate::service::schedule::Schedule;
@@ -74,6 +74,21 @@ pub struct WorkerStats {
     pub(crate) pairs: PairRoutes,
 }
 
+impl WorkerStats {
+    /// The rows of `workers` and how their pairs got their visibility, together: what
+    /// the report prints and the file's index keeps (spec §6.1).
+    pub(crate) fn routes(workers: &[WorkerStats]) -> StoredRoutes {
+        let mut all = StoredRoutes::default();
+        for w in workers {
+            all.add(&StoredRoutes {
+                rows: w.rows,
+                pairs: w.pairs,
+            });
+        }
+        all
+    }
+}
+
 /// What a finished compute run reports.
 #[derive(Clone, Debug, Default)]
 pub struct ComputeReport {
@@ -123,12 +138,8 @@ impl ComputeReport {
                 self.spill_bytes as f64 / 1e6
             ));
         }
-        let mut pairs = PairRoutes::default();
-        for w in &self.workers {
-            pairs.add(&w.pairs);
-        }
         s.push('\n');
-        s.push_str(&pairs.summary());
+        s.push_str(&WorkerStats::routes(&self.workers).pairs.summary());
         for w in &self.workers {
             s.push_str(&format!(
                 "\nworker rank {}: {} rows, {} threads, busy {:.2} s ({:.0}% of wall x threads), peak RSS {:.1} MB",

@@ -123,16 +123,9 @@ pub(crate) fn run_master(
 
     let result = master_loop(link, &tx, &counters, plan, start);
     // Only the workers that reported count: the rows of one that failed stay in the
-    // file, uncounted (the record says how many rows it covers).
-    let mut routes = StoredRoutes::default();
-    for w in &result.0.workers {
-        routes.add(&StoredRoutes {
-            rows: w.rows,
-            pairs: w.pairs,
-        });
-    }
-    // (A writer thread that has stopped has its own error to report.)
-    let _ = tx.send(WriterJob::Routes(routes));
+    // file, uncounted (the record says how many rows it covers). (A writer thread that
+    // has stopped has its own error to report.)
+    let _ = tx.send(WriterJob::Routes(WorkerStats::routes(&result.0.workers)));
     drop(tx);
     let written = writer_thread
         .join()
