@@ -43,7 +43,11 @@
 //! where they differ by more than the triangle's share of the tolerance each half is
 //! refined in turn. A triangle whose samples all see no shadow although an occluder
 //! may come between it and P_j is refined too, until its share of the tolerance
-//! bounds what it could hold. Measured against the independent references of
+//! bounds what it could hold. Cells that need no rule are settled first, exactly: a
+//! cell between which and P_j no occluder can come blocks nothing, and a cell from
+//! which one caster or one convex solid hides all of P_j blocks F(x → P_j) at every
+//! point, whose integral over the cell is the unoccluded polygon-to-polygon form
+//! factor ([`super::contour`]); the same test on the whole of P_i proves a pair hidden. Measured against the independent references of
 //! tests/data/occluded_refs.json: within 1e-7 of group factors at the default
 //! tolerance (1e-6 of each entry's F⁰).
 //!
@@ -55,7 +59,9 @@
 
 use glam::DVec3;
 
-use super::polygon::{Polygon, PolygonN};
+use super::contour::{area_form_factor_edges, ContourParams};
+use super::polygon::{EdgeSet, Polygon, PolygonN, MAX_VERTS};
+use super::quadrature::gauss_table;
 use super::solids::{Solid, NO_SOLID};
 
 /// A receiver piece: `P_j` (at most 8 vertices) clipped by the four planes of a cone
@@ -534,6 +540,8 @@ pub(crate) struct Pair<'a> {
     pub(crate) solids: &'a [Solid],
     /// Length under which a point counts as on a plane.
     pub(crate) tol: f64,
+    /// The contour integral's settings, for the cells hidden whole.
+    pub(crate) params: ContourParams,
 }
 
 /// What the occluders take from a pair.
@@ -541,7 +549,8 @@ pub(crate) struct Pair<'a> {
 pub(crate) enum Blocked {
     /// Nothing: no caster crosses a segment between the two polygons.
     Nothing,
-    /// Everything: one caster hides all of P_j from every point of P_i.
+    /// Everything: one caster, or one convex solid, hides all of P_j from every point
+    /// of P_i.
     All,
     /// ∫_{P_i} F(x → B_j(x)) dA_x (= A_i F^B_ij), and the points it took.
     Part(f64, u32),
@@ -601,6 +610,12 @@ pub(crate) fn blocked_integral(
         }
     }
     let solids: Vec<&Solid> = ids.iter().map(|&k| &pair.solids[k as usize]).collect();
+    let q = pair.pj.verts();
+    if solids.iter().any(|k| solid_hides(v, q, k, pair.tol)) {
+        s.active = active;
+        s.loose = loose;
+        return Some(Blocked::All);
+    }
     let mut cells = std::mem::take(&mut s.cells);
     if !split_at_events(&narrowed, &loose, &solids, &mut cells) {
         s.cells = cells;
@@ -616,9 +631,20 @@ pub(crate) fn blocked_integral(
         dark_floor: tol_abs / UNRESOLVED as f64,
         points: 0,
     };
+    let ej = EdgeSet::from_polygon(pair.pj);
     let mut total = Some(0.0);
     'cells: for c in &cells {
         let w = c.verts();
+        match run.settled(w, &ej) {
+            Some(Settled::Lit) => continue,
+            Some(Settled::Hidden(x)) => {
+                if let Some(t) = total.as_mut() {
+                    *t += x;
+                }
+                continue;
+            }
+            None => {}
+        }
         for k in 1..w.len().saturating_sub(1) {
             let sum = run
                 .cell([w[0], w[k], w[k + 1]], s)
@@ -918,6 +944,61 @@ impl Run<'_, '_> {
     }
 }
 
+/// A cell that needs no rule.
+enum Settled {
+    /// No caster crosses a segment between it and P_j: it blocks nothing.
+    Lit,
+    /// One caster or one convex solid hides all of P_j from all of it: it blocks
+    /// ∫_cell F(x → P_j) dA_x, this value.
+    Hidden(f64),
+}
+
+impl Run<'_, '_> {
+    /// Whether the convex cell `w` needs no rule, and what it blocks then (`ej`: the
+    /// edges of P_j). A hidden cell's integral is the unoccluded contour integral from
+    /// it to P_j, per fan triangle when it has more vertices than a [`Polygon`]; a
+    /// value that comes out negative or not finite leaves the cell to the rule.
+    fn settled(&self, w: &[DVec3], ej: &EdgeSet) -> Option<Settled> {
+        let p = self.pair;
+        let q = p.pj.verts();
+        if w.len() < 3 {
+            return Some(Settled::Lit);
+        }
+        if !p
+            .casters
+            .iter()
+            .any(|c| segments_may_cross(w, q, &c.v, p.tol))
+        {
+            return Some(Settled::Lit);
+        }
+        let hidden = p.casters.iter().any(|c| hides(w, q, c, p.tol))
+            || self.solids.iter().any(|k| solid_hides(w, q, k, p.tol));
+        if !hidden {
+            return None;
+        }
+        let cj = p.pj.vertex_mean();
+        let longest = |e: &EdgeSet| e.edges().iter().map(|e| e.len).fold(0.0f64, f64::max);
+        let contour = |poly: &Polygon| {
+            let ei = EdgeSet::from_polygon(poly);
+            // As the pair's own integral: any positive length gives the same value,
+            // the distance or the longest edge the best conditioning.
+            let r_ref = (poly.vertex_mean() - cj)
+                .length()
+                .max(longest(&ei))
+                .max(longest(ej));
+            area_form_factor_edges(&ei, ej, r_ref, gauss_table(), p.params)
+        };
+        let value = if w.len() <= MAX_VERTS {
+            contour(&Polygon::new(w))
+        } else {
+            (1..w.len() - 1)
+                .map(|k| contour(&Polygon::new(&[w[0], w[k], w[k + 1]])))
+                .sum()
+        };
+        (value.is_finite() && value >= 0.0).then_some(Settled::Hidden(value))
+    }
+}
+
 /// One triangle of the outer rule with its degree-5 estimate.
 #[derive(Clone, Copy)]
 struct Cell {
@@ -1017,9 +1098,54 @@ impl Run<'_, '_> {
     }
 }
 
+/// True when the convex solid `k` hides all of the polygon `q` from every point of the
+/// polygon `p`: every segment from a point of `p` to a point of `q` passes through `k`
+/// shrunk by `tol` (and so through one of its real faces: a segment cannot enter and
+/// leave through the same plane, so at most one of the two is the open face), and
+/// neither polygon reaches into that shrunk solid. Seen from a point x, the points y
+/// whose segment meets a convex set form a convex set (the segment from x to a mix of
+/// two such points crosses the chord between their meeting points), and the same holds
+/// with x and y swapped; so it is enough that the segments between the vertices pass
+/// through.
+pub(crate) fn solid_hides(p: &[DVec3], q: &[DVec3], k: &Solid, tol: f64) -> bool {
+    // Outside the shrunk solid: wholly in front of one face's plane moved in by tol.
+    let outside = |v: &[DVec3]| {
+        k.faces
+            .iter()
+            .any(|f| v.iter().all(|y| f.normal.dot(*y) - f.offset > -tol))
+    };
+    if !outside(p) || !outside(q) || !p.iter().chain(q).all(|v| v.is_finite()) {
+        return false;
+    }
+    // Liang–Barsky: the part of the segment a → b inside every face's plane moved in
+    // by 2 tol must have length.
+    let through = |a: DVec3, b: DVec3| {
+        let (mut t0, mut t1) = (0.0f64, 1.0f64);
+        for f in &k.faces {
+            let s = f.normal.dot(a) - f.offset + 2.0 * tol;
+            let d = f.normal.dot(b - a);
+            if d == 0.0 {
+                if s >= 0.0 {
+                    return false;
+                }
+            } else if d < 0.0 {
+                t0 = t0.max(-s / d);
+            } else {
+                t1 = t1.min(-s / d);
+            }
+            if t0 >= t1 {
+                return false;
+            }
+        }
+        true
+    };
+    p.iter().all(|&a| q.iter().all(|&b| through(a, b)))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::formfactor::solids::Solids;
     use glam::dvec3;
 
     /// Howell's differential element to a parallel rectangle with a corner above
@@ -1161,6 +1287,167 @@ mod tests {
             2 * compared
         );
         assert!(shaded >= compared / 4, "shaded {shaded} of {compared}");
+    }
+
+    /// A closed box between a floor square and a smaller ceiling square, as one solid
+    /// and as its twelve triangles each on its own.
+    fn box_between_squares() -> (Solids, Vec<Caster>, Vec<Caster>) {
+        use crate::formfactor::solids::tests::box_triangles;
+        let tris = box_triangles(dvec3(0.4, 1.0, 0.4), dvec3(1.6, 2.0, 1.6), false);
+        let found = Solids::find(&tris, 1e-9);
+        assert_eq!(found.solids.len(), 1);
+        let whole = tris
+            .iter()
+            .filter_map(|t| Caster::new(*t))
+            .map(|c| c.in_solid(0))
+            .collect();
+        let one_by_one = tris.iter().filter_map(|t| Caster::new(*t)).collect();
+        (found, whole, one_by_one)
+    }
+
+    /// The square [x0, x1] × [z0, z1] at height y, facing up (`up`) or down.
+    fn square_facing(x0: f64, x1: f64, z0: f64, z1: f64, y: f64, up: bool) -> Polygon {
+        let mut v = vec![
+            dvec3(x0, y, z0),
+            dvec3(x0, y, z1),
+            dvec3(x1, y, z1),
+            dvec3(x1, y, z0),
+        ];
+        if !up {
+            v.reverse();
+        }
+        Polygon::new(&v)
+    }
+
+    /// `solid_hides` says yes only where every segment passes through the solid (checked
+    /// on random segments between the two polygons against the box itself), and says
+    /// yes where no single triangle of the box hides the receiver alone.
+    #[test]
+    fn a_solid_hides_only_what_every_segment_through_it_shows() {
+        use crate::formfactor::sampling::SplitMix64;
+        let (found, _, one_by_one) = box_between_squares();
+        let k = &found.solids[0];
+        let through_box = |a: DVec3, b: DVec3| {
+            // The segment meets the open box (0.4, 1.6) × (1, 2) × (0.4, 1.6).
+            let (lo, hi) = (dvec3(0.4, 1.0, 0.4), dvec3(1.6, 2.0, 1.6));
+            let (mut t0, mut t1) = (0.0f64, 1.0f64);
+            for axis in 0..3 {
+                let (p, d) = (a[axis], b[axis] - a[axis]);
+                if d == 0.0 {
+                    if p <= lo[axis] || p >= hi[axis] {
+                        return false;
+                    }
+                    continue;
+                }
+                let (u, v) = ((lo[axis] - p) / d, (hi[axis] - p) / d);
+                t0 = t0.max(u.min(v));
+                t1 = t1.min(u.max(v));
+            }
+            t0 < t1
+        };
+        let mut rng = SplitMix64::new(11);
+        let (mut yes, mut tried, mut no_single) = (0, 0, 0);
+        for _ in 0..400 {
+            let mut corner = |lo: f64, hi: f64| {
+                let a = lo + (hi - lo) * rng.next_f64();
+                let b = lo + (hi - lo) * rng.next_f64();
+                (a.min(b), a.max(b))
+            };
+            let ((x0, x1), (z0, z1)) = (corner(-0.5, 2.5), corner(-0.5, 2.5));
+            let ((u0, u1), (w0, w1)) = (corner(0.0, 2.0), corner(0.0, 2.0));
+            let p = square_facing(x0, x1, z0, z1, 0.0, true);
+            let q = square_facing(u0, u1, w0, w1, 3.0, false);
+            tried += 1;
+            if !solid_hides(p.verts(), q.verts(), k, 1e-12) {
+                continue;
+            }
+            yes += 1;
+            no_single += usize::from(
+                !one_by_one
+                    .iter()
+                    .any(|c| hides(p.verts(), q.verts(), c, 1e-12)),
+            );
+            for _ in 0..200 {
+                let a = dvec3(
+                    x0 + (x1 - x0) * rng.next_f64(),
+                    0.0,
+                    z0 + (z1 - z0) * rng.next_f64(),
+                );
+                let b = dvec3(
+                    u0 + (u1 - u0) * rng.next_f64(),
+                    3.0,
+                    w0 + (w1 - w0) * rng.next_f64(),
+                );
+                assert!(through_box(a, b), "{a} → {b} misses the box");
+            }
+        }
+        // Not vacuous: some pairs were hidden, and in some no triangle alone hides.
+        assert!(yes >= 20 && yes < tried, "hidden {yes} of {tried}");
+        assert!(no_single >= 10, "only {no_single} need the solid whole");
+        // A patch that reaches into the solid, or lies on its far side, is not hidden.
+        let inside = square_facing(0.8, 1.2, 0.8, 1.2, 1.5, true);
+        let q = square_facing(0.9, 1.1, 0.9, 1.1, 3.0, false);
+        assert!(!solid_hides(inside.verts(), q.verts(), k, 1e-12));
+        let above = square_facing(0.9, 1.1, 0.9, 1.1, 2.5, true);
+        assert!(!solid_hides(above.verts(), q.verts(), k, 1e-12));
+    }
+
+    /// The cells the route settles without its rule (hidden whole by the solid: the
+    /// unoccluded contour integral; seeing no caster: 0) give what the rule gives on
+    /// the box's triangles one by one, which no single triangle hides: both keep
+    /// |value − exact| ≤ tol at 1e-7 of F⁰, so they differ by 2 tol at most (at 1e-9 the
+    /// triangles' route missed its own tolerance by 13× while the solid's agreed with
+    /// itself at 1e-8 to 1e-12 relative; see bench/PERF.md §29). A pair the solid hides
+    /// whole is `Blocked::All` with the solid and comes to F⁰ by the rule.
+    #[test]
+    fn cells_settled_whole_agree_with_the_rule() {
+        use crate::formfactor::contour::area_form_factor;
+        let (found, whole, one_by_one) = box_between_squares();
+        let pj = square_facing(0.6, 1.4, 0.6, 1.4, 3.0, false);
+        let cases = [
+            // Partly hidden: umbra in the middle, penumbra and lit cells around it.
+            (square_facing(-1.0, 3.0, -1.0, 3.0, 0.0, true), false),
+            // Hidden whole by the box, by no triangle of it alone.
+            (square_facing(0.9, 1.1, 0.8, 1.2, 0.0, true), true),
+        ];
+        for (pi, all) in cases {
+            let f0 = area_form_factor(&pi, &pj, gauss_table(), ContourParams::default());
+            let tol_abs = 1e-7 * f0;
+            let run = |casters: &[Caster], solids: &[Solid]| {
+                let pair = Pair {
+                    pi: &pi,
+                    ni: DVec3::Y,
+                    pj: &pj,
+                    casters,
+                    solids,
+                    tol: 1e-12,
+                    params: ContourParams::default(),
+                };
+                blocked_integral(&pair, tol_abs, &mut ShadowScratch::default())
+            };
+            let Some(Blocked::Part(by_rule, points)) = run(&one_by_one, &[]) else {
+                panic!("the triangles one by one need the rule");
+            };
+            assert!(points > 0);
+            match run(&whole, &found.solids) {
+                Some(Blocked::All) => {
+                    assert!(all);
+                    assert!(
+                        (by_rule - f0).abs() <= 2.0 * tol_abs,
+                        "{by_rule} vs F0 {f0}"
+                    );
+                }
+                Some(Blocked::Part(settled, _)) => {
+                    assert!(!all);
+                    assert!(
+                        (settled - by_rule).abs() <= 2.0 * tol_abs,
+                        "settled {settled}, rule {by_rule}, tolerance {tol_abs}"
+                    );
+                    assert!(settled > 0.1 * f0 && settled < f0, "{settled} of {f0}");
+                }
+                other => panic!("{other:?}"),
+            }
+        }
     }
 
     fn casters_of_square(x0: f64, x1: f64, z0: f64, z1: f64, y: f64) -> Vec<Caster> {
@@ -1366,6 +1653,7 @@ mod tests {
                 casters: &casters,
                 solids: &[],
                 tol: 1e-12,
+                params: ContourParams::default(),
             };
             let Some(Blocked::Part(blocked, points)) = blocked_integral(&pair, tol, &mut s) else {
                 panic!("the plates are partly blocked");

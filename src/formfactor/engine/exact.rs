@@ -41,6 +41,7 @@ impl RowEngine {
             casters: &casters,
             solids: &self.solids.solids,
             tol: self.tol,
+            params: self.params,
         };
         let tol_abs = self.cfg.shadow_tol * f0 * gi.area;
         let result = shadow::blocked_integral(&pair, tol_abs, &mut scratch.shadow);
