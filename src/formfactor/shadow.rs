@@ -582,14 +582,29 @@ pub(crate) fn blocked_integral(
         return Some(Blocked::All);
     }
     // Casters that cross no segment between the polygons block nothing: a pair all of
-    // whose candidates are such is fully visible, exactly.
+    // whose candidates are such is fully visible, exactly. A solid is used whole once
+    // one of its triangles may cross, so its other triangles need no test here: they
+    // are all kept (the tests below on parts of P_i settle them where it matters, and
+    // a triangle that crosses no segment from P_i crosses none from a part of it).
+    let q = pair.pj.verts();
+    let mut ids: Vec<u32> = Vec::new();
+    for c in pair.casters {
+        if c.solid != NO_SOLID
+            && !ids.contains(&c.solid)
+            && segments_may_cross(v, q, &c.v, pair.tol)
+        {
+            ids.push(c.solid);
+        }
+    }
     let mut active = std::mem::take(&mut s.active);
     active.clear();
-    active.extend(
-        pair.casters
-            .iter()
-            .filter(|c| segments_may_cross(v, pair.pj.verts(), &c.v, pair.tol)),
-    );
+    active.extend(pair.casters.iter().filter(|c| {
+        if c.solid == NO_SOLID {
+            segments_may_cross(v, q, &c.v, pair.tol)
+        } else {
+            ids.contains(&c.solid)
+        }
+    }));
     if active.is_empty() {
         s.active = active;
         return Some(Blocked::Nothing);
@@ -601,16 +616,8 @@ pub(crate) fn blocked_integral(
     // The shadows at a point: each solid whole, the other casters one by one.
     let mut loose = std::mem::take(&mut s.loose);
     loose.clear();
-    let mut ids: Vec<u32> = Vec::new();
-    for c in &active {
-        if c.solid == NO_SOLID {
-            loose.push(*c);
-        } else if !ids.contains(&c.solid) {
-            ids.push(c.solid);
-        }
-    }
+    loose.extend(active.iter().filter(|c| c.solid == NO_SOLID));
     let solids: Vec<&Solid> = ids.iter().map(|&k| &pair.solids[k as usize]).collect();
-    let q = pair.pj.verts();
     if solids.iter().any(|k| solid_hides(v, q, k, pair.tol)) {
         s.active = active;
         s.loose = loose;
@@ -735,6 +742,7 @@ fn split_at_events(
     // a jump than across a kink, so they get the cells when there are not enough.
     for c in pair.casters {
         if c.v.iter().any(|v| (ni.dot(*v) - oi).abs() <= tol)
+            && (c.solid == NO_SOLID || segments_may_cross(pair.pi.verts(), q, &c.v, tol))
             && !cut(cells, c.v[0], c.v[1], c.v[2], tol, &|_| true)
         {
             return false;
@@ -964,17 +972,16 @@ impl Run<'_, '_> {
         if w.len() < 3 {
             return Some(Settled::Lit);
         }
-        if !p
-            .casters
-            .iter()
-            .any(|c| segments_may_cross(w, q, &c.v, p.tol))
-        {
-            return Some(Settled::Lit);
-        }
+        // Hidden first: its tests are on vertex pairs and fail fast, while proving a
+        // cell lit takes every separating-axis test of the caster that may cross.
         let hidden = p.casters.iter().any(|c| hides(w, q, c, p.tol))
             || self.solids.iter().any(|k| solid_hides(w, q, k, p.tol));
         if !hidden {
-            return None;
+            let lit = !p
+                .casters
+                .iter()
+                .any(|c| segments_may_cross(w, q, &c.v, p.tol));
+            return lit.then_some(Settled::Lit);
         }
         let cj = p.pj.vertex_mean();
         let longest = |e: &EdgeSet| e.edges().iter().map(|e| e.len).fold(0.0f64, f64::max);
