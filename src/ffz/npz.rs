@@ -11,7 +11,8 @@
 //!
 //! Streaming: a CSR matrix lists rows in order, the file holds them in any order.
 //! The export's entry pass appends each row's kept entries to a spill file beside the
-//! output (its columns, then its values) and notes where each row starts (n numbers);
+//! output ([`spill_path`]: in TMPDIR when the output is a device or a pipe; its
+//! columns, then its values) and notes where each row starts (n numbers);
 //! this module then writes `indices` and `data` by reading the spill file back in
 //! row order (positioned reads, one row at a time). Memory is O(n) whatever the number of entries; disk is the
 //! archive plus a spill of 8 bytes per entry, removed afterwards.
@@ -23,6 +24,22 @@ use std::path::{Path, PathBuf};
 use std::rc::Rc;
 
 use super::error::{FfzError, Result};
+
+/// Where the spill for an archive written to `npz` goes: `NAME.npz.spill` beside it,
+/// or, when `npz` exists and is no regular file (`/dev/stdout`, a pipe, `/dev/full`),
+/// `ffstream-PID-NAME.spill` in the temporary directory (`TMPDIR`), not beside a device.
+pub(crate) fn spill_path(npz: &Path) -> PathBuf {
+    let special = std::fs::metadata(npz).is_ok_and(|m| !m.is_file());
+    if special {
+        let mut name = std::ffi::OsString::from(format!("ffstream-{}-", std::process::id()));
+        name.push(npz.file_name().unwrap_or(npz.as_os_str()));
+        name.push(".spill");
+        return std::env::temp_dir().join(name);
+    }
+    let mut name = npz.as_os_str().to_owned();
+    name.push(".spill");
+    PathBuf::from(name)
+}
 
 /// Where each row's entries are in the spill file, and how many it kept.
 #[derive(Debug)]
@@ -37,11 +54,9 @@ pub(crate) struct Spill {
 }
 
 impl Spill {
-    /// A spill file for an `n`-row matrix written to `npz` (`NAME.npz.spill` beside it).
+    /// A spill file for an `n`-row matrix written to `npz` ([`spill_path`]).
     pub(crate) fn create(npz: &Path, n: u32) -> Result<Self> {
-        let mut name = npz.as_os_str().to_owned();
-        name.push(".spill");
-        let path = PathBuf::from(name);
+        let path = spill_path(npz);
         let f = File::create(&path).map_err(|e| FfzError::io(&path, "create", e))?;
         Ok(Spill {
             out: BufWriter::with_capacity(1 << 20, f),
@@ -297,6 +312,22 @@ fn npy_header(descr: &str, shape: &str) -> Vec<u8> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Beside a file (existing or not); in the temporary directory for a device.
+    #[test]
+    fn the_spill_goes_beside_a_file_and_not_beside_a_device() {
+        let dir = std::env::temp_dir().join(format!("ffs-spill-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let npz = dir.join("F.npz");
+        assert_eq!(spill_path(&npz), dir.join("F.npz.spill"));
+        std::fs::write(&npz, b"old").unwrap();
+        assert_eq!(spill_path(&npz), dir.join("F.npz.spill"));
+        let dev = spill_path(Path::new("/dev/null"));
+        assert_eq!(dev.parent(), Some(std::env::temp_dir().as_path()));
+        let name = dev.file_name().unwrap().to_string_lossy().into_owned();
+        assert_eq!(name, format!("ffstream-{}-null.spill", std::process::id()));
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 
     #[test]
     fn npy_headers_are_padded_to_64_bytes_and_end_in_a_newline() {
