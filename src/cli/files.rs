@@ -49,7 +49,7 @@ pub(crate) struct ExportArgs {
     /// shape, format), the archive `scipy.sparse.save_npz` writes:
     /// `scipy.sparse.load_npz("F.npz")` opens it without ffstream's reader. Goes
     /// through a spill file of 8 bytes per entry beside it, or in TMPDIR when F.npz is
-    /// a device or a pipe (removed afterwards).
+    /// a device (removed afterwards). Not to a pipe: the archive is written with seeks.
     #[arg(long, value_name = "F.npz")]
     pub npz: Option<PathBuf>,
     /// Leave entries below EPS out of --matrix, --sparse and --npz (uDALES keeps F ≥ 5e-7);

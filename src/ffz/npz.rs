@@ -11,7 +11,7 @@
 //!
 //! Streaming: a CSR matrix lists rows in order, the file holds them in any order.
 //! The export's entry pass appends each row's kept entries to a spill file beside the
-//! output ([`spill_path`]: in TMPDIR when the output is a device or a pipe; its
+//! output ([`spill_path`]: in TMPDIR when the output is a device; its
 //! columns, then its values) and notes where each row starts (n numbers);
 //! this module then writes `indices` and `data` by reading the spill file back in
 //! row order (positioned reads, one row at a time). Memory is O(n) whatever the number of entries; disk is the
@@ -26,7 +26,7 @@ use std::rc::Rc;
 use super::error::{FfzError, Result};
 
 /// Where the spill for an archive written to `npz` goes: `NAME.npz.spill` beside it,
-/// or, when `npz` exists and is no regular file (`/dev/stdout`, a pipe, `/dev/full`),
+/// or, when `npz` exists and is no regular file (`/dev/stdout`, `/dev/full`),
 /// `ffstream-PID-NAME.spill` in the temporary directory (`TMPDIR`), not beside a device.
 pub(crate) fn spill_path(npz: &Path) -> PathBuf {
     let special = std::fs::metadata(npz).is_ok_and(|m| !m.is_file());
@@ -102,7 +102,8 @@ impl Spill {
             .flush()
             .map_err(|e| FfzError::io(&self.path, "write", e))?;
         let spill = File::open(&self.path).map_err(|e| FfzError::io(&self.path, "open", e))?;
-        // A device (`/dev/full`, a pipe) is written to but never removed.
+        // A device (`/dev/full`, `/dev/null`) is written to but never removed. A pipe
+        // cannot take a zip archive (the writer seeks back to its headers).
         let regular = std::fs::metadata(npz).map_or(true, |m| m.is_file());
         let f = File::create(npz).map_err(|e| FfzError::io(npz, "create", e))?;
         let failed = Rc::new(Cell::new(false));
@@ -112,6 +113,10 @@ impl Spill {
             inner
                 .flush()
                 .map_err(|err| FfzError::io(npz, "write", err))?;
+            // A device has nothing to sync (`/dev/null` refuses with EINVAL).
+            if !regular {
+                return Ok(());
+            }
             inner
                 .file
                 .get_ref()

@@ -255,6 +255,40 @@ fn npz_export_onto_a_full_disk_is_one_error_and_leaves_no_archive() {
         .is_char_device());
 }
 
+/// `export --npz` onto a device that takes the bytes (`/dev/null`): it succeeds (the
+/// device is not synced: `/dev/null` refuses), and the spill goes to TMPDIR and is
+/// removed there, not created beside the device (it used to be `/dev/null.spill`).
+#[test]
+fn npz_export_onto_a_device_spills_into_tmpdir() {
+    use crate::common::{ok, path_str};
+    let dir = tempfile::tempdir().unwrap();
+    let ffz = dir.path().join("c.ffz");
+    ok(&[
+        "compute",
+        "builtin:cornell",
+        "--patches",
+        "60",
+        "-q",
+        "-o",
+        path_str(&ffz),
+    ]);
+    let tmp = dir.path().join("tmp");
+    std::fs::create_dir(&tmp).unwrap();
+    let out = std::process::Command::new(crate::common::exe())
+        .args(["export", path_str(&ffz), "--npz", "/dev/null"])
+        .env("TMPDIR", &tmp)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    assert!(!std::path::Path::new("/dev/null.spill").exists());
+    assert_eq!(
+        std::fs::read_dir(&tmp).unwrap().count(),
+        0,
+        "a spill was left"
+    );
+}
+
 /// Runs `exe args` (with `env`) under a file-size limit of `limit` bytes, SIGXFSZ
 /// ignored so that a write past it fails with EFBIG, as on a full disk. None when
 /// prlimit or bash is missing and `FFSTREAM_SKIP_PRLIMIT` says to skip.
