@@ -191,6 +191,23 @@ fn full_disk_error_names_the_path_and_keeps_chunks() {
     check_against(&rd, &|i| row(SEED, i, N, LAYOUT));
 }
 
+/// `DIR/c.ffz`: the Cornell box at about `patches` patches.
+fn cornell_ffz(dir: &std::path::Path, patches: u32) -> std::path::PathBuf {
+    use crate::common::{ok, path_str};
+    let ffz = dir.join("c.ffz");
+    let patches = patches.to_string();
+    ok(&[
+        "compute",
+        "builtin:cornell",
+        "--patches",
+        &patches,
+        "-q",
+        "-o",
+        path_str(&ffz),
+    ]);
+    ffz
+}
+
 /// `export --npz` onto a full disk (a file-size limit that the spill file fits under
 /// and the archive does not; then `/dev/full`): one error line naming the archive, no
 /// archive left that looks like one, no spill left, and a device is not removed. The
@@ -198,18 +215,9 @@ fn full_disk_error_names_the_path_and_keeps_chunks() {
 /// and the cut archive stayed.
 #[test]
 fn npz_export_onto_a_full_disk_is_one_error_and_leaves_no_archive() {
-    use crate::common::{ffstream as run, ok, path_str};
+    use crate::common::{ffstream as run, path_str};
     let dir = tempfile::tempdir().unwrap();
-    let ffz = dir.path().join("c.ffz");
-    ok(&[
-        "compute",
-        "builtin:cornell",
-        "--patches",
-        "150",
-        "-q",
-        "-o",
-        path_str(&ffz),
-    ]);
+    let ffz = cornell_ffz(dir.path(), 150);
     let r = FfzReader::open(&ffz).unwrap();
     let n = r.n() as usize;
     let nnz: usize = (0..r.n())
@@ -260,18 +268,9 @@ fn npz_export_onto_a_full_disk_is_one_error_and_leaves_no_archive() {
 /// removed there, not created beside the device (it used to be `/dev/null.spill`).
 #[test]
 fn npz_export_onto_a_device_spills_into_tmpdir() {
-    use crate::common::{ok, path_str};
+    use crate::common::path_str;
     let dir = tempfile::tempdir().unwrap();
-    let ffz = dir.path().join("c.ffz");
-    ok(&[
-        "compute",
-        "builtin:cornell",
-        "--patches",
-        "60",
-        "-q",
-        "-o",
-        path_str(&ffz),
-    ]);
+    let ffz = cornell_ffz(dir.path(), 60);
     let tmp = dir.path().join("tmp");
     std::fs::create_dir(&tmp).unwrap();
     let out = std::process::Command::new(crate::common::exe())
