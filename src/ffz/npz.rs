@@ -25,12 +25,17 @@ use std::rc::Rc;
 
 use super::error::{FfzError, Result};
 
+/// True when `path` exists and is no regular file (a device such as `/dev/full`): it
+/// is written to, never removed or synced, and gets no spill beside it.
+fn is_device(path: &Path) -> bool {
+    std::fs::metadata(path).is_ok_and(|m| !m.is_file())
+}
+
 /// Where the spill for an archive written to `npz` goes: `NAME.npz.spill` beside it,
 /// or, when `npz` exists and is no regular file (`/dev/stdout`, `/dev/full`),
 /// `ffstream-PID-NAME.spill` in the temporary directory (`TMPDIR`), not beside a device.
 pub(crate) fn spill_path(npz: &Path) -> PathBuf {
-    let special = std::fs::metadata(npz).is_ok_and(|m| !m.is_file());
-    if special {
+    if is_device(npz) {
         let mut name = std::ffi::OsString::from(format!("ffstream-{}-", std::process::id()));
         name.push(npz.file_name().unwrap_or(npz.as_os_str()));
         name.push(".spill");
@@ -104,7 +109,7 @@ impl Spill {
         let spill = File::open(&self.path).map_err(|e| FfzError::io(&self.path, "open", e))?;
         // A device (`/dev/full`, `/dev/null`) is written to but never removed. A pipe
         // cannot take a zip archive (the writer seeks back to its headers).
-        let regular = std::fs::metadata(npz).map_or(true, |m| m.is_file());
+        let regular = !is_device(npz);
         let f = File::create(npz).map_err(|e| FfzError::io(npz, "create", e))?;
         let failed = Rc::new(Cell::new(false));
         let mut zip = zip::ZipWriter::new(Quiet::new(f, Rc::clone(&failed)));

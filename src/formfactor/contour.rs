@@ -51,9 +51,7 @@
 
 use glam::DVec3;
 
-#[cfg(test)]
-use super::polygon::Polygon;
-use super::polygon::{Edge, EdgeSet};
+use super::polygon::{Edge, EdgeSet, Polygon};
 use super::quadrature::{GaussTable, MAX_ORDER};
 
 /// Accuracy parameters of the outer quadrature.
@@ -94,7 +92,7 @@ const MAX_SPLITS: usize = 2048;
 
 /// A_a F_ab for two (already clipped) polygons whose contours wind counter-clockwise
 /// about their front normals. Returns 0 for fewer than 3 vertices on either side.
-#[cfg(test)]
+/// (The tests' oracle, and the exact route's cells hidden whole.)
 pub(crate) fn area_form_factor(
     a: &Polygon,
     b: &Polygon,
@@ -118,7 +116,7 @@ pub(crate) fn area_form_factor(
     area_form_factor_edges(&ea, &eb, r_ref, gauss, p)
 }
 
-/// As `area_form_factor` (the test oracle) on precomputed edges, with the reference length `r_ref`
+/// As `area_form_factor` on precomputed edges, with the reference length `r_ref`
 /// (> 0; any value gives the same exact result, the distance between the polygons
 /// gives the best conditioning).
 pub(crate) fn area_form_factor_edges(

@@ -47,7 +47,8 @@
 //! cell between which and P_j no occluder can come blocks nothing, and a cell from
 //! which one caster or one convex solid hides all of P_j blocks F(x → P_j) at every
 //! point, whose integral over the cell is the unoccluded polygon-to-polygon form
-//! factor ([`super::contour`]); the same test on the whole of P_i proves a pair hidden. Measured against the independent references of
+//! factor ([`super::contour`]); the same test on the whole of P_i proves a pair
+//! hidden. Measured against the independent references of
 //! tests/data/occluded_refs.json: within 1e-7 of group factors at the default
 //! tolerance (1e-6 of each entry's F⁰).
 //!
@@ -59,8 +60,8 @@
 
 use glam::DVec3;
 
-use super::contour::{area_form_factor_edges, ContourParams};
-use super::polygon::{EdgeSet, Polygon, PolygonN, MAX_VERTS};
+use super::contour::{area_form_factor, ContourParams};
+use super::polygon::{Polygon, PolygonN, MAX_VERTS};
 use super::quadrature::gauss_table;
 use super::solids::{Solid, NO_SOLID};
 
@@ -638,11 +639,10 @@ pub(crate) fn blocked_integral(
         dark_floor: tol_abs / UNRESOLVED as f64,
         points: 0,
     };
-    let ej = EdgeSet::from_polygon(pair.pj);
     let mut total = Some(0.0);
     'cells: for c in &cells {
         let w = c.verts();
-        match run.settled(w, &ej) {
+        match run.settled(w) {
             Some(Settled::Lit) => continue,
             Some(Settled::Hidden(x)) => {
                 if let Some(t) = total.as_mut() {
@@ -962,11 +962,11 @@ enum Settled {
 }
 
 impl Run<'_, '_> {
-    /// Whether the convex cell `w` needs no rule, and what it blocks then (`ej`: the
-    /// edges of P_j). A hidden cell's integral is the unoccluded contour integral from
-    /// it to P_j, per fan triangle when it has more vertices than a [`Polygon`]; a
-    /// value that comes out negative or not finite leaves the cell to the rule.
-    fn settled(&self, w: &[DVec3], ej: &EdgeSet) -> Option<Settled> {
+    /// Whether the convex cell `w` needs no rule, and what it blocks then. A hidden
+    /// cell's integral is the unoccluded contour integral from it to P_j, per fan
+    /// triangle when it has more vertices than a [`Polygon`]; a value that comes out
+    /// negative or not finite leaves the cell to the rule.
+    fn settled(&self, w: &[DVec3]) -> Option<Settled> {
         let p = self.pair;
         let q = p.pj.verts();
         if w.len() < 3 {
@@ -983,18 +983,7 @@ impl Run<'_, '_> {
                 .any(|c| segments_may_cross(w, q, &c.v, p.tol));
             return lit.then_some(Settled::Lit);
         }
-        let cj = p.pj.vertex_mean();
-        let longest = |e: &EdgeSet| e.edges().iter().map(|e| e.len).fold(0.0f64, f64::max);
-        let contour = |poly: &Polygon| {
-            let ei = EdgeSet::from_polygon(poly);
-            // As the pair's own integral: any positive length gives the same value,
-            // the distance or the longest edge the best conditioning.
-            let r_ref = (poly.vertex_mean() - cj)
-                .length()
-                .max(longest(&ei))
-                .max(longest(ej));
-            area_form_factor_edges(&ei, ej, r_ref, gauss_table(), p.params)
-        };
+        let contour = |poly: &Polygon| area_form_factor(poly, p.pj, gauss_table(), p.params);
         let value = if w.len() <= MAX_VERTS {
             contour(&Polygon::new(w))
         } else {
@@ -1408,7 +1397,6 @@ mod tests {
     /// whole is `Blocked::All` with the solid and comes to F⁰ by the rule.
     #[test]
     fn cells_settled_whole_agree_with_the_rule() {
-        use crate::formfactor::contour::area_form_factor;
         let (found, whole, one_by_one) = box_between_squares();
         let pj = square_facing(0.6, 1.4, 0.6, 1.4, 3.0, false);
         let cases = [
