@@ -56,9 +56,10 @@ pub(crate) struct ComputeOptions {
     pub visibility: Option<VisibilityArg>,
     /// Exact visibility: target error of an entry's blocked part, relative to the
     /// entry's unoccluded value (default: the preset's, fast 1e-2, accurate 1e-3,
-    /// reference 1e-6; see README for cost against accuracy). Held down to 1e-6 on the
-    /// scenes measured; below about 1e-7 the rule's depth limit can leave an entry
-    /// above it, unreported (bench/PERF.md §29).
+    /// reference 1e-6; see README for cost against accuracy). The rule refines where its
+    /// error estimate is largest until the estimates add up to the tolerance; pairs it
+    /// cannot bring there (out of points or depth) are counted in the report. Below
+    /// about 1e-7 the estimate itself can be fooled (bench/PERF.md §30).
     #[arg(long, value_name = "TOL", value_parser = number::tolerance)]
     pub shadow_tol: Option<f64>,
     /// contour: target relative error of each entry's unoccluded part (the quadrature

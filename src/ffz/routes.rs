@@ -25,7 +25,14 @@ pub struct PairRoutes {
     pub exact_hidden: u64,
     /// Outer points the other (partly shadowed) exact pairs took, together.
     pub exact_points: u64,
+    /// Of the partly shadowed exact pairs, those whose outer rule stopped (at its most
+    /// points or deepest refinement) before its error estimate met `--shadow-tol`.
+    /// Reported by the run; the route record does not keep it (spec §6.1).
+    pub exact_unmet: u64,
 }
+
+/// Counts of [`PairRoutes`] that the route record keeps: all but `exact_unmet`.
+const RECORD_WORDS: usize = 8;
 
 impl PairRoutes {
     pub(crate) fn of(c: &crate::formfactor::Counters) -> Self {
@@ -38,11 +45,13 @@ impl PairRoutes {
             exact_visible: c.pairs_exact_visible,
             exact_hidden: c.pairs_exact_hidden,
             exact_points: c.exact_points,
+            exact_unmet: c.pairs_exact_unmet,
         }
     }
 
-    /// The eight counts in the order of the route record and of MPI's DONE message.
-    pub(crate) fn to_words(self) -> [u64; 8] {
+    /// The nine counts in the order of MPI's DONE message; the route record keeps the
+    /// first [`RECORD_WORDS`].
+    pub(crate) fn to_words(self) -> [u64; 9] {
         [
             self.evaluated,
             self.unoccludable,
@@ -52,12 +61,13 @@ impl PairRoutes {
             self.exact_visible,
             self.exact_hidden,
             self.exact_points,
+            self.exact_unmet,
         ]
     }
 
     /// [`PairRoutes::to_words`] read back.
-    pub(crate) fn from_words(w: [u64; 8]) -> Self {
-        let [evaluated, unoccludable, exact, fallback, rays, exact_visible, exact_hidden, exact_points] =
+    pub(crate) fn from_words(w: [u64; 9]) -> Self {
+        let [evaluated, unoccludable, exact, fallback, rays, exact_visible, exact_hidden, exact_points, exact_unmet] =
             w;
         PairRoutes {
             evaluated,
@@ -68,6 +78,7 @@ impl PairRoutes {
             exact_visible,
             exact_hidden,
             exact_points,
+            exact_unmet,
         }
     }
 
@@ -123,6 +134,12 @@ impl PairRoutes {
                 self.exact_points as f64 / partly.max(1) as f64
             );
         }
+        if self.exact_unmet > 0 {
+            line += &format!(
+                "; {} partly shadowed pair(s) did not reach --shadow-tol (the outer rule ran out of points or depth first: their values are its best estimates, not within the tolerance)",
+                self.exact_unmet
+            );
+        }
         line
     }
 }
@@ -148,7 +165,8 @@ impl StoredRoutes {
 
     pub(crate) fn encode(&self) -> [u8; ROUTES_LEN] {
         let mut out = [0u8; ROUTES_LEN];
-        let words = std::iter::once(self.rows).chain(self.pairs.to_words());
+        let pairs = self.pairs.to_words();
+        let words = std::iter::once(self.rows).chain(pairs[..RECORD_WORDS].iter().copied());
         for (k, v) in words.enumerate() {
             out[8 * k..8 * k + 8].copy_from_slice(&v.to_le_bytes());
         }
@@ -169,7 +187,9 @@ impl StoredRoutes {
         let [rows, pairs @ ..] = v;
         let s = StoredRoutes {
             rows,
-            pairs: PairRoutes::from_words(pairs),
+            pairs: PairRoutes::from_words(std::array::from_fn(|k| {
+                pairs.get(k).copied().unwrap_or(0)
+            })),
         };
         let p = s.pairs;
         let routed = p
@@ -218,6 +238,7 @@ mod tests {
                 exact_visible: 5,
                 exact_hidden: 20,
                 exact_points: 12_345,
+                exact_unmet: 0,
             },
         }
     }

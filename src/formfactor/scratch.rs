@@ -43,6 +43,10 @@ pub struct Counters {
     /// Pairs meant for exact visibility that went to rays (more candidates than the
     /// exact route takes, or shadows cut into too many pieces).
     pub pairs_exact_fallback: u64,
+    /// Of the partly shadowed exact pairs, those whose outer rule stopped before its
+    /// error estimate met the tolerance (at its most points or deepest refinement):
+    /// their value is the rule's best, kept, but not within `--shadow-tol` as promised.
+    pub pairs_exact_unmet: u64,
     /// Top-k tree search: nodes opened (their children's bounds computed, or a leaf's
     /// columns evaluated).
     pub tree_nodes_opened: u64,
@@ -77,6 +81,7 @@ impl Counters {
         self.pairs_exact_visible += o.pairs_exact_visible;
         self.pairs_exact_hidden += o.pairs_exact_hidden;
         self.pairs_exact_fallback += o.pairs_exact_fallback;
+        self.pairs_exact_unmet += o.pairs_exact_unmet;
     }
 }
 

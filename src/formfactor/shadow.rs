@@ -39,11 +39,12 @@
 //! rays; and where it has kinks (a caster vertex lines up with an edge of P_j, or a
 //! vertex of P_j with a caster edge), as far as [`MAX_CELLS`] allows. Each cell is
 //! fanned into triangles; on each, a 7-point degree-5 rule (Radon 1948) is compared
-//! with the sum of the same rule on its four halves (cut at the edge midpoints), and
-//! where they differ by more than the triangle's share of the tolerance each half is
-//! refined in turn. A triangle whose samples all see no shadow although an occluder
-//! may come between it and P_j is refined too, until its share of the tolerance
-//! bounds what it could hold. Cells that need no rule are settled first, exactly: a
+//! with the sum of the same rule on its four halves (cut at the edge midpoints), the
+//! difference being the triangle's error estimate; the triangle with the largest
+//! estimate is refined (globally adaptive, as QUADPACK's QAG) until the estimates
+//! add up to the tolerance. A triangle whose samples all see no shadow although an
+//! occluder may come between it and P_j counts as error what it could hold.
+//! Cells that need no rule are settled first, exactly: a
 //! cell between which and P_j no occluder can come blocks nothing, and a cell from
 //! which one caster or one convex solid hides all of P_j blocks F(x → P_j) at every
 //! point, whose integral over the cell is the unoccluded polygon-to-polygon form
@@ -57,6 +58,8 @@
 //! clipping per source point, with these departures: the shadow is clipped in 3D by
 //! its cone instead of being projected, only the blocked part is integrated, and the
 //! outer rule is adaptive with a local error estimate.
+
+use std::collections::BinaryHeap;
 
 use glam::DVec3;
 
@@ -309,6 +312,8 @@ pub(crate) struct ShadowScratch {
     active: Vec<Caster>,
     loose: Vec<Caster>,
     cells: Vec<Piece>,
+    /// The outer rule's open triangles.
+    open: BinaryHeap<Open>,
     /// Working memory of the clips.
     spare: Piece,
 }
@@ -465,10 +470,13 @@ const RADON: [([f64; 3], f64); 7] = {
 /// the error at loose tolerances (bench/PERF.md §28).
 pub(crate) const UNRESOLVED: u32 = 64;
 
-/// Deepest refinement of a triangle of the outer rule (4⁹ sub-triangles of each).
-const MAX_DEPTH: u32 = 9;
+/// Deepest refinement of a first triangle of the outer rule: its triangles at this
+/// depth (4⁻¹⁶ of its area, ~1e-5 of its edge) are not cut again, and what error they
+/// still estimate makes the pair's tolerance unmet.
+const MAX_DEPTH: u32 = 16;
 
-/// Most evaluations of the integrand for one pair before it goes to rays.
+/// Most evaluations of the integrand for one pair: the rule stops refining there and
+/// keeps its estimate, with the tolerance unmet.
 const MAX_POINTS: u32 = 2_000_000;
 
 /// Whether some segment from a point of the convex polygon `t` to a point of the
@@ -553,16 +561,35 @@ pub(crate) enum Blocked {
     /// Everything: one caster, or one convex solid, hides all of P_j from every point
     /// of P_i.
     All,
-    /// ∫_{P_i} F(x → B_j(x)) dA_x (= A_i F^B_ij), and the points it took.
-    Part(f64, u32),
+    /// Some, and the rule worked it out.
+    Part {
+        /// ∫_{P_i} F(x → B_j(x)) dA_x (= A_i F^B_ij).
+        blocked: f64,
+        /// The outer rule's evaluations of the integrand.
+        points: u32,
+        /// Whether the rule's error estimate met the tolerance; false when it ran
+        /// out of points ([`MAX_POINTS`]) or of depth ([`MAX_DEPTH`]) first.
+        met: bool,
+    },
 }
 
 /// What the casters take from the pair, the blocked part to within `tol_abs` as
-/// estimated; None when it could not be done (too many shadow pieces, or more than
-/// [`MAX_POINTS`] points).
+/// estimated (or as near as [`MAX_POINTS`] and [`MAX_DEPTH`] allow: see
+/// [`Blocked::Part`]); None when it could not be done (too many shadow pieces).
 pub(crate) fn blocked_integral(
     pair: &Pair<'_>,
     tol_abs: f64,
+    s: &mut ShadowScratch,
+) -> Option<Blocked> {
+    blocked_integral_within(pair, tol_abs, MAX_POINTS, s)
+}
+
+/// [`blocked_integral`] with at most about `max_points` points instead of
+/// [`MAX_POINTS`].
+fn blocked_integral_within(
+    pair: &Pair<'_>,
+    tol_abs: f64,
+    max_points: u32,
     s: &mut ShadowScratch,
 ) -> Option<Blocked> {
     let v = pair.pi.verts();
@@ -635,41 +662,49 @@ pub(crate) fn blocked_integral(
         pair: &narrowed,
         loose: &loose,
         solids: &solids,
-        density: tol_abs / area,
-        dark_floor: tol_abs / UNRESOLVED as f64,
         points: 0,
+        max_points,
+        seq: 0,
     };
-    let mut total = Some(0.0);
-    'cells: for c in &cells {
+    let mut open = std::mem::take(&mut s.open);
+    open.clear();
+    // Cells settled whole add their value here; the others are fanned into the rule's
+    // first triangles.
+    let mut settled = Some(0.0);
+    for c in &cells {
         let w = c.verts();
         match run.settled(w) {
             Some(Settled::Lit) => continue,
             Some(Settled::Hidden(x)) => {
-                if let Some(t) = total.as_mut() {
-                    *t += x;
-                }
+                settled = settled.map(|t| t + x);
                 continue;
             }
             None => {}
         }
         for k in 1..w.len().saturating_sub(1) {
-            let sum = run
+            let ok = run
                 .cell([w[0], w[k], w[k + 1]], s)
-                .and_then(|cell| run.refine(cell, 0, s));
-            match (sum, total.as_mut()) {
-                (Some(x), Some(t)) => *t += x,
-                _ => {
-                    total = None;
-                    break 'cells;
-                }
+                .and_then(|cell| run.push(&mut open, cell, 0, s));
+            if ok.is_none() {
+                settled = None;
+                break;
             }
         }
+        if settled.is_none() {
+            break;
+        }
     }
+    let result = settled.and_then(|t| run.integrate(&mut open, t, tol_abs, s));
     let points = run.points;
+    s.open = open;
     s.cells = cells;
     s.active = active;
     s.loose = loose;
-    total.map(|t| Blocked::Part(t, points))
+    result.map(|(blocked, met)| Blocked::Part {
+        blocked,
+        points,
+        met,
+    })
 }
 
 /// True when caster `c` hides all of the polygon `q` from every point of the polygon
@@ -935,11 +970,11 @@ struct Run<'p, 'a> {
     /// The casters that belong to no solid, and the solids.
     loose: &'p [Caster],
     solids: &'p [&'a Solid],
-    /// Tolerance per unit area of P_i.
-    density: f64,
-    /// What a triangle whose samples all see no shadow may hold and still count as 0.
-    dark_floor: f64,
     points: u32,
+    /// Points after which the rule stops refining.
+    max_points: u32,
+    /// Triangles put in the open list so far (each gets the next number).
+    seq: u64,
 }
 
 impl Run<'_, '_> {
@@ -996,7 +1031,7 @@ impl Run<'_, '_> {
 }
 
 /// One triangle of the outer rule with its degree-5 estimate.
-#[derive(Clone, Copy)]
+#[derive(Clone, Copy, Debug)]
 struct Cell {
     t: [DVec3; 3],
     area: f64,
@@ -1030,9 +1065,6 @@ impl Run<'_, '_> {
             0.0
         };
         self.points += 7;
-        if self.points > MAX_POINTS {
-            return None;
-        }
         Some(Cell {
             t,
             area,
@@ -1042,34 +1074,15 @@ impl Run<'_, '_> {
         })
     }
 
-    /// The integral over `c`: its four children (cut at the edge midpoints) when
-    /// their sum agrees with `c`'s own estimate to within `c`'s share of the
-    /// tolerance (the sum is then kept, the better of the two), else each child
-    /// refined in turn.
-    fn refine(&mut self, c: Cell, depth: u32, s: &mut ShadowScratch) -> Option<f64> {
-        // No cheaper acceptance from an embedded lower-degree rule on the same points:
-        // where a shadow edge crosses a cell between the event cuts, the two rules
-        // can agree by chance while both are off (accepting a degree-5 value when the
-        // degree-2 one agreed within tolerance left entries 100 times their
-        // tolerance off, behind an off-centre blocker at 3 × 3 patches).
-        let tol = self.density * c.area;
-        if c.dark_free {
-            // No sample sees a shadow: exactly zero when no caster crosses a segment
-            // between this triangle and P_j, or when what it could hold (at most its
-            // area times the largest unoccluded value, with a margin) is below a
-            // small share of the pair's tolerance; else a shadow hides between the
-            // samples, and the triangle is refined.
-            if 2.0 * c.area * c.lit_max <= self.dark_floor || !self.any_crossing(&c.t) {
-                return Some(c.value);
-            }
-        }
+    /// The four children of `c` (cut at the edge midpoints), estimated.
+    fn children(&mut self, c: &Cell, s: &mut ShadowScratch) -> Option<[Cell; 4]> {
         let t = c.t;
         let m = [
             0.5 * (t[0] + t[1]),
             0.5 * (t[1] + t[2]),
             0.5 * (t[2] + t[0]),
         ];
-        let mut children = [c; 4];
+        let mut kids = [*c; 4];
         for (k, child) in [
             [t[0], m[0], m[2]],
             [m[0], t[1], m[1]],
@@ -1079,18 +1092,157 @@ impl Run<'_, '_> {
         .into_iter()
         .enumerate()
         {
-            children[k] = self.cell(child, s)?;
+            kids[k] = self.cell(child, s)?;
         }
-        let sum: f64 = children.iter().map(|k| k.value).sum();
-        let dark_free = children.iter().all(|k| k.dark_free);
-        if depth + 1 >= MAX_DEPTH || ((sum - c.value).abs() <= tol && !dark_free) {
-            return Some(sum);
+        Some(kids)
+    }
+
+    /// Puts triangle `c` (at refinement depth `depth`) in the open list with its error.
+    /// A triangle whose samples all see no shadow goes in as it is: its value is 0
+    /// and its error what it could hold, at most its area times the largest
+    /// unoccluded value over the samples, with a margin (a shadow may hide between
+    /// the samples). Any other gets its children, whose sum is its value, and the
+    /// difference of that sum from its own estimate is its error; when the children
+    /// all see no shadow, they go in instead, each as above.
+    fn push(
+        &mut self,
+        open: &mut BinaryHeap<Open>,
+        c: Cell,
+        depth: u32,
+        s: &mut ShadowScratch,
+    ) -> Option<()> {
+        if c.dark_free {
+            let err = 2.0 * c.area * c.lit_max;
+            if err > 0.0 {
+                self.open(open, c, None, err, depth);
+            }
+            return Some(());
         }
-        let mut total = 0.0;
-        for child in children {
-            total += self.refine(child, depth + 1, s)?;
+        self.expand(open, c, depth, s)
+    }
+
+    /// Puts `c` in the open list with its children (see [`Run::push`]).
+    fn expand(
+        &mut self,
+        open: &mut BinaryHeap<Open>,
+        c: Cell,
+        depth: u32,
+        s: &mut ShadowScratch,
+    ) -> Option<()> {
+        let kids = self.children(&c, s)?;
+        if kids.iter().all(|k| k.dark_free) {
+            for k in kids {
+                self.push(open, k, depth + 1, s)?;
+            }
+            return Some(());
         }
-        Some(total)
+        let sum: f64 = kids.iter().map(|k| k.value).sum();
+        self.open(open, c, Some(kids), (sum - c.value).abs(), depth);
+        Some(())
+    }
+
+    fn open(
+        &mut self,
+        open: &mut BinaryHeap<Open>,
+        cell: Cell,
+        kids: Option<[Cell; 4]>,
+        err: f64,
+        depth: u32,
+    ) {
+        self.seq += 1;
+        open.push(Open {
+            err,
+            seq: self.seq,
+            cell,
+            kids,
+            depth,
+        });
+    }
+
+    /// Refines the open triangle with the largest error until the errors sum to at
+    /// most `tol` (globally adaptive, as QUADPACK's QAG does on an interval: the
+    /// tolerance goes where the error is, not in proportion to area), then returns
+    /// `settled` plus the open triangles' values, and whether the tolerance was met.
+    fn integrate(
+        &mut self,
+        open: &mut BinaryHeap<Open>,
+        settled: f64,
+        tol: f64,
+        s: &mut ShadowScratch,
+    ) -> Option<(f64, bool)> {
+        let (mut done, mut unmet) = (settled, 0.0);
+        let mut err: f64 = open.iter().map(|o| o.err).sum();
+        while err > tol && self.points < self.max_points {
+            let Some(top) = open.pop() else { break };
+            err -= top.err;
+            if top.depth + 1 >= MAX_DEPTH {
+                done += top.value();
+                unmet += top.err;
+            } else {
+                match top.kids {
+                    // A triangle that sees no shadow: 0 exactly when nothing crosses
+                    // between it and P_j, else its children decide.
+                    None if !self.any_crossing(&top.cell.t) => {}
+                    None => self.expand(open, top.cell, top.depth, s)?,
+                    Some(kids) => {
+                        for k in kids {
+                            self.push(open, k, top.depth + 1, s)?;
+                        }
+                    }
+                }
+            }
+            // The running sum drifts by rounding: near the end, add it up afresh.
+            let before = err;
+            err = open.iter().map(|o| o.err).sum();
+            debug_assert!(err.is_finite() || before.is_nan());
+        }
+        let value = done + open.iter().map(Open::value).sum::<f64>();
+        Some((value, err + unmet <= tol))
+    }
+}
+
+/// A triangle of the outer rule not refined further (yet).
+#[derive(Debug)]
+struct Open {
+    /// Its error estimate.
+    err: f64,
+    /// Order of creation: among equal errors the older is refined first, so the order
+    /// of refinement, and with it the sum, never depends on the heap's layout.
+    seq: u64,
+    cell: Cell,
+    /// Its four children's estimates, whose sum is its value; None for a triangle
+    /// whose samples see no shadow (value 0).
+    kids: Option<[Cell; 4]>,
+    depth: u32,
+}
+
+impl Open {
+    fn value(&self) -> f64 {
+        self.kids
+            .map_or(self.cell.value, |k| k.iter().map(|c| c.value).sum())
+    }
+}
+
+impl PartialEq for Open {
+    fn eq(&self, o: &Self) -> bool {
+        self.cmp(o) == std::cmp::Ordering::Equal
+    }
+}
+
+impl Eq for Open {}
+
+impl PartialOrd for Open {
+    fn partial_cmp(&self, o: &Self) -> Option<std::cmp::Ordering> {
+        Some(self.cmp(o))
+    }
+}
+
+impl Ord for Open {
+    /// The larger error first; among equal ones the older.
+    fn cmp(&self, o: &Self) -> std::cmp::Ordering {
+        self.err
+            .total_cmp(&o.err)
+            .then_with(|| o.seq.cmp(&self.seq))
     }
 }
 
@@ -1391,10 +1543,17 @@ mod tests {
     /// The cells the route settles without its rule (hidden whole by the solid: the
     /// unoccluded contour integral; seeing no caster: 0) give what the rule gives on
     /// the box's triangles one by one, which no single triangle hides: both keep
-    /// |value − exact| ≤ tol at 1e-7 of F⁰, so they differ by 2 tol at most (at 1e-9 the
-    /// triangles' route missed its own tolerance by 13× while the solid's agreed with
-    /// itself at 1e-8 to 1e-12 relative; see bench/PERF.md §29). A pair the solid hides
-    /// whole is `Blocked::All` with the solid and comes to F⁰ by the rule.
+    /// |value − exact| ≤ tol at 1e-7 of F⁰, so they differ by 2 tol at most. A pair the
+    /// solid hides whole is `Blocked::All` with the solid and comes to F⁰ by the rule.
+    ///
+    /// Not below: on the partly hidden pair the solid's route settles at 1.8e-8 of F⁰
+    /// from the true value (3.08e-9 absolute), the same from 1e-9 to 1e-11, while its
+    /// estimate says it is within tolerance. The triangles' route on the whole square,
+    /// and both routes on 64 sub-squares added up, agree with each other to 1e-14;
+    /// the integrands agree pointwise to 1e-17 on a 400 × 400 grid. The offset sits in
+    /// one fan triangle of a cell ((0.4, 0, 1.6), (1.4, 0, 0.6), (−0.1, 0, 0.3)) that
+    /// is right when it is a pair of its own (and is then cut at its own events):
+    /// the rule's estimate is fooled there, cause not yet found (bench/PERF.md §30).
     #[test]
     fn cells_settled_whole_agree_with_the_rule() {
         let (found, whole, one_by_one) = box_between_squares();
@@ -1420,10 +1579,15 @@ mod tests {
                 };
                 blocked_integral(&pair, tol_abs, &mut ShadowScratch::default())
             };
-            let Some(Blocked::Part(by_rule, points)) = run(&one_by_one, &[]) else {
+            let Some(Blocked::Part {
+                blocked: by_rule,
+                points,
+                met,
+            }) = run(&one_by_one, &[])
+            else {
                 panic!("the triangles one by one need the rule");
             };
-            assert!(points > 0);
+            assert!(points > 0 && met);
             match run(&whole, &found.solids) {
                 Some(Blocked::All) => {
                     assert!(all);
@@ -1432,8 +1596,12 @@ mod tests {
                         "{by_rule} vs F0 {f0}"
                     );
                 }
-                Some(Blocked::Part(settled, _)) => {
-                    assert!(!all);
+                Some(Blocked::Part {
+                    blocked: settled,
+                    met,
+                    ..
+                }) => {
+                    assert!(!all && met);
                     assert!(
                         (settled - by_rule).abs() <= 2.0 * tol_abs,
                         "settled {settled}, rule {by_rule}, tolerance {tol_abs}"
@@ -1620,10 +1788,9 @@ mod tests {
         0.199_824_895_698_8 - blocked // Howell C-11, X = Y = 1, minus the blocked part
     }
 
-    #[test]
-    fn obstructed_plates_come_out_exact() {
-        let reference = obstructed_reference();
-        assert!((reference - 0.0995063).abs() < 5e-8, "{reference}");
+    /// The blocked part of the plates of [`obstructed_reference`] by the rule, to
+    /// `tol` within at most about `budget` points: (value, points, met).
+    fn plates_blocked(tol: f64, budget: u32) -> (f64, u32, bool) {
         // Bottom (facing +y) as seen by the kernel: counter-clockwise about +y.
         let pi = Polygon::new(&[
             dvec3(0.0, 0.0, 0.0),
@@ -1639,20 +1806,51 @@ mod tests {
             .filter_map(|c| Caster::new([c.v[0], c.v[2], c.v[1]]))
             .collect();
         casters.extend(back);
-        let mut s = ShadowScratch::default();
+        let pair = Pair {
+            pi: &pi,
+            ni: DVec3::Y,
+            pj: &pj,
+            casters: &casters,
+            solids: &[],
+            tol: 1e-12,
+            params: ContourParams::default(),
+        };
+        match blocked_integral_within(&pair, tol, budget, &mut ShadowScratch::default()) {
+            Some(Blocked::Part {
+                blocked,
+                points,
+                met,
+            }) => (blocked, points, met),
+            other => panic!("the plates are partly blocked: {other:?}"),
+        }
+    }
+
+    /// A rule that runs out of points before its error estimate meets the tolerance
+    /// says so (the run counts such pairs), and keeps its best estimate.
+    #[test]
+    fn a_rule_out_of_points_says_its_tolerance_is_unmet() {
+        let reference = obstructed_reference();
+        let mut last = f64::INFINITY;
+        for budget in [1_000, 3_000, 30_000] {
+            let (blocked, points, met) = plates_blocked(1e-14, budget);
+            let error = (0.199_824_895_698_8 - blocked - reference).abs();
+            println!("budget {budget}: {points} points, error {error:.1e}");
+            assert!(!met, "1e-14 met in {points} points");
+            // Past the budget by one refinement at most (a triangle's children and
+            // theirs: 4 × 28 points), and the estimate improves with the budget.
+            assert!(points >= budget && points <= budget + 112, "{points}");
+            assert!(error < 1e-4 && error < last, "{error:e} after {last:e}");
+            last = error;
+        }
+    }
+
+    #[test]
+    fn obstructed_plates_come_out_exact() {
+        let reference = obstructed_reference();
+        assert!((reference - 0.0995063).abs() < 5e-8, "{reference}");
         for tol in [1e-6, 1e-9] {
-            let pair = Pair {
-                pi: &pi,
-                ni: DVec3::Y,
-                pj: &pj,
-                casters: &casters,
-                solids: &[],
-                tol: 1e-12,
-                params: ContourParams::default(),
-            };
-            let Some(Blocked::Part(blocked, points)) = blocked_integral(&pair, tol, &mut s) else {
-                panic!("the plates are partly blocked");
-            };
+            let (blocked, points, met) = plates_blocked(tol, MAX_POINTS);
+            assert!(met, "tolerance {tol:e} unmet after {points} points");
             let f = 0.199_824_895_698_8 - blocked;
             println!(
                 "tolerance {tol:e}: F = {f:.12}, error {:.1e}, {points} points",

@@ -62,8 +62,13 @@ impl RowEngine {
                 c.pairs_exact_hidden += 1;
                 0.0
             }
-            Blocked::Part(blocked, points) => {
+            Blocked::Part {
+                blocked,
+                points,
+                met,
+            } => {
                 c.exact_points += u64::from(points);
+                c.pairs_exact_unmet += u64::from(!met);
                 // What is left within the method's resolution of nothing is
                 // nothing: a patch hidden behind several occluders (a floor cell
                 // under a box) gets an exact 0, not the quadrature's remainder or the

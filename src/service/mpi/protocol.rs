@@ -133,9 +133,9 @@ pub(crate) fn decode_failed(v: &[u8], rank: i32) -> Result<(Option<u32>, String)
     Ok((row, String::from_utf8_lossy(&v[8..]).into_owned()))
 }
 
-/// Length of a DONE message: rows, busy seconds, threads, peak RSS, then the eight
+/// Length of a DONE message: rows, busy seconds, threads, peak RSS, then the nine
 /// counts of [`PairRoutes`].
-const DONE_LEN: usize = 28 + 8 * 8;
+const DONE_LEN: usize = 28 + 8 * 9;
 
 pub(crate) fn encode_done(s: &WorkerStats) -> Vec<u8> {
     let mut v = Vec::with_capacity(DONE_LEN);
@@ -237,6 +237,7 @@ mod tests {
                 exact_visible: 11,
                 exact_hidden: 5,
                 exact_points: 1 << 40,
+                exact_unmet: 3,
             },
         };
         let d = decode_done(&encode_done(&s), 4).unwrap();
