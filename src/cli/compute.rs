@@ -59,7 +59,8 @@ pub(crate) struct ComputeOptions {
     /// reference 1e-6; see README for cost against accuracy). The rule refines where its
     /// error estimate is largest until the estimates add up to the tolerance; pairs it
     /// cannot bring there (out of points or depth) are counted in the report. Below
-    /// about 1e-7 the estimate itself can be fooled (bench/PERF.md §30).
+    /// about 1e-7 the estimate itself can be fooled where a pair needs more than 256
+    /// cells (bench/PERF.md §30).
     #[arg(long, value_name = "TOL", value_parser = number::tolerance)]
     pub shadow_tol: Option<f64>,
     /// contour: target relative error of each entry's unoccluded part (the quadrature

@@ -41,6 +41,10 @@ use crate::formfactor::sampling::{latin_pairs, SplitMix64};
 use crate::formfactor::shadow::{self, Piece};
 use crate::formfactor::tree::PatchTree;
 
+/// Most cells a patch's row total is cut into (each gets one ray at least; more
+/// cells: the plain estimate).
+const MAX_CELLS: usize = 64;
+
 /// Whether the row totals come from hemisphere rays with these occluders (that many
 /// triangles, from another mesh than the patches' or not): what the file header says
 /// (`RowEngine::description`) and what [`RowEngine::closure_total`] does.
@@ -151,8 +155,8 @@ impl RowEngine {
     /// Cuts patch `g` into convex cells along the planes of the surfaces standing on
     /// it (a box on a floor patch: what a point sees jumps where its walls meet the
     /// patch, nothing beneath it, everything beside it). False when nothing stands on
-    /// the patch or the cuts would need more than [`shadow::MAX_CELLS`] cells: the
-    /// plain estimate is then used.
+    /// the patch or the cuts would need more than [`MAX_CELLS`] cells: the plain
+    /// estimate is then used.
     fn standing_cells(&self, g: &PatchGeom, cells: &mut Vec<Piece>) -> bool {
         let verts = g.poly.verts();
         let lo = verts.iter().fold(DVec3::INFINITY, |a, b| a.min(*b));
@@ -163,7 +167,7 @@ impl RowEngine {
         let tol = self.hide_margin;
         self.occluders
             .standing_on(lo, hi, (g.normal, g.offset), tol, |v| {
-                complete &= shadow::cut(cells, v[0], v[1], v[2], tol, &|_| true);
+                complete &= shadow::cut(cells, MAX_CELLS, v[0], v[1], v[2], tol, &|_| true);
             });
         complete && cells.len() > 1
     }
