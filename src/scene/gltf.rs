@@ -1,4 +1,5 @@
-//! Loading a scene from glTF 2.0: `.gltf` (JSON) with its `.bin` buffers, or `.glb`
+//! Loading a scene from glTF 2.0: `.gltf` (JSON) with its buffers in files beside it
+//! (relative URIs, `%XX` escapes decoded) or embedded as base64 `data:` URIs, or `.glb`
 //! (binary, buffers inside). The JSON is parsed and validated by the `gltf` crate; the
 //! vertex and index data are read here, after checking that every accessor lies inside
 //! its buffer view and every view inside its buffer (so a short or missing buffer is an
@@ -87,21 +88,17 @@ fn load_buffers(path: &Path, gltf: &::gltf::Gltf) -> Result<Vec<Vec<u8>>, SceneE
             reason,
         };
         let data = match b.source() {
-            ::gltf::buffer::Source::Bin => gltf
-                .blob
-                .clone()
-                .ok_or_else(|| err("refers to the GLB binary chunk, which the file does not have".into()))?,
-            ::gltf::buffer::Source::Uri(uri) if uri.starts_with("data:") => {
-                return Err(err(
-                    "embedded (data: URI) buffers are not read: export as .glb or as .gltf with a separate .bin".into(),
-                ))
-            }
-            ::gltf::buffer::Source::Uri(uri) => {
-                let file = dir.join(uri);
-                std::fs::read(&file).map_err(|e| {
-                    err(format!("cannot read {}: {e}", file.display()))
-                })?
-            }
+            ::gltf::buffer::Source::Bin => gltf.blob.clone().ok_or_else(|| {
+                err("refers to the GLB binary chunk, which the file does not have".into())
+            })?,
+            ::gltf::buffer::Source::Uri(uri) => match uri.strip_prefix("data:") {
+                Some(rest) => data_uri(rest).map_err(err)?,
+                None => {
+                    let file = dir.join(percent_decoded(uri));
+                    std::fs::read(&file)
+                        .map_err(|e| err(format!("cannot read {}: {e}", file.display())))?
+                }
+            },
         };
         if data.len() < b.length() {
             return Err(err(format!(
@@ -113,6 +110,50 @@ fn load_buffers(path: &Path, gltf: &::gltf::Gltf) -> Result<Vec<Vec<u8>>, SceneE
         out.push(data);
     }
     Ok(out)
+}
+
+/// The bytes of a `data:` URI (RFC 2397) after its scheme: `[media type][;base64],data`.
+/// Only base64 data is taken (what glTF exporters write); Err: why not.
+fn data_uri(rest: &str) -> Result<Vec<u8>, String> {
+    use base64::Engine as _;
+    let (head, data) = rest
+        .split_once(',')
+        .ok_or("data: URI without the comma before its data")?;
+    if !head.ends_with(";base64") {
+        return Err(format!(
+            "data: URI `data:{head},...` is not base64 (only base64 data: URIs are read)"
+        ));
+    }
+    base64::engine::general_purpose::STANDARD
+        .decode(data.trim_end())
+        .map_err(|e| format!("data: URI is not valid base64: {e}"))
+}
+
+/// A relative URI as a path: `%XX` escapes decoded (glTF URIs are RFC 3986, so a file
+/// `my mesh.bin` is written `my%20mesh.bin`). A `%` not followed by two hex digits is
+/// kept as it is.
+fn percent_decoded(uri: &str) -> String {
+    let b = uri.as_bytes();
+    let mut out = Vec::with_capacity(b.len());
+    let mut k = 0;
+    while k < b.len() {
+        let hex = |c: u8| (c as char).to_digit(16);
+        match (
+            b[k],
+            b.get(k + 1).and_then(|&c| hex(c)),
+            b.get(k + 2).and_then(|&c| hex(c)),
+        ) {
+            (b'%', Some(h), Some(l)) => {
+                out.push((h * 16 + l) as u8);
+                k += 3;
+            }
+            (c, _, _) => {
+                out.push(c);
+                k += 1;
+            }
+        }
+    }
+    String::from_utf8_lossy(&out).into_owned()
 }
 
 /// The state of one load: where faces go, the buffers, the glTF materials already

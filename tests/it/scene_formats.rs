@@ -174,8 +174,8 @@ fn write_ply(s: &Scene, path: &Path, binary: bool) {
 /// glTF: one node, mesh and material per group; positions unwelded, no indices for
 /// the first group (non-indexed primitive) and u16 indices for the others; emission
 /// as emissiveFactor × KHR_materials_emissive_strength with a power-of-two strength,
-/// so the product is exact in f32. `glb`: one binary file instead of .gltf + .bin.
-fn write_gltf(s: &Scene, path: &Path, glb: bool) {
+/// so the product is exact in f32. Where the buffer goes: see [`Buffer`].
+fn write_gltf(s: &Scene, path: &Path, buffer: Buffer) {
     let mut bin: Vec<u8> = Vec::new();
     let (mut views, mut accessors, mut meshes, mut nodes, mut materials) =
         (vec![], vec![], vec![], vec![], vec![]);
@@ -241,15 +241,16 @@ fn write_gltf(s: &Scene, path: &Path, glb: bool) {
             meshes.len() - 1
         ));
     }
-    let uri = if glb {
-        String::new()
-    } else {
-        let bin_path = path.with_extension("bin");
-        std::fs::write(&bin_path, &bin).unwrap();
-        format!(
-            r#","uri":"{}""#,
-            bin_path.file_name().unwrap().to_string_lossy()
-        )
+    let uri = match buffer {
+        Buffer::Glb => String::new(),
+        Buffer::File(name, uri) => {
+            std::fs::write(path.with_file_name(name), &bin).unwrap();
+            format!(r#","uri":"{uri}""#)
+        }
+        Buffer::Embedded => format!(
+            r#","uri":"data:application/octet-stream;base64,{}""#,
+            base64(&bin)
+        ),
     };
     let node_ids: Vec<String> = (0..nodes.len()).map(|k| k.to_string()).collect();
     let mut json = format!(
@@ -263,7 +264,7 @@ fn write_gltf(s: &Scene, path: &Path, glb: bool) {
         bin.len()
     )
     .into_bytes();
-    if !glb {
+    if !matches!(buffer, Buffer::Glb) {
         std::fs::write(path, json).unwrap();
         return;
     }
@@ -285,6 +286,40 @@ fn write_gltf(s: &Scene, path: &Path, glb: bool) {
     out.extend(b"BIN\0");
     out.extend(bin);
     std::fs::write(path, out).unwrap();
+}
+
+/// Where [`write_gltf`] puts the buffer.
+#[derive(Clone, Copy)]
+enum Buffer {
+    /// A GLB file: the buffer is its binary chunk.
+    Glb,
+    /// A file of this name beside the .gltf, referred to by this URI.
+    File(&'static str, &'static str),
+    /// In the JSON, as a base64 `data:` URI.
+    Embedded,
+}
+
+/// RFC 4648 base64 with padding, written out here so the loader's decoder is checked
+/// against an encoder that is not its own crate.
+fn base64(bytes: &[u8]) -> String {
+    const ABC: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+    let mut out = String::new();
+    for chunk in bytes.chunks(3) {
+        let b = [
+            chunk[0],
+            *chunk.get(1).unwrap_or(&0),
+            *chunk.get(2).unwrap_or(&0),
+        ];
+        let n = u32::from(b[0]) << 16 | u32::from(b[1]) << 8 | u32::from(b[2]);
+        for k in 0..4 {
+            if k <= chunk.len() {
+                out.push(ABC[(n >> (18 - 6 * k) & 63) as usize] as char);
+            } else {
+                out.push('=');
+            }
+        }
+    }
+    out
 }
 
 /// Faces of `a` and `b`: the same corners bit for bit, in the same order, with the
@@ -336,8 +371,15 @@ fn write_all() -> (Scene, Written) {
     write_group_mtl(&s, &p("binary.mtl"), Some("default"));
     write_ply(&s, &p("ascii.ply"), false);
     write_ply(&s, &p("binary_le.ply"), true);
-    write_gltf(&s, &p("box.gltf"), false);
-    write_gltf(&s, &p("box.glb"), true);
+    write_gltf(&s, &p("box.gltf"), Buffer::File("box.bin", "box.bin"));
+    write_gltf(&s, &p("box.glb"), Buffer::Glb);
+    write_gltf(&s, &p("embedded.gltf"), Buffer::Embedded);
+    // A buffer file whose name has a space, escaped in the URI as RFC 3986 has it.
+    write_gltf(
+        &s,
+        &p("spaced.gltf"),
+        Buffer::File("box data.bin", "box%20data.bin"),
+    );
     (s, Written { dir, obj })
 }
 
@@ -354,6 +396,8 @@ fn the_cornell_box_in_every_format_loads_as_the_same_faces() {
         ("binary_le.ply", false),
         ("box.gltf", true),
         ("box.glb", true),
+        ("embedded.gltf", true),
+        ("spaced.gltf", true),
     ] {
         let got = open_scene(path_str(&p(file))).unwrap_or_else(|e| panic!("{file}: {e}"));
         assert_same_faces(&obj, &got, groups, file);
@@ -412,6 +456,8 @@ fn the_cornell_box_in_every_format_gives_bitwise_the_same_rows() {
         "binary_le.ply",
         "box.gltf",
         "box.glb",
+        "embedded.gltf",
+        "spaced.gltf",
     ] {
         let out = p(&format!("{file}.ffz"));
         compute(path_str(&p(file)), &out, &[]);
@@ -472,6 +518,14 @@ const BAD: &[(&str, &str)] = &[
         "triangle 1 (mesh 0 primitive 0): vertex index 7 out of range",
     ),
     ("gltf_not_json.gltf", "not readable as glTF"),
+    (
+        "gltf_data_not_base64.gltf",
+        "buffer 0: data: URI `data:application/octet-stream,...` is not base64",
+    ),
+    (
+        "gltf_data_bad_base64.gltf",
+        "buffer 0: data: URI is not valid base64",
+    ),
     ("glb_truncated.glb", "not readable as glTF"),
 ];
 
