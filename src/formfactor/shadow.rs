@@ -665,6 +665,7 @@ fn blocked_integral_within(
         points: 0,
         max_points,
         seq: 0,
+        added: 0.0,
     };
     let mut open = std::mem::take(&mut s.open);
     open.clear();
@@ -983,6 +984,9 @@ struct Run<'p, 'a> {
     max_points: u32,
     /// Triangles put in the open list so far (each gets the next number).
     seq: u64,
+    /// The errors of the triangles put in the open list since [`Run::integrate`] last
+    /// took them into its running sum.
+    added: f64,
 }
 
 impl Run<'_, '_> {
@@ -1158,6 +1162,7 @@ impl Run<'_, '_> {
         depth: u32,
     ) {
         self.seq += 1;
+        self.added += err;
         open.push(Open {
             err,
             seq: self.seq,
@@ -1179,33 +1184,44 @@ impl Run<'_, '_> {
         s: &mut ShadowScratch,
     ) -> Option<(f64, bool)> {
         let (mut done, mut unmet) = (settled, 0.0);
-        let mut err: f64 = open.iter().map(|o| o.err).sum();
-        while err > tol && self.points < self.max_points {
+        let exact = |open: &BinaryHeap<Open>| open.iter().map(|o| o.err).sum::<f64>();
+        // A running sum of the open errors, added up afresh every so often and before
+        // it is believed (subtracting drifts by rounding).
+        let mut err = exact(open);
+        self.added = 0.0;
+        let mut steps = 0u32;
+        while self.points < self.max_points {
+            if err <= tol || steps % 1024 == 1023 {
+                err = exact(open);
+                if err <= tol {
+                    break;
+                }
+            }
+            steps += 1;
             let Some(top) = open.pop() else { break };
             err -= top.err;
             if top.depth + 1 >= MAX_DEPTH {
                 done += top.value();
                 unmet += top.err;
-            } else {
-                match top.kids {
-                    // A triangle that sees no shadow: 0 exactly when nothing crosses
-                    // between it and P_j, else its children decide.
-                    None if !self.any_crossing(&top.cell.t) => {}
-                    None => self.expand(open, top.cell, top.depth, s)?,
-                    Some(kids) => {
-                        for k in kids {
-                            self.push(open, k, top.depth + 1, s)?;
-                        }
+                continue;
+            }
+            match top.kids {
+                // A triangle that sees no shadow: 0 exactly when nothing crosses
+                // between it and P_j, else its children decide.
+                None if !self.any_crossing(&top.cell.t) => {}
+                None => self.expand(open, top.cell, top.depth, s)?,
+                Some(kids) => {
+                    for k in kids {
+                        self.push(open, k, top.depth + 1, s)?;
                     }
                 }
             }
-            // The running sum drifts by rounding: near the end, add it up afresh.
-            let before = err;
-            err = open.iter().map(|o| o.err).sum();
-            debug_assert!(err.is_finite() || before.is_nan());
+            err += std::mem::take(&mut self.added);
         }
+        let err = exact(open);
         let value = done + open.iter().map(Open::value).sum::<f64>();
-        Some((value, err + unmet <= tol))
+        // A value that is not a number (it should not happen) is no estimate: rays.
+        value.is_finite().then_some((value, err + unmet <= tol))
     }
 }
 
