@@ -44,8 +44,9 @@
 //! estimate is refined (globally adaptive, as QUADPACK's QAG) until the estimates
 //! add up to the tolerance. A triangle whose samples all see no shadow although an
 //! occluder may come between it and P_j counts as error what it could hold.
-//! Cells that need no rule are settled first, exactly: a
-//! cell between which and P_j no occluder can come blocks nothing, and a cell from
+//! Cells that need no rule are settled exactly: a cell between which and P_j no
+//! occluder can come blocks nothing (tested when the rule's first samples on it see
+//! no shadow), and a cell from
 //! which one caster or one convex solid hides all of P_j blocks F(x → P_j) at every
 //! point, whose integral over the cell is the unoccluded polygon-to-polygon form
 //! factor ([`super::contour`]); the same test on the whole of P_i proves a pair
@@ -670,28 +671,41 @@ fn blocked_integral_within(
     let mut open = std::mem::take(&mut s.open);
     open.clear();
     // Cells settled whole add their value here; the others are fanned into the rule's
-    // first triangles.
+    // first triangles. A cell none of whose first samples sees a shadow may be lit
+    // (nothing can come between it and P_j: it blocks nothing); proving that takes
+    // separating-axis tests, so only such cells are tested.
     let mut settled = Some(0.0);
+    let mut first: Vec<Cell> = Vec::new();
     for c in &cells {
         let w = c.verts();
-        match run.settled(w) {
-            Some(Settled::Lit) => continue,
-            Some(Settled::Hidden(x)) => {
-                settled = settled.map(|t| t + x);
-                continue;
-            }
-            None => {}
+        if w.len() < 3 {
+            continue;
         }
+        if let Some(x) = run.hidden(w) {
+            settled = settled.map(|t| t + x);
+            continue;
+        }
+        first.clear();
         for k in 1..w.len().saturating_sub(1) {
-            let ok = run
-                .cell([w[0], w[k], w[k + 1]], s)
-                .and_then(|cell| run.push(&mut open, cell, 0, s));
-            if ok.is_none() {
-                settled = None;
-                break;
+            match run.cell([w[0], w[k], w[k + 1]], s) {
+                Some(cell) => first.push(cell),
+                None => {
+                    settled = None;
+                    break;
+                }
             }
         }
         if settled.is_none() {
+            break;
+        }
+        if first.iter().all(|c| c.dark_free) && run.lit(w) {
+            continue;
+        }
+        if first
+            .iter()
+            .any(|&cell| run.push(&mut open, cell, 0, s).is_none())
+        {
+            settled = None;
             break;
         }
     }
@@ -990,45 +1004,29 @@ struct Run<'p, 'a> {
 }
 
 impl Run<'_, '_> {
-    /// Whether a caster may cross a segment from triangle `t` to P_j.
-    fn any_crossing(&self, t: &[DVec3; 3]) -> bool {
+    /// Whether no caster can cross a segment from the convex cell `w` to P_j.
+    fn lit(&self, w: &[DVec3]) -> bool {
         let p = self.pair;
-        p.casters
+        !p.casters
             .iter()
-            .any(|c| segments_may_cross(t, p.pj.verts(), &c.v, p.tol))
+            .any(|c| segments_may_cross(w, p.pj.verts(), &c.v, p.tol))
     }
 }
 
-/// A cell that needs no rule.
-enum Settled {
-    /// No caster crosses a segment between it and P_j: it blocks nothing.
-    Lit,
-    /// One caster or one convex solid hides all of P_j from all of it: it blocks
-    /// ∫_cell F(x → P_j) dA_x, this value.
-    Hidden(f64),
-}
-
 impl Run<'_, '_> {
-    /// Whether the convex cell `w` needs no rule, and what it blocks then. A hidden
-    /// cell's integral is the unoccluded contour integral from it to P_j, per fan
-    /// triangle when it has more vertices than a [`Polygon`]; a value that comes out
-    /// negative or not finite leaves the cell to the rule.
-    fn settled(&self, w: &[DVec3]) -> Option<Settled> {
+    /// What the convex cell `w` (three vertices or more) blocks when one caster or one
+    /// convex solid hides all of P_j from all of it: ∫_cell F(x → P_j) dA_x, the
+    /// unoccluded contour integral from it to P_j, per fan triangle when it has more
+    /// vertices than a [`Polygon`]. None when it is not so hidden, or the value comes out
+    /// negative or not finite (the rule then takes the cell). The tests are on vertex
+    /// pairs and fail fast, unlike [`Run::lit`]'s separating axes.
+    fn hidden(&self, w: &[DVec3]) -> Option<f64> {
         let p = self.pair;
         let q = p.pj.verts();
-        if w.len() < 3 {
-            return Some(Settled::Lit);
-        }
-        // Hidden first: its tests are on vertex pairs and fail fast, while proving a
-        // cell lit takes every separating-axis test of the caster that may cross.
         let hidden = p.casters.iter().any(|c| hides(w, q, c, p.tol))
             || self.solids.iter().any(|k| solid_hides(w, q, k, p.tol));
         if !hidden {
-            let lit = !p
-                .casters
-                .iter()
-                .any(|c| segments_may_cross(w, q, &c.v, p.tol));
-            return lit.then_some(Settled::Lit);
+            return None;
         }
         let contour = |poly: &Polygon| area_form_factor(poly, p.pj, gauss_table(), p.params);
         let value = if w.len() <= MAX_VERTS {
@@ -1038,7 +1036,7 @@ impl Run<'_, '_> {
                 .map(|k| contour(&Polygon::new(&[w[0], w[k], w[k + 1]])))
                 .sum()
         };
-        (value.is_finite() && value >= 0.0).then_some(Settled::Hidden(value))
+        (value.is_finite() && value >= 0.0).then_some(value)
     }
 }
 
@@ -1208,7 +1206,7 @@ impl Run<'_, '_> {
             match top.kids {
                 // A triangle that sees no shadow: 0 exactly when nothing crosses
                 // between it and P_j, else its children decide.
-                None if !self.any_crossing(&top.cell.t) => {}
+                None if self.lit(&top.cell.t) => {}
                 None => self.expand(open, top.cell, top.depth, s)?,
                 Some(kids) => {
                     for k in kids {
