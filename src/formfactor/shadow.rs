@@ -795,8 +795,17 @@ fn split_at_events(
     // touches P_i's plane (a wall standing on P_i hides much from one side of it,
     // nothing from its plane). Jumps first: the rule converges far more slowly across
     // a jump than across a kink, so they get the cells when there are not enough.
+    // A caster whose plane does not cross P_i cuts nothing (`cut` would find no cell
+    // on both sides): asked first, as it is cheaper than the separating axes. The half
+    // tolerance leaves the planes `cut` computes from the corners a margin.
+    let crosses_pi = |c: &Caster| {
+        let d = |p: &DVec3| c.normal.dot(*p) - c.offset;
+        let pv = pair.pi.verts();
+        pv.iter().any(|p| d(p) < -0.5 * tol) && pv.iter().any(|p| d(p) > 0.5 * tol)
+    };
     for c in pair.casters {
         if c.v.iter().any(|v| (ni.dot(*v) - oi).abs() <= tol)
+            && crosses_pi(c)
             && (c.solid == NO_SOLID || segments_may_cross(pair.pi.verts(), q, &c.v, tol))
             && !cut(cells, MAX_CELLS, c.v[0], c.v[1], c.v[2], tol, &|_| true)
         {
