@@ -331,3 +331,50 @@ fn killed_mpi_run_resumes_to_the_same_rows() {
     );
     assert_same_rows(&full, &part);
 }
+
+/// A pair whose outer rule runs out of points before meeting `--shadow-tol` (1e-16 is
+/// below rounding) is counted in the report, embedded and under mpirun alike (the
+/// count crosses from the workers to rank 0 in their DONE messages); at the default
+/// tolerance no pair is short and the report says nothing of it.
+#[test]
+fn pairs_short_of_the_shadow_tolerance_are_reported_embedded_and_under_mpirun() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene: &[&str] = &[
+        "builtin:obstructed",
+        "--patches",
+        "4",
+        "--symmetric",
+        "off",
+        "--visibility",
+        "exact",
+        "--quiet",
+    ];
+    let short = |stderr: &str| -> Option<u64> {
+        let clause = stderr.split("; ").find(|c| c.contains("did not reach"))?;
+        clause.split_whitespace().next()?.parse().ok()
+    };
+    let run = |extra: &[&str]| {
+        let out = dir.path().join("x.ffz");
+        let mut args = vec!["compute"];
+        args.extend_from_slice(scene);
+        args.extend_from_slice(&["-o", path_str(&out), "--force"]);
+        args.extend_from_slice(extra);
+        ok(&args)
+    };
+    let normal = run(&[]);
+    assert!(
+        normal.contains("partly shadowed") && short(&normal).is_none(),
+        "{normal}"
+    );
+    let tight = run(&["--shadow-tol", "1e-16"]);
+    let embedded = short(&tight).unwrap_or_else(|| panic!("no count in\n{tight}"));
+    assert!(embedded >= 1, "{tight}");
+    if !need_mpi() {
+        return;
+    }
+    let f = dir.path().join("mpi.ffz");
+    let out = mpi_compute_scene(3, scene, &f, &["--shadow-tol", "1e-16"]);
+    assert_ok(&out, "mpirun -n 3 at 1e-16");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(short(&stderr), Some(embedded), "{stderr}");
+}
