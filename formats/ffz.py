@@ -33,7 +33,7 @@ manager; close() releases the memory map):
 - `routes`: how the pairs got their visibility (spec 6.1), a dict of `rows` (rows, or
   half rows with --symmetric, that the counts cover: those computed by runs that
   finished), `evaluated`, `unoccludable`, `exact`, `fallback`, `rays`,
-  `exact_visible`, `exact_hidden`, `exact_points`; None when the index has no such
+  `exact_visible`, `exact_hidden`, `exact_points`, `exact_unmet` (0 when the record has no tenth count); None when the index has no such
   record or the file was recovered by a scan.
 - `presence` (uint8 per row: 0 missing, 1 present, 2 skipped) comes from the index or
   the scan: no pass over the chunks. `dropped` (float32 per row) is stored in the
@@ -87,10 +87,11 @@ FILE_MAGIC = b"\x89FFZ\r\n\x1a\n"  # spec 3.1
 CHUNK_MAGIC = b"FFZC"  # spec 5.1
 INDEX_MAGIC = b"FFZI"  # spec 6
 INDEX_FLAG_ROUTES = 1  # spec 6: a route record (6.1) follows the row table
+INDEX_FLAG_ROUTES_UNMET = 2  # spec 6.1: with ROUTES, the record has a tenth count
 ROUTES_LEN = 72
-# spec 6.1, in file order (nine u64)
+# spec 6.1, in file order (nine u64, a tenth with INDEX_FLAG_ROUTES_UNMET; 0 without)
 ROUTE_FIELDS = ("rows", "evaluated", "unoccludable", "exact", "fallback", "rays",
-                "exact_visible", "exact_hidden", "exact_points")
+                "exact_visible", "exact_hidden", "exact_points", "exact_unmet")
 FOOTER_MAGIC = b"FFZ-END\n"  # spec 7
 HEADER_LEN, PATCH_LEN, CHUNK_HEADER_LEN, DIR_LEN, FOOTER_LEN = 64, 168, 40, 24, 32
 SHUFFLED, SKIPPED, SPARSE = 1, 1, 2
@@ -600,10 +601,11 @@ class FfzReader:
         if ix[:4] != INDEX_MAGIC:
             raise ValueError(f"byte {ioff}: bad index magic")
         flags = _u32(ix, 4)
-        if flags & ~INDEX_FLAG_ROUTES:
+        if flags & ~(INDEX_FLAG_ROUTES | INDEX_FLAG_ROUTES_UNMET) or flags == INDEX_FLAG_ROUTES_UNMET:
             raise ValueError(f"byte {ioff + 4}: unknown index flags {flags:#x}")
         nch, nrows = _u64(ix, 8), _u64(ix, 16)
-        extra = ROUTES_LEN if flags & INDEX_FLAG_ROUTES else 0
+        unmet = bool(flags & INDEX_FLAG_ROUTES_UNMET)
+        extra = (ROUTES_LEN + 8 * unmet) if flags & INDEX_FLAG_ROUTES else 0
         if nrows != n or ilen != 24 + 8 * nch + 8 * nrows + extra:
             raise ValueError(f"byte {ioff + 8}: index sizes disagree with n = {n}")
         offsets = np.frombuffer(ix, dtype="<u8", count=nch, offset=24).astype(np.int64)
@@ -618,10 +620,13 @@ class FfzReader:
         routes = None
         if extra:
             at = 24 + 8 * nch + 8 * n
-            routes = dict(zip(ROUTE_FIELDS, struct.unpack_from("<9Q", ix, at)))
+            counts = struct.unpack_from("<10Q" if unmet else "<9Q", ix, at)
+            routes = dict(zip(ROUTE_FIELDS, counts + (0,) * (len(ROUTE_FIELDS) - len(counts))))
             r = routes
+            partly = r["exact"] - r["exact_visible"] - r["exact_hidden"]
             if (r["rows"] > n or r["unoccludable"] + r["exact"] + r["rays"] > r["evaluated"]
-                    or r["fallback"] > r["rays"] or r["exact_visible"] + r["exact_hidden"] > r["exact"]):
+                    or r["fallback"] > r["rays"] or partly < 0
+                    or (unmet and not 0 < r["exact_unmet"] <= partly)):
                 raise ValueError(f"byte {ioff + at}: route record counts that cannot hold together")
         self.routes = routes
         return offsets.tolist(), chunk.copy(), state.astype(np.uint8), ioff

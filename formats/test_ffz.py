@@ -151,7 +151,8 @@ TINY_TABLE = [(1, ffz.PRESENT), (0, ffz.SKIPPED_STATE), (0, ffz.PRESENT)]
 def reindex(data, table, n_chunks=None, routes=None, flags=None):
     """The finished file `data` with a new index (spec 6) whose row table is `table`
     [(chunk, state) per row], keeping only its first n_chunks chunks (the rest cut away),
-    with a route record (spec 6.1: nine counts) when `routes` is given; index checksum
+    with a route record (spec 6.1: nine counts, or ten with the flag of the tenth) when
+    `routes` is given; index checksum
     and footer (spec 7) recomputed, so only what `table` (or `routes`, `flags`) says is
     wrong."""
     ioff = struct.unpack_from("<Q", data, len(data) - 32)[0]
@@ -162,10 +163,12 @@ def reindex(data, table, n_chunks=None, routes=None, flags=None):
         end, offsets = offsets[n_chunks], offsets[:n_chunks]
     if flags is None:
         flags = 0 if routes is None else ffz.INDEX_FLAG_ROUTES
+        if routes is not None and len(routes) == 10:
+            flags |= ffz.INDEX_FLAG_ROUTES_UNMET
     ix = ffz.INDEX_MAGIC + struct.pack("<IQQ", flags, len(offsets), len(table))
     ix += struct.pack(f"<{len(offsets)}Q", *offsets) + b"".join(struct.pack("<II", c, s) for c, s in table)
     if routes is not None:
-        ix += struct.pack("<9Q", *routes)
+        ix += struct.pack(f"<{len(routes)}Q", *routes)
     foot = struct.pack("<QQI", end, len(ix), ffz.crc32c(ix))
     foot += struct.pack("<I", ffz.crc32c(foot)) + ffz.FOOTER_MAGIC
     return data[:end] + ix + foot
@@ -189,10 +192,14 @@ def test_route_record_reads_back(tmp_path):
     p.write_bytes(reindex(good, TINY_TABLE, routes=ROUTES))
     with ffz.open(p) as r:
         assert r.indexed and not r.warnings
-        assert r.routes == dict(zip(ffz.ROUTE_FIELDS, ROUTES))
+        assert r.routes == dict(zip(ffz.ROUTE_FIELDS, ROUTES + (0,)))
     f = ffz.read(p)
-    assert f.routes == dict(zip(ffz.ROUTE_FIELDS, ROUTES))
+    assert f.routes == dict(zip(ffz.ROUTE_FIELDS, ROUTES + (0,)))
     assert ffz.read(HERE / "golden" / "tiny-v1.ffz").routes is None
+    # The tenth count (pairs short of --shadow-tol), with its flag.
+    p.write_bytes(reindex(good, TINY_TABLE, routes=ROUTES + (2,)))
+    f = ffz.read(p)
+    assert f.indexed and f.routes == dict(zip(ffz.ROUTE_FIELDS, ROUTES + (2,)))
 
 
 @pytest.mark.parametrize(
@@ -202,10 +209,14 @@ def test_route_record_reads_back(tmp_path):
         (ROUTES[:1] + (8,) + ROUTES[2:], None),  # 2 + 5 + 3 routed of 8 evaluated
         (ROUTES[:4] + (4,) + ROUTES[5:], None),  # 4 fallbacks, 3 pairs by rays
         (ROUTES[:6] + (4,) + ROUTES[7:], None),  # 4 + 2 proven of 5 exact
-        (ROUTES, 3),  # an unknown flag
+        (ROUTES, 5),  # an unknown flag
         (None, 1),  # the flag without its record: the length is off
+        (ROUTES, 3),  # the tenth count's flag, nine counts: the length is off
+        (ROUTES + (0,), 3),  # the tenth count flagged but 0
+        (ROUTES + (3,), 3),  # 3 short of 2 partly shadowed (5 exact, 3 proven)
+        (None, 2),  # the tenth count's flag alone
     ],
-    ids=["rows", "routed", "fallback", "proven", "flag", "short"],
+    ids=["rows", "routed", "fallback", "proven", "flag", "short", "nine", "zero", "unmet", "alone"],
 )
 def test_impossible_route_record_means_no_index(tmp_path, routes, flags):
     good = (HERE / "golden" / "tiny-v1.ffz").read_bytes()

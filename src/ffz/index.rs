@@ -29,11 +29,7 @@ pub(crate) fn write_index(
     sink: &mut dyn FnMut(&[u8]) -> std::io::Result<()>,
 ) -> std::io::Result<u64> {
     let mut head = Vec::with_capacity(spec::INDEX_FIXED_LEN);
-    let flags = if routes.is_some() {
-        spec::INDEX_FLAG_ROUTES
-    } else {
-        0
-    };
+    let flags = routes.map_or(0, StoredRoutes::flags);
     IndexV1 {
         flags,
         n_chunks: chunk_offsets.len() as u64,
@@ -117,7 +113,8 @@ pub(crate) fn read_index(file: &[u8], n: u32, meta_len: u64) -> Result<IndexData
     let flags = r.u32().ok_or_else(|| short(&r))?;
     let n_chunks = r.u64().ok_or_else(|| short(&r))?;
     let n_rows = r.u64().ok_or_else(|| short(&r))?;
-    if flags & !spec::INDEX_FLAG_ROUTES != 0 {
+    let known = spec::INDEX_FLAG_ROUTES | spec::INDEX_FLAG_ROUTES_UNMET;
+    if flags & !known != 0 || flags == spec::INDEX_FLAG_ROUTES_UNMET {
         return Err((
             f.index_offset + 4,
             format!("unknown index flags {flags:#x}"),
@@ -174,7 +171,7 @@ pub(crate) fn read_index(file: &[u8], n: u32, meta_len: u64) -> Result<IndexData
     }
     let routes = if flags & spec::INDEX_FLAG_ROUTES != 0 {
         let pos = at(&r);
-        Some(StoredRoutes::decode(&mut r, n).map_err(|(o, why)| (pos + o as u64, why))?)
+        Some(StoredRoutes::decode(&mut r, n, flags).map_err(|(o, why)| (pos + o as u64, why))?)
     } else {
         None
     };

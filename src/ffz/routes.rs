@@ -2,7 +2,7 @@
 //! reports at its end and the index of the file keeps, so that `ffstream info` can
 //! say it later, added up over the runs that wrote the file (`--resume`).
 
-use super::spec::Le;
+use super::spec::{self, Le};
 
 /// How many evaluated pairs got their visibility which way (from the row engine's
 /// [`Counters`](crate::formfactor::Counters), summed over a worker's threads, then
@@ -26,12 +26,13 @@ pub struct PairRoutes {
     /// Outer points the other (partly shadowed) exact pairs took, together.
     pub exact_points: u64,
     /// Of the partly shadowed exact pairs, those whose outer rule stopped (at its most
-    /// points or deepest refinement) before its error estimate met `--shadow-tol`.
-    /// Reported by the run; the route record does not keep it (spec §6.1).
+    /// points or deepest refinement) before its error estimate met `--shadow-tol`
+    /// (kept by the route record when not 0, spec §6.1).
     pub exact_unmet: u64,
 }
 
-/// Counts of [`PairRoutes`] that the route record keeps: all but `exact_unmet`.
+/// Counts of [`PairRoutes`] that every route record keeps: all but `exact_unmet`, which
+/// follows them when the index has [`spec::INDEX_FLAG_ROUTES_UNMET`].
 const RECORD_WORDS: usize = 8;
 
 impl PairRoutes {
@@ -154,8 +155,22 @@ pub struct StoredRoutes {
     pub pairs: PairRoutes,
 }
 
-/// Bytes of a route record (spec §6.1): nine u64.
+/// Bytes of a route record without the tenth count (spec §6.1): nine u64.
 pub(crate) const ROUTES_LEN: usize = 72;
+
+/// Bytes of the route record an index with these flags has (spec §6.1): none without
+/// [`spec::INDEX_FLAG_ROUTES`], nine u64 with it, ten with
+/// [`spec::INDEX_FLAG_ROUTES_UNMET`] too.
+pub(crate) fn record_len(flags: u32) -> usize {
+    match (
+        flags & spec::INDEX_FLAG_ROUTES != 0,
+        flags & spec::INDEX_FLAG_ROUTES_UNMET != 0,
+    ) {
+        (false, _) => 0,
+        (true, false) => ROUTES_LEN,
+        (true, true) => ROUTES_LEN + 8,
+    }
+}
 
 impl StoredRoutes {
     pub(crate) fn add(&mut self, o: &StoredRoutes) {
@@ -163,23 +178,32 @@ impl StoredRoutes {
         self.pairs.add(&o.pairs);
     }
 
-    pub(crate) fn encode(&self) -> [u8; ROUTES_LEN] {
-        let mut out = [0u8; ROUTES_LEN];
+    /// The index flags this record needs: [`spec::INDEX_FLAG_ROUTES`], and
+    /// [`spec::INDEX_FLAG_ROUTES_UNMET`] when some pair was short of its tolerance.
+    pub(crate) fn flags(&self) -> u32 {
+        if self.pairs.exact_unmet > 0 {
+            spec::INDEX_FLAG_ROUTES | spec::INDEX_FLAG_ROUTES_UNMET
+        } else {
+            spec::INDEX_FLAG_ROUTES
+        }
+    }
+
+    /// The record's bytes, [`record_len`]`(self.flags())` of them.
+    pub(crate) fn encode(&self) -> Vec<u8> {
         let pairs = self.pairs.to_words();
         let words = std::iter::once(self.rows).chain(pairs[..RECORD_WORDS].iter().copied());
-        for (k, v) in words.enumerate() {
-            out[8 * k..8 * k + 8].copy_from_slice(&v.to_le_bytes());
-        }
-        out
+        let unmet = (self.pairs.exact_unmet > 0).then_some(self.pairs.exact_unmet);
+        words.chain(unmet).flat_map(|v| v.to_le_bytes()).collect()
     }
 
     /// The record at the reader's position, checked: counts that cannot hold together
     /// (more routed pairs than evaluated ones, more rows than the file has) make the
     /// index unusable, as any other damage does. Err: the byte offset inside the
     /// record and the reason.
-    pub(crate) fn decode(r: &mut Le<'_>, n: u32) -> Result<Self, (usize, String)> {
-        let mut v = [0u64; 9];
-        for (k, x) in v.iter_mut().enumerate() {
+    /// `flags`: the index's, which say whether the tenth count is there.
+    pub(crate) fn decode(r: &mut Le<'_>, n: u32, flags: u32) -> Result<Self, (usize, String)> {
+        let mut v = [0u64; 10];
+        for (k, x) in v.iter_mut().take(record_len(flags) / 8).enumerate() {
             *x = r
                 .u64()
                 .ok_or((8 * k, "route record cut short".to_string()))?;
@@ -187,9 +211,7 @@ impl StoredRoutes {
         let [rows, pairs @ ..] = v;
         let s = StoredRoutes {
             rows,
-            pairs: PairRoutes::from_words(std::array::from_fn(|k| {
-                pairs.get(k).copied().unwrap_or(0)
-            })),
+            pairs: PairRoutes::from_words(pairs),
         };
         let p = s.pairs;
         let routed = p
@@ -216,6 +238,19 @@ impl StoredRoutes {
             return Err((
                 32,
                 "route record: fallbacks above the rays' pairs, or proven pairs above the exact ones".into(),
+            ));
+        }
+        let partly = proven.map(|x| p.exact - x);
+        if flags & spec::INDEX_FLAG_ROUTES_UNMET != 0
+            && (p.exact_unmet == 0 || partly.is_none_or(|x| p.exact_unmet > x))
+        {
+            return Err((
+                72,
+                format!(
+                    "route record: {} pairs short of the tolerance, of {} partly shadowed",
+                    p.exact_unmet,
+                    partly.unwrap_or(0)
+                ),
             ));
         }
         Ok(s)
@@ -246,19 +281,52 @@ mod tests {
     #[test]
     fn a_route_record_reads_back_and_impossible_counts_are_refused() {
         let s = sample();
+        let f = s.flags();
+        assert_eq!(f, spec::INDEX_FLAG_ROUTES);
         let bytes = s.encode();
-        assert_eq!(StoredRoutes::decode(&mut Le::new(&bytes), 10), Ok(s));
+        assert_eq!(bytes.len(), record_len(f));
+        assert_eq!(StoredRoutes::decode(&mut Le::new(&bytes), 10, f), Ok(s));
         // More rows than the file has.
-        assert!(StoredRoutes::decode(&mut Le::new(&bytes), 6).is_err());
+        assert!(StoredRoutes::decode(&mut Le::new(&bytes), 6, f).is_err());
         // More routed pairs than evaluated, fallbacks above rays, proven above exact.
         for (field, value) in [(1, 90u64), (4, 16), (7, 46)] {
-            let mut b = bytes;
+            let mut b = bytes.clone();
             b[8 * field..8 * field + 8].copy_from_slice(&value.to_le_bytes());
             assert!(
-                StoredRoutes::decode(&mut Le::new(&b), 10).is_err(),
+                StoredRoutes::decode(&mut Le::new(&b), 10, f).is_err(),
                 "field {field}"
             );
         }
-        assert!(StoredRoutes::decode(&mut Le::new(&bytes[..70]), 10).is_err());
+        assert!(StoredRoutes::decode(&mut Le::new(&bytes[..70]), 10, f).is_err());
+    }
+
+    /// Pairs short of the tolerance make the record ten counts long, with the flag
+    /// that says so; the count must be among the partly shadowed pairs (50 exact, 25
+    /// of them proven: 25), and not 0 when flagged.
+    #[test]
+    fn the_pairs_short_of_the_tolerance_take_a_tenth_count() {
+        let mut s = sample();
+        s.pairs.exact_unmet = 3;
+        let f = s.flags();
+        assert_eq!(f, spec::INDEX_FLAG_ROUTES | spec::INDEX_FLAG_ROUTES_UNMET);
+        let bytes = s.encode();
+        assert_eq!(bytes.len(), 80);
+        assert_eq!(StoredRoutes::decode(&mut Le::new(&bytes), 10, f), Ok(s));
+        for bad in [0u64, 26] {
+            let mut b = bytes.clone();
+            b[72..80].copy_from_slice(&bad.to_le_bytes());
+            assert!(
+                StoredRoutes::decode(&mut Le::new(&b), 10, f).is_err(),
+                "{bad}"
+            );
+        }
+        assert!(StoredRoutes::decode(&mut Le::new(&bytes[..75]), 10, f).is_err());
+        // Read without the flag, the record is the first nine counts.
+        let mut nine = s;
+        nine.pairs.exact_unmet = 0;
+        assert_eq!(
+            StoredRoutes::decode(&mut Le::new(&bytes[..72]), 10, spec::INDEX_FLAG_ROUTES),
+            Ok(nine)
+        );
     }
 }

@@ -17,6 +17,10 @@ pub(crate) const CHUNK_MAGIC: [u8; 4] = *b"FFZC";
 pub(crate) const INDEX_MAGIC: [u8; 4] = *b"FFZI";
 /// Index flag (spec §6): a route record (§6.1) follows the row table.
 pub(crate) const INDEX_FLAG_ROUTES: u32 = 1;
+/// Index flag (with [`INDEX_FLAG_ROUTES`]): the route record has a tenth count, the
+/// pairs short of their shadow tolerance (spec §6.1). Set only when that count is not
+/// 0, so files without such pairs are as readers before it expect.
+pub(crate) const INDEX_FLAG_ROUTES_UNMET: u32 = 2;
 /// Footer magic, the last 8 bytes of a complete file (spec §7).
 pub(crate) const FOOTER_MAGIC: [u8; 8] = *b"FFZ-END\n";
 
@@ -430,7 +434,8 @@ impl RowDirEntryV1 {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(crate) struct IndexV1 {
     // 0: magic [4] = INDEX_MAGIC
-    /// 4: flags u32: [`INDEX_FLAG_ROUTES`] or 0.
+    /// 4: flags u32: [`INDEX_FLAG_ROUTES`], with [`INDEX_FLAG_ROUTES_UNMET`] or not; or
+    /// 0.
     pub(crate) flags: u32,
     /// 8: n_chunks u64.
     pub(crate) n_chunks: u64,
@@ -450,11 +455,7 @@ impl IndexV1 {
     pub(crate) fn total_len(n_chunks: u64, n_rows: u64, flags: u32) -> Option<u64> {
         let chunk_table = n_chunks.checked_mul(8)?;
         let row_table = n_rows.checked_mul(8)?;
-        let routes = if flags & INDEX_FLAG_ROUTES != 0 {
-            super::routes::ROUTES_LEN as u64
-        } else {
-            0
-        };
+        let routes = super::routes::record_len(flags) as u64;
         (INDEX_FIXED_LEN as u64)
             .checked_add(chunk_table)?
             .checked_add(row_table)?

@@ -334,8 +334,9 @@ fn killed_mpi_run_resumes_to_the_same_rows() {
 
 /// A pair whose outer rule runs out of points before meeting `--shadow-tol` (1e-16 is
 /// below rounding) is counted in the report, embedded and under mpirun alike (the
-/// count crosses from the workers to rank 0 in their DONE messages); at the default
-/// tolerance no pair is short and the report says nothing of it.
+/// count crosses from the workers to rank 0 in their DONE messages), and in the file
+/// (`info` prints it); at the default tolerance no pair is short and the report says
+/// nothing of it.
 #[test]
 fn pairs_short_of_the_shadow_tolerance_are_reported_embedded_and_under_mpirun() {
     let dir = tempfile::tempdir().unwrap();
@@ -369,6 +370,10 @@ fn pairs_short_of_the_shadow_tolerance_are_reported_embedded_and_under_mpirun() 
     let tight = run(&["--shadow-tol", "1e-16"]);
     let embedded = short(&tight).unwrap_or_else(|| panic!("no count in\n{tight}"));
     assert!(embedded >= 1, "{tight}");
+    // The file keeps the count (spec §6.1's tenth), and `info` prints it.
+    let info = crate::common::ffstream(&["info", path_str(&dir.path().join("x.ffz"))]);
+    let info = String::from_utf8_lossy(&info.stdout);
+    assert_eq!(short(&info), Some(embedded), "{info}");
     if !need_mpi() {
         return;
     }
