@@ -1197,25 +1197,31 @@ impl Run<'_, '_> {
         let mut err = exact(open);
         self.added = 0.0;
         let mut steps = 0u32;
+        // The target: the open errors plus those of triangles kept at the deepest level.
         while self.points < self.max_points {
-            if err <= tol || steps % 1024 == 1023 {
+            if err + unmet <= tol || steps % 1024 == 1023 {
                 err = exact(open);
-                if err <= tol {
+                if err + unmet <= tol {
                     break;
                 }
             }
             steps += 1;
             let Some(top) = open.pop() else { break };
+            if !top.err.is_finite() {
+                return None; // no estimate to refine (it should not happen): rays
+            }
             err -= top.err;
+            // A triangle that sees no shadow: 0 exactly when nothing crosses between it
+            // and P_j (at any depth), else its children decide.
+            if top.kids.is_none() && self.lit(&top.cell.t) {
+                continue;
+            }
             if top.depth + 1 >= MAX_DEPTH {
                 done += top.value();
                 unmet += top.err;
                 continue;
             }
             match top.kids {
-                // A triangle that sees no shadow: 0 exactly when nothing crosses
-                // between it and P_j, else its children decide.
-                None if self.lit(&top.cell.t) => {}
                 None => self.expand(open, top.cell, top.depth, s)?,
                 Some(kids) => {
                     for k in kids {

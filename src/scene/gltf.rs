@@ -91,8 +91,11 @@ fn load_buffers(path: &Path, gltf: &::gltf::Gltf) -> Result<Vec<Vec<u8>>, SceneE
             ::gltf::buffer::Source::Bin => gltf.blob.clone().ok_or_else(|| {
                 err("refers to the GLB binary chunk, which the file does not have".into())
             })?,
-            ::gltf::buffer::Source::Uri(uri) => match uri.strip_prefix("data:") {
-                Some(rest) => data_uri(rest).map_err(err)?,
+            ::gltf::buffer::Source::Uri(uri) => match uri
+                .get(..5)
+                .filter(|scheme| scheme.eq_ignore_ascii_case("data:"))
+            {
+                Some(_) => data_uri(&uri[5..]).map_err(err)?,
                 None => {
                     let file = dir.join(percent_decoded(uri));
                     std::fs::read(&file)
@@ -113,18 +116,26 @@ fn load_buffers(path: &Path, gltf: &::gltf::Gltf) -> Result<Vec<Vec<u8>>, SceneE
 }
 
 /// The bytes of a `data:` URI (RFC 2397) after its scheme: `[media type][;base64],data`.
-/// Only base64 data is taken (what glTF exporters write); Err: why not.
+/// Only base64 data is taken (what glTF exporters write), padded or not; the scheme and
+/// the `;base64` token in any case. Err: why not.
 fn data_uri(rest: &str) -> Result<Vec<u8>, String> {
+    use base64::engine::{general_purpose, DecodePaddingMode, GeneralPurpose};
     use base64::Engine as _;
     let (head, data) = rest
         .split_once(',')
         .ok_or("data: URI without the comma before its data")?;
-    if !head.ends_with(";base64") {
+    let h = head.as_bytes();
+    let base64 = h.len() >= 7 && h[h.len() - 7..].eq_ignore_ascii_case(b";base64");
+    if !base64 {
         return Err(format!(
             "data: URI `data:{head},...` is not base64 (only base64 data: URIs are read)"
         ));
     }
-    base64::engine::general_purpose::STANDARD
+    let engine = GeneralPurpose::new(
+        &base64::alphabet::STANDARD,
+        general_purpose::PAD.with_decode_padding_mode(DecodePaddingMode::Indifferent),
+    );
+    engine
         .decode(data.trim_end())
         .map_err(|e| format!("data: URI is not valid base64: {e}"))
 }
@@ -387,5 +398,44 @@ impl Load<'_> {
             self.materials.insert(k, id);
             Ok(id)
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// "glTF" is Z2xURg== in base64 (RFC 4648: 0x67 0x6c 0x54 0x46).
+    #[test]
+    fn data_uris_decode_padded_or_not_in_any_case_and_refuse_the_rest() {
+        for uri in [
+            "application/octet-stream;base64,Z2xURg==",
+            "application/gltf-buffer;BASE64,Z2xURg",
+            ";base64,Z2xURg==\n",
+        ] {
+            assert_eq!(data_uri(uri).as_deref(), Ok(&b"glTF"[..]), "{uri}");
+        }
+        for (uri, why) in [
+            ("application/octet-stream,glTF", "is not base64"),
+            (
+                "application/octet-stream;base64,Z2x@Rg==",
+                "not valid base64",
+            ),
+            ("application/octet-stream;base64", "without the comma"),
+            ("é;base64é,Z2xURg==", "is not base64"),
+        ] {
+            let e = data_uri(uri).unwrap_err();
+            assert!(e.contains(why), "{uri}: {e}");
+        }
+    }
+
+    #[test]
+    fn relative_uris_have_their_escapes_decoded() {
+        assert_eq!(percent_decoded("box%20data.bin"), "box data.bin");
+        assert_eq!(percent_decoded("a%C3%A9b.bin"), "aéb.bin");
+        // Not an escape: kept as written.
+        assert_eq!(percent_decoded("100%.bin"), "100%.bin");
+        assert_eq!(percent_decoded("x%4"), "x%4");
+        assert_eq!(percent_decoded("x%zz"), "x%zz");
     }
 }
