@@ -582,15 +582,15 @@ pub(crate) fn blocked_integral(
     tol_abs: f64,
     s: &mut ShadowScratch,
 ) -> Option<Blocked> {
-    blocked_integral_within(pair, tol_abs, MAX_POINTS, s)
+    blocked_integral_within(pair, tol_abs, (MAX_POINTS, MAX_DEPTH), s)
 }
 
-/// [`blocked_integral`] with at most about `max_points` points instead of
-/// [`MAX_POINTS`].
+/// [`blocked_integral`] with at most about `max_points` points and refinement to
+/// `max_depth` instead of [`MAX_POINTS`] and [`MAX_DEPTH`].
 fn blocked_integral_within(
     pair: &Pair<'_>,
     tol_abs: f64,
-    max_points: u32,
+    (max_points, max_depth): (u32, u32),
     s: &mut ShadowScratch,
 ) -> Option<Blocked> {
     let v = pair.pi.verts();
@@ -665,6 +665,7 @@ fn blocked_integral_within(
         solids: &solids,
         points: 0,
         max_points,
+        max_depth,
         seq: 0,
         added: 0.0,
     };
@@ -1005,6 +1006,8 @@ struct Run<'p, 'a> {
     points: u32,
     /// Points after which the rule stops refining.
     max_points: u32,
+    /// Depth at which a triangle is not refined again.
+    max_depth: u32,
     /// Triangles put in the open list so far (each gets the next number).
     seq: u64,
     /// The errors of the triangles put in the open list since [`Run::integrate`] last
@@ -1216,7 +1219,7 @@ impl Run<'_, '_> {
             if top.kids.is_none() && self.lit(&top.cell.t) {
                 continue;
             }
-            if top.depth + 1 >= MAX_DEPTH {
+            if top.depth + 1 >= self.max_depth {
                 done += top.value();
                 unmet += top.err;
                 continue;
@@ -1819,8 +1822,8 @@ mod tests {
     }
 
     /// The blocked part of the plates of [`obstructed_reference`] by the rule, to
-    /// `tol` within at most about `budget` points: (value, points, met).
-    fn plates_blocked(tol: f64, budget: u32) -> (f64, u32, bool) {
+    /// `tol` within at most about `budget` (points, depth): (value, points, met).
+    fn plates_blocked(tol: f64, budget: (u32, u32)) -> (f64, u32, bool) {
         // Bottom (facing +y) as seen by the kernel: counter-clockwise about +y.
         let pi = Polygon::new(&[
             dvec3(0.0, 0.0, 0.0),
@@ -1862,7 +1865,7 @@ mod tests {
         let reference = obstructed_reference();
         let mut last = f64::INFINITY;
         for budget in [1_000, 3_000, 30_000] {
-            let (blocked, points, met) = plates_blocked(1e-14, budget);
+            let (blocked, points, met) = plates_blocked(1e-14, (budget, MAX_DEPTH));
             let error = (0.199_824_895_698_8 - blocked - reference).abs();
             println!("budget {budget}: {points} points, error {error:.1e}");
             assert!(!met, "1e-14 met in {points} points");
@@ -1874,12 +1877,56 @@ mod tests {
         }
     }
 
+    /// With refinement capped shallow, the triangles kept at the cap carry their error:
+    /// the rule refines the others until the two together meet the tolerance (it
+    /// stopped when the others alone did, and said unmet with points to spare), and
+    /// says unmet only when they cannot. The box between two squares, its triangles
+    /// one by one, 1e-9 of F⁰: met at depth 3 (within the tolerance of the rule run to
+    /// 1e-12 without the cap), unmet at depth 2.
+    #[test]
+    fn a_rule_at_its_depth_limit_refines_the_rest_until_the_sum_meets_the_tolerance() {
+        let (_, _, one_by_one) = box_between_squares();
+        let pj = square_facing(0.6, 1.4, 0.6, 1.4, 3.0, false);
+        let pi = square_facing(-1.0, 3.0, -1.0, 3.0, 0.0, true);
+        let f0 = area_form_factor(&pi, &pj, gauss_table(), ContourParams::default());
+        let pair = Pair {
+            pi: &pi,
+            ni: DVec3::Y,
+            pj: &pj,
+            casters: &one_by_one,
+            solids: &[],
+            tol: 1e-12,
+            params: ContourParams::default(),
+        };
+        let run = |tol: f64, depth: u32| match blocked_integral_within(
+            &pair,
+            tol * f0,
+            (MAX_POINTS, depth),
+            &mut ShadowScratch::default(),
+        ) {
+            Some(Blocked::Part { blocked, met, .. }) => (blocked, met),
+            other => panic!("{other:?}"),
+        };
+        let (converged, met) = run(1e-12, MAX_DEPTH);
+        assert!(met);
+        let (capped, met) = run(1e-9, 3);
+        assert!(met, "depth 3: the rest refined until the sum met 1e-9");
+        assert!(
+            (capped - converged).abs() <= 1.001e-9 * f0,
+            "{capped} vs {converged}"
+        );
+        assert!(
+            !run(1e-9, 2).1,
+            "depth 2: the cap alone holds more than 1e-9"
+        );
+    }
+
     #[test]
     fn obstructed_plates_come_out_exact() {
         let reference = obstructed_reference();
         assert!((reference - 0.0995063).abs() < 5e-8, "{reference}");
         for tol in [1e-6, 1e-9] {
-            let (blocked, points, met) = plates_blocked(tol, MAX_POINTS);
+            let (blocked, points, met) = plates_blocked(tol, (MAX_POINTS, MAX_DEPTH));
             assert!(met, "tolerance {tol:e} unmet after {points} points");
             let f = 0.199_824_895_698_8 - blocked;
             println!(
