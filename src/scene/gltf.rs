@@ -142,8 +142,9 @@ fn data_uri(rest: &str) -> Result<Vec<u8>, String> {
 
 /// A relative URI as a path: `%XX` escapes decoded (glTF URIs are RFC 3986, so a file
 /// `my mesh.bin` is written `my%20mesh.bin`). A `%` not followed by two hex digits is
-/// kept as it is.
-fn percent_decoded(uri: &str) -> String {
+/// kept as it is. The bytes are the name as they are (a Unix file name need not be
+/// UTF-8); elsewhere a name that is not UTF-8 has its bad bytes replaced.
+fn percent_decoded(uri: &str) -> std::path::PathBuf {
     let b = uri.as_bytes();
     let mut out = Vec::with_capacity(b.len());
     let mut k = 0;
@@ -164,7 +165,15 @@ fn percent_decoded(uri: &str) -> String {
             }
         }
     }
-    String::from_utf8_lossy(&out).into_owned()
+    #[cfg(unix)]
+    {
+        use std::os::unix::ffi::OsStringExt;
+        std::ffi::OsString::from_vec(out).into()
+    }
+    #[cfg(not(unix))]
+    {
+        String::from_utf8_lossy(&out).into_owned().into()
+    }
 }
 
 /// The state of one load: where faces go, the buffers, the glTF materials already
@@ -431,11 +440,19 @@ mod tests {
 
     #[test]
     fn relative_uris_have_their_escapes_decoded() {
-        assert_eq!(percent_decoded("box%20data.bin"), "box data.bin");
-        assert_eq!(percent_decoded("a%C3%A9b.bin"), "aéb.bin");
+        let p = |s: &str| std::path::PathBuf::from(s);
+        assert_eq!(percent_decoded("box%20data.bin"), p("box data.bin"));
+        assert_eq!(percent_decoded("a%C3%A9b.bin"), p("aéb.bin"));
         // Not an escape: kept as written.
-        assert_eq!(percent_decoded("100%.bin"), "100%.bin");
-        assert_eq!(percent_decoded("x%4"), "x%4");
-        assert_eq!(percent_decoded("x%zz"), "x%zz");
+        assert_eq!(percent_decoded("100%.bin"), p("100%.bin"));
+        assert_eq!(percent_decoded("x%4"), p("x%4"));
+        assert_eq!(percent_decoded("x%zz"), p("x%zz"));
+        // A name that is not UTF-8 (Latin-1 é) keeps its byte.
+        #[cfg(unix)]
+        {
+            use std::os::unix::ffi::OsStrExt;
+            let got = percent_decoded("caf%E9.bin");
+            assert_eq!(got.as_os_str().as_bytes(), b"caf\xe9.bin");
+        }
     }
 }
