@@ -58,7 +58,7 @@
 //! from a point of the emitter and clipped from the receiver) and Elmer's shadow
 //! clipping per source point, with these departures: the shadow is clipped in 3D by
 //! its cone instead of being projected, only the blocked part is integrated, and the
-//! outer rule is adaptive with a local error estimate.
+//! outer rule is globally adaptive with an error estimate per triangle.
 
 use std::collections::BinaryHeap;
 
@@ -464,10 +464,8 @@ const RADON: [([f64; 3], f64); 7] = {
 };
 
 /// The share of a pair's tolerance that the exact route treats as nothing: 1 /
-/// `UNRESOLVED` of it. A triangle of the outer rule whose samples see no shadow counts
-/// as unshadowed when what it could hold is below that, and a pair whose remainder is
-/// below that share of F⁰ × `--shadow-tol` is stored as hidden
-/// (`RowEngine::exact_occluded`). Tied to the tolerance itself, the snap was most of
+/// `UNRESOLVED` of it. A pair whose remainder is below that share of F⁰ ×
+/// `--shadow-tol` is stored as hidden (`RowEngine::exact_occluded`). Tied to the tolerance itself, the snap was most of
 /// the error at loose tolerances (bench/PERF.md §28).
 pub(crate) const UNRESOLVED: u32 = 64;
 
@@ -671,46 +669,9 @@ fn blocked_integral_within(
     };
     let mut open = std::mem::take(&mut s.open);
     open.clear();
-    // Cells settled whole add their value here; the others are fanned into the rule's
-    // first triangles. A cell none of whose first samples sees a shadow may be lit
-    // (nothing can come between it and P_j: it blocks nothing); proving that takes
-    // separating-axis tests, so only such cells are tested.
-    let mut settled = Some(0.0);
-    let mut first: Vec<Cell> = Vec::new();
-    for c in &cells {
-        let w = c.verts();
-        if w.len() < 3 {
-            continue;
-        }
-        if let Some(x) = run.hidden(w) {
-            settled = settled.map(|t| t + x);
-            continue;
-        }
-        first.clear();
-        for k in 1..w.len().saturating_sub(1) {
-            match run.cell([w[0], w[k], w[k + 1]], s) {
-                Some(cell) => first.push(cell),
-                None => {
-                    settled = None;
-                    break;
-                }
-            }
-        }
-        if settled.is_none() {
-            break;
-        }
-        if first.iter().all(|c| c.dark_free) && run.lit(w) {
-            continue;
-        }
-        if first
-            .iter()
-            .any(|&cell| run.push(&mut open, cell, 0, s).is_none())
-        {
-            settled = None;
-            break;
-        }
-    }
-    let result = settled.and_then(|t| run.integrate(&mut open, t, tol_abs, s));
+    let result = run
+        .start(&cells, &mut open, s)
+        .and_then(|settled| run.integrate(&mut open, settled, tol_abs, s));
     let points = run.points;
     s.open = open;
     s.cells = cells;
@@ -1023,9 +984,7 @@ impl Run<'_, '_> {
             .iter()
             .any(|c| segments_may_cross(w, p.pj.verts(), &c.v, p.tol))
     }
-}
 
-impl Run<'_, '_> {
     /// What the convex cell `w` (three vertices or more) blocks when one caster or one
     /// convex solid hides all of P_j from all of it: ∫_cell F(x → P_j) dA_x, the
     /// unoccluded contour integral from it to P_j, per fan triangle when it has more
@@ -1077,7 +1036,7 @@ impl Run<'_, '_> {
             value += w * g;
             dark_free &= g == 0.0;
         }
-        // Only a cell that sees no shadow needs what it could hold (see `refine`).
+        // Only a cell that sees no shadow needs what it could hold (see `Run::push`).
         let lit_max = if dark_free {
             RADON
                 .iter()
@@ -1094,6 +1053,43 @@ impl Run<'_, '_> {
             dark_free,
             lit_max,
         })
+    }
+
+    /// Settles the cells that need no rule and puts the first triangles of the others
+    /// (each cell fanned) in `open`; returns what the settled cells block. A cell is
+    /// settled when one caster or solid hides all of P_j from it ([`Run::hidden`]), or
+    /// when it is lit ([`Run::lit`]): that takes separating-axis tests, so it is asked
+    /// only when none of the first samples on the cell sees a shadow. None: as
+    /// [`Run::cell`].
+    fn start(
+        &mut self,
+        cells: &[Piece],
+        open: &mut BinaryHeap<Open>,
+        s: &mut ShadowScratch,
+    ) -> Option<f64> {
+        let mut settled = 0.0;
+        let mut first: Vec<Cell> = Vec::new();
+        for c in cells {
+            let w = c.verts();
+            if w.len() < 3 {
+                continue;
+            }
+            if let Some(x) = self.hidden(w) {
+                settled += x;
+                continue;
+            }
+            first.clear();
+            for k in 1..w.len() - 1 {
+                first.push(self.cell([w[0], w[k], w[k + 1]], s)?);
+            }
+            if first.iter().all(|c| c.dark_free) && self.lit(w) {
+                continue;
+            }
+            for &cell in &first {
+                self.push(open, cell, 0, s)?;
+            }
+        }
+        Some(settled)
     }
 
     /// The four children of `c` (cut at the edge midpoints), estimated.
