@@ -324,30 +324,29 @@ pub(crate) struct ShadowScratch {
 }
 
 /// F(x → B_j(x)): the form factor from the point `x` (unit normal `n`) to the part of
-/// `pj` that the `casters` and `solids` hide from it. None when the union of the
+/// `receiver` (P_j) that the `casters` and `solids` hide from it. None when the union of the
 /// shadows needs more than [`MAX_PIECES`] pieces, or a piece more vertices than a
 /// [`Piece`] holds.
 pub(crate) fn blocked_at(
     x: DVec3,
     n: DVec3,
-    pj: &Polygon,
+    receiver: &Piece,
     casters: &[Caster],
     solids: &[&Solid],
     tol: f64,
     s: &mut ShadowScratch,
 ) -> Option<f64> {
-    let receiver = Piece::new(pj.verts());
     s.cones.clear();
     let mut total = 0.0;
     let mut whole = Cone::EMPTY;
     for k in solids {
-        match Cone::of_solid(x, k, &receiver, tol, &mut whole) {
+        match Cone::of_solid(x, k, receiver, tol, &mut whole) {
             SolidShadow::Nothing => {}
-            SolidShadow::Cone => shadow_part(x, n, &receiver, &whole, tol, s, &mut total)?,
+            SolidShadow::Cone => shadow_part(x, n, receiver, &whole, tol, s, &mut total)?,
             SolidShadow::Triangles => {
                 for t in &k.triangles {
                     if let Some(cone) = Cone::new(x, t, tol) {
-                        shadow_part(x, n, &receiver, &cone, tol, s, &mut total)?;
+                        shadow_part(x, n, receiver, &cone, tol, s, &mut total)?;
                     }
                 }
             }
@@ -355,7 +354,7 @@ pub(crate) fn blocked_at(
     }
     for t in casters {
         if let Some(cone) = Cone::new(x, t, tol) {
-            shadow_part(x, n, &receiver, &cone, tol, s, &mut total)?;
+            shadow_part(x, n, receiver, &cone, tol, s, &mut total)?;
         }
     }
     Some(total)
@@ -396,6 +395,10 @@ fn shadow_part(
     let earlier = cones.len();
     cones.push(*cone);
     if !usable(&shadow) {
+        return Some(());
+    }
+    if earlier == 0 {
+        *total += point_polygon(x, n, shadow.verts());
         return Some(());
     }
     pieces.clear();
@@ -705,6 +708,7 @@ fn blocked_integral_within(
         pair: &narrowed,
         loose: &loose,
         solids: &solids,
+        receiver: Piece::new(pair.pj.verts()),
         points: 0,
         max_points,
         max_depth,
@@ -1008,6 +1012,8 @@ struct Run<'p, 'a> {
     /// The casters that belong to no solid, and the solids.
     loose: &'p [Caster],
     solids: &'p [&'a Solid],
+    /// P_j as a [`Piece`], for [`blocked_at`].
+    receiver: Piece,
     points: u32,
     /// Points after which the rule stops refining.
     max_points: u32,
@@ -1080,7 +1086,15 @@ impl Run<'_, '_> {
         let at = |b: [f64; 3]| b[0] * t[0] + b[1] * t[1] + b[2] * t[2];
         let (mut high, mut low, mut dark_free) = (0.0, 0.0, true);
         for (k, (b, w)) in LAURIE.into_iter().enumerate() {
-            let g = blocked_at(at(b), p.ni, p.pj, self.loose, self.solids, p.tol, s)?;
+            let g = blocked_at(
+                at(b),
+                p.ni,
+                &self.receiver,
+                self.loose,
+                self.solids,
+                p.tol,
+                s,
+            )?;
             high += w * g;
             if let Some(&(_, w5)) = RADON.get(k) {
                 low += w5 * g;
@@ -1453,14 +1467,15 @@ mod tests {
             let ni = ui.cross(vi).normalize();
             let nj = uj.cross(vj);
             let pj = Polygon::new(&[oj, oj + uj, oj + uj + vj, oj + vj]);
+            let pj_piece = Piece::new(pj.verts());
             for _ in 0..400 {
                 let x = oi + rng.next_f64() * ui + rng.next_f64() * vi;
                 if nj.dot(x - oj) <= 1e-9 {
                     continue; // the engine clips P_i to P_j's front
                 }
                 let mut s = ShadowScratch::default();
-                let a = blocked_at(x, ni, &pj, &[], &solids, 1e-12, &mut s).unwrap();
-                let b = blocked_at(x, ni, &pj, &one_by_one, &[], 1e-12, &mut s).unwrap();
+                let a = blocked_at(x, ni, &pj_piece, &[], &solids, 1e-12, &mut s).unwrap();
+                let b = blocked_at(x, ni, &pj_piece, &one_by_one, &[], 1e-12, &mut s).unwrap();
                 assert!((a - b).abs() <= 1e-10, "x {x}: solids {a}, triangles {b}");
                 compared += 1;
                 shaded += usize::from(b > 1e-6);
@@ -1738,15 +1753,16 @@ mod tests {
         // receiver that is [0.2, 1] × [0.1, 1].
         let x = dvec3(0.3, 0.0, 0.4);
         let pj = square(0.0, 1.0, 0.0, 1.0, 1.0);
+        let pj_piece = Piece::new(pj.verts());
         let casters = casters_of_square(0.25, 0.75, 0.25, 0.75, 0.5);
         let mut s = ShadowScratch::default();
-        let got = blocked_at(x, DVec3::Y, &pj, &casters, &[], 1e-12, &mut s).unwrap();
+        let got = blocked_at(x, DVec3::Y, &pj_piece, &casters, &[], 1e-12, &mut s).unwrap();
         let shadow = square(0.2, 1.0, 0.1, 1.0, 1.0);
         let want = point_polygon(x, DVec3::Y, shadow.verts());
         assert!((got - want).abs() < 1e-14, "{got} vs {want}");
         // The two triangles' shadows share the diagonal: nothing counted twice.
         let x = dvec3(0.5, 0.0, 0.5);
-        let got = blocked_at(x, DVec3::Y, &pj, &casters, &[], 1e-12, &mut s).unwrap();
+        let got = blocked_at(x, DVec3::Y, &pj_piece, &casters, &[], 1e-12, &mut s).unwrap();
         let want = point_polygon(x, DVec3::Y, square(0.0, 1.0, 0.0, 1.0, 1.0).verts());
         assert!((got - want).abs() < 1e-14, "{got} vs {want}");
     }
@@ -1755,21 +1771,22 @@ mod tests {
     fn overlapping_shadows_count_once_and_behind_or_beyond_count_nothing() {
         let x = dvec3(0.5, 0.0, 0.5);
         let pj = square(0.0, 1.0, 0.0, 1.0, 1.0);
+        let pj_piece = Piece::new(pj.verts());
         let mut s = ShadowScratch::default();
         let one = casters_of_square(0.4, 0.6, 0.4, 0.6, 0.5);
-        let alone = blocked_at(x, DVec3::Y, &pj, &one, &[], 1e-12, &mut s).unwrap();
+        let alone = blocked_at(x, DVec3::Y, &pj_piece, &one, &[], 1e-12, &mut s).unwrap();
         // The same square again, and a smaller one inside its shadow cone.
         let mut many = one.clone();
         many.extend(casters_of_square(0.4, 0.6, 0.4, 0.6, 0.5));
         many.extend(casters_of_square(0.47, 0.53, 0.47, 0.53, 0.8));
-        let got = blocked_at(x, DVec3::Y, &pj, &many, &[], 1e-12, &mut s).unwrap();
+        let got = blocked_at(x, DVec3::Y, &pj_piece, &many, &[], 1e-12, &mut s).unwrap();
         assert!((got - alone).abs() < 1e-15, "{got} vs {alone}");
         // Below x, or beyond the receiver's plane: no shadow.
         let behind = casters_of_square(0.0, 1.0, 0.0, 1.0, -0.5);
         let beyond = casters_of_square(0.0, 1.0, 0.0, 1.0, 1.5);
         for c in [behind, beyond] {
             assert_eq!(
-                blocked_at(x, DVec3::Y, &pj, &c, &[], 1e-12, &mut s),
+                blocked_at(x, DVec3::Y, &pj_piece, &c, &[], 1e-12, &mut s),
                 Some(0.0)
             );
         }
