@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 use std::sync::Arc;
 
-use anyhow::bail;
+use anyhow::{bail, Context};
 use clap::Args;
 
 use ffstream::ffz::{FileMeta, Layout, WriterOptions};
@@ -116,7 +116,8 @@ pub(crate) struct ComputeOptions {
     /// `compute`, needed for `run`.
     #[arg(long, value_enum, value_name = "ROWS")]
     pub rows: Option<RowsArg>,
-    /// Complete a partial file (after a crash or kill): compute only the missing rows.
+    /// Complete a partial file (after a crash, a kill, or a stop by SIGTERM/SIGINT,
+    /// which closes the file cleanly and exits 143/130): compute only the missing rows.
     #[arg(long)]
     pub resume: bool,
     /// Overwrite the output file if it exists (without it, an existing file is an error
@@ -626,6 +627,8 @@ pub(super) fn execute(
     let report = if o.gather {
         ffstream::service::gather::run_gather_embedded(&job)?
     } else {
+        ffstream::service::interrupt::catch_signals()
+            .context("cannot install the SIGINT/SIGTERM handler")?;
         ffstream::service::embedded::run_embedded(&job)?
     };
     Ok(Outcome::Master(report))
@@ -714,7 +717,18 @@ fn scene_for_rank(input: &SceneInput, rank: i32) -> SceneInput {
 }
 
 pub(super) fn run(a: ComputeArgs) -> anyhow::Result<ExitCode> {
-    match execute(&a.input, a.output.clone(), &a.opts)? {
+    let outcome = match execute(&a.input, a.output.clone(), &a.opts) {
+        Err(e) => match e.downcast_ref::<ffstream::service::ServiceError>() {
+            // Stopped by a signal, cleanly: the shell's convention, 128 + the signal.
+            Some(&ffstream::service::ServiceError::Interrupted { signal }) => {
+                super::say(&format!("ffstream: {e}"));
+                return Ok(ExitCode::from(128u8.saturating_add(signal as u8)));
+            }
+            _ => return Err(e),
+        },
+        Ok(o) => o,
+    };
+    match outcome {
         Outcome::Master(report) => {
             eprintln!("{}", report.summary());
             eprintln!("ffstream: wrote {}", a.output.display());

@@ -26,6 +26,10 @@ pub enum ServiceError {
     /// The link between master and workers broke (a thread or rank went away).
     #[error("transport: {0}")]
     Transport(String),
+    /// SIGINT or SIGTERM asked the run to stop ([`super::interrupt`]): the rows
+    /// finished before it are in the file, which is closed with its index.
+    #[error("stopped by {}: the rows finished before it are in the file, which is closed and indexed; the same command with --resume computes the rest", super::interrupt::signal_name(*signal))]
+    Interrupted { signal: i32 },
     /// The job's settings are inconsistent.
     #[error("{0}")]
     Config(String),

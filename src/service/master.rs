@@ -123,9 +123,15 @@ pub(crate) fn run_master(
 
     let result = master_loop(link, &tx, &counters, plan, start);
     // Only the workers that reported count: the rows of one that failed stay in the
-    // file, uncounted (the record says how many rows it covers). (A writer thread that
-    // has stopped has its own error to report.)
-    let _ = tx.send(WriterJob::Routes(WorkerStats::routes(&result.0.workers)));
+    // file, uncounted (the record says how many rows it covers). Half rows stopped by a
+    // signal count none: the workers' counts include half rows whose blocks were never
+    // merged, which `--resume` computes again. (A writer thread that has stopped has
+    // its own error to report.)
+    let stopped_half =
+        plan.spill.is_some() && matches!(result.1, Some(ServiceError::Interrupted { .. }));
+    if !stopped_half {
+        let _ = tx.send(WriterJob::Routes(WorkerStats::routes(&result.0.workers)));
+    }
     drop(tx);
     let written = writer_thread
         .join()
@@ -201,6 +207,17 @@ fn master_loop(
     }
     let mut liveness = Liveness::new(workers, plan.stall);
     while state.done < workers {
+        if state.failure.is_none() {
+            if let Some(signal) = super::interrupt::interrupted() {
+                // From now on every request gets "no more work"; the workers hand over
+                // what they have finished and say done, and the file is closed.
+                tracing::warn!(
+                    "{}: finishing the rows in progress, then closing the file (the same signal again stops at once)",
+                    super::interrupt::signal_name(signal)
+                );
+                state.failure = Some(ServiceError::Interrupted { signal });
+            }
+        }
         let t0 = Instant::now();
         let msg = match link.poll(Duration::from_millis(100)) {
             Ok(m) => m,

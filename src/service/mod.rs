@@ -17,6 +17,7 @@
 pub mod embedded;
 pub mod error;
 pub mod gather;
+pub mod interrupt;
 pub(crate) mod job;
 pub(crate) mod link;
 pub mod master;

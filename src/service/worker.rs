@@ -382,7 +382,10 @@ fn compute_thread(
         if stop.load(Ordering::Relaxed) {
             break;
         }
-        if let Some(i) = next {
+        // A stop asked for by a signal: no new row; what is finished is handed over.
+        let interrupted = super::interrupt::interrupted().is_some();
+        let finished = finished || interrupted;
+        if let Some(i) = next.filter(|_| !interrupted) {
             let t0 = Instant::now();
             if faults.stop_row == Some(i) {
                 stop_process();

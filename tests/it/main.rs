@@ -29,3 +29,4 @@ mod stress_geom;
 mod stress_numeric;
 mod stress_props;
 mod stress_resume;
+mod stress_signals;

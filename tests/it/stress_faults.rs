@@ -33,7 +33,7 @@ const SCENE: &[&str] = &[
     "0.05",
 ];
 
-fn compute_args<'a>(out: &'a Path, extra: &[&'a str]) -> Vec<&'a str> {
+pub(crate) fn compute_args<'a>(out: &'a Path, extra: &[&'a str]) -> Vec<&'a str> {
     let mut a = vec!["compute"];
     a.extend_from_slice(SCENE);
     a.extend_from_slice(&["-o", path_str(out)]);

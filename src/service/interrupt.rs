@@ -1,0 +1,122 @@
+//! A clean stop on SIGINT or SIGTERM: a batch system's time limit (Slurm sends SIGTERM,
+//! then SIGKILL after its grace period) or Ctrl-C.
+//!
+//! After [`catch_signals`], the first of these signals only sets a flag. The compute
+//! threads then take no new row and hand over the rows they have finished; the I/O
+//! master hands out no more work, writes what it received and closes the file with its
+//! index, as after a failed worker; the run ends with [`super::ServiceError::Interrupted`],
+//! and `--resume` computes the rest without scanning the file. The handler gives both
+//! signals their default action back when it runs, so a second one of either kind ends
+//! the process at once (the file then stays readable by a scan, as after SIGKILL).
+//!
+//! Only the embedded mode installs it: under `mpirun`, mpirun itself ends every rank
+//! on these signals (Open MPI sends SIGTERM, then SIGKILL), as before.
+//!
+//! A signal that is ignored when [`catch_signals`] is called (a job started with
+//! `nohup`, or in the background of a non-interactive shell for SIGINT) stays ignored.
+
+use std::sync::atomic::{AtomicI32, Ordering};
+
+/// The first signal caught, or 0.
+static SIGNAL: AtomicI32 = AtomicI32::new(0);
+
+/// The signal that asked the run to stop, if one did.
+pub fn interrupted() -> Option<i32> {
+    match SIGNAL.load(Ordering::Relaxed) {
+        0 => None,
+        s => Some(s),
+    }
+}
+
+/// The signal's name: "SIGINT", "SIGTERM", else "signal N".
+pub fn signal_name(signal: i32) -> String {
+    #[cfg(unix)]
+    match signal {
+        libc::SIGINT => return "SIGINT".into(),
+        libc::SIGTERM => return "SIGTERM".into(),
+        _ => {}
+    }
+    format!("signal {signal}")
+}
+
+/// Records `signal` as if it had been caught (for tests of the stop in one process).
+#[doc(hidden)]
+pub fn pretend(signal: i32) {
+    SIGNAL.store(signal, Ordering::Relaxed);
+}
+
+/// Clears a recorded signal (for tests).
+#[doc(hidden)]
+pub fn forget() {
+    SIGNAL.store(0, Ordering::Relaxed);
+}
+
+/// The signals caught, and whether [`catch_signals`] installed the handler for each.
+#[cfg(unix)]
+const CAUGHT: [libc::c_int; 2] = [libc::SIGINT, libc::SIGTERM];
+#[cfg(unix)]
+static INSTALLED: [std::sync::atomic::AtomicBool; 2] = [
+    std::sync::atomic::AtomicBool::new(false),
+    std::sync::atomic::AtomicBool::new(false),
+];
+
+#[cfg(unix)]
+extern "C" fn on_signal(signal: libc::c_int) {
+    // Lock-free atomics, signal(2) and raise(3): all async-signal-safe.
+    let first = SIGNAL
+        .compare_exchange(0, signal, Ordering::Relaxed, Ordering::Relaxed)
+        .is_ok();
+    for (k, &s) in CAUGHT.iter().enumerate() {
+        if INSTALLED[k].load(Ordering::Relaxed) {
+            // SAFETY: signal(2) with a valid signal number and SIG_DFL.
+            unsafe {
+                libc::signal(s, libc::SIG_DFL);
+            }
+        }
+    }
+    if !first {
+        // A second signal that reached another thread before the reset above (the
+        // mask that blocks both during the handler holds for one thread only): its
+        // default action, once this handler returns.
+        // SAFETY: raise(3) with a valid signal number.
+        unsafe {
+            libc::raise(signal);
+        }
+    }
+}
+
+/// Installs the handler for SIGINT and SIGTERM (see the module documentation). Call it
+/// once, before the run; a no-op where there are no such signals.
+///
+/// # Errors
+/// sigaction(2) failed (it should not).
+pub fn catch_signals() -> std::io::Result<()> {
+    #[cfg(unix)]
+    for (k, &signal) in CAUGHT.iter().enumerate() {
+        // SAFETY: sigaction(2) with a zeroed struct whose handler is an extern "C" fn
+        // that only stores to an atomic, its mask emptied by sigemptyset, and valid
+        // pointers for the new and the old action.
+        unsafe {
+            let mut old: libc::sigaction = std::mem::zeroed();
+            if libc::sigaction(signal, std::ptr::null(), &mut old) != 0 {
+                return Err(std::io::Error::last_os_error());
+            }
+            if old.sa_sigaction == libc::SIG_IGN {
+                continue;
+            }
+            let mut new: libc::sigaction = std::mem::zeroed();
+            new.sa_sigaction = on_signal as extern "C" fn(libc::c_int) as libc::sighandler_t;
+            new.sa_flags = libc::SA_RESTART;
+            // Both blocked while it runs: the other is handled after the reset.
+            libc::sigemptyset(&mut new.sa_mask);
+            for &s in &CAUGHT {
+                libc::sigaddset(&mut new.sa_mask, s);
+            }
+            INSTALLED[k].store(true, Ordering::Relaxed);
+            if libc::sigaction(signal, &new, std::ptr::null_mut()) != 0 {
+                return Err(std::io::Error::last_os_error());
+            }
+        }
+    }
+    Ok(())
+}

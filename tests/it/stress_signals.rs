@@ -1,0 +1,130 @@
+//! Stress, signals during an embedded `compute`: the first SIGTERM or SIGINT (a batch
+//! system's time limit, Ctrl-C) stops the run cleanly: the rows finished are in the
+//! file, which is closed with its index (no scan needed), the exit code is 128 + the
+//! signal, and `--resume` completes the file with the rows of a run never stopped. A
+//! second signal stops the process at once, and the file stays readable by a scan.
+//!
+//! Deterministic: the run stops itself (SIGSTOP) at a chosen row through the test hook
+//! `FFSTREAM_TEST_STOP_ROW`; the signals are sent while it is stopped, then SIGCONT.
+//! The scene and settings are those of `stress_faults` (Cornell box, 612 patches).
+
+use std::os::unix::process::ExitStatusExt;
+use std::path::Path;
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+use crate::common::{exe, ffstream, ok, output_of_within, path_str, resumed_counts};
+use crate::stress_faults::compute_args as args;
+
+/// A run that stops itself (SIGSTOP) at row 300, once it is stopped.
+fn stopped_run(out: &Path, extra: &[&str]) -> Child {
+    let mut child = Command::new(exe())
+        .args(args(out, extra))
+        .env_remove("FFSTREAM_FAIL_ROW")
+        .env("FFSTREAM_TEST_STOP_ROW", "300")
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("cannot start ffstream");
+    let t0 = Instant::now();
+    loop {
+        let stat = std::fs::read_to_string(format!("/proc/{}/stat", child.id())).unwrap();
+        // The state follows the command name in parentheses.
+        let state = stat.rsplit(')').next().unwrap().split_whitespace().next();
+        if state == Some("T") {
+            return child;
+        }
+        if t0.elapsed() > Duration::from_secs(60) || child.try_wait().unwrap().is_some() {
+            let _ = child.kill();
+            panic!("the run did not stop itself at row 300 within 60 s");
+        }
+        std::thread::sleep(Duration::from_millis(5));
+    }
+}
+
+fn send(child: &Child, signal: libc::c_int) {
+    let pid = libc::pid_t::try_from(child.id()).unwrap();
+    // SAFETY: kill(2) takes plain integers and touches no memory of ours.
+    assert_eq!(unsafe { libc::kill(pid, signal) }, 0, "kill {signal}");
+}
+
+fn text(o: &std::process::Output) -> String {
+    format!(
+        "{}\n{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    )
+}
+
+/// Resumes `part` and checks its rows against `full` (`verify --against`, exit 0: every
+/// row present, bitwise the same, and the file sound, its route record included).
+fn resume_and_compare(part: &Path, full: &Path, extra: &[&str]) {
+    let mut a = args(part, extra);
+    a.push("--resume");
+    let stderr = ok(&a);
+    let (computed, present) = resumed_counts(&stderr);
+    assert!(
+        computed > 0 && present > 0,
+        "computed {computed}, kept {present}"
+    );
+    let v = ffstream(&["verify", path_str(part), "--against", path_str(full)]);
+    assert_eq!(v.status.code(), Some(0), "{}", text(&v));
+}
+
+#[test]
+fn a_signal_closes_the_file_with_its_index_and_resume_completes_it() {
+    let dir = tempfile::tempdir().unwrap();
+    for (signal, name, extra) in [
+        (libc::SIGTERM, "SIGTERM", &[][..]),
+        (libc::SIGINT, "SIGINT", &["--symmetric", "off"][..]),
+    ] {
+        let full = dir.path().join(format!("full-{name}.ffz"));
+        ok(&args(&full, extra));
+        let part = dir.path().join(format!("{name}.ffz"));
+        let child = stopped_run(&part, extra);
+        send(&child, signal);
+        send(&child, libc::SIGCONT);
+        let out = output_of_within(child, "a run stopped by a signal");
+        assert_eq!(out.status.code(), Some(128 + signal), "{}", text(&out));
+        let said = text(&out);
+        assert!(
+            said.contains(&format!("ffstream: stopped by {name}:"))
+                && said.contains("--resume computes the rest"),
+            "{said}"
+        );
+        // Closed with its index: verify reads it without a scan, and names the rows
+        // still to do.
+        let v = text(&ffstream(&["verify", path_str(&part)]));
+        assert!(!v.contains("unusable") && !v.contains("scanning"), "{v}");
+        assert!(
+            v.contains("missing (finish them with compute --resume)"),
+            "{v}"
+        );
+        resume_and_compare(&part, &full, extra);
+    }
+}
+
+#[test]
+fn a_second_signal_stops_at_once_and_the_rows_written_are_kept() {
+    let dir = tempfile::tempdir().unwrap();
+    let full = dir.path().join("full.ffz");
+    ok(&args(&full, &[]));
+    let part = dir.path().join("twice.ffz");
+    let child = stopped_run(&part, &[]);
+    // Both pending while it is stopped: the first caught, the second its default action.
+    send(&child, libc::SIGTERM);
+    send(&child, libc::SIGINT);
+    send(&child, libc::SIGCONT);
+    let out = output_of_within(child, "a run given two signals");
+    assert!(
+        matches!(out.status.signal(), Some(libc::SIGINT | libc::SIGTERM)),
+        "ended by {:?}, not by the second signal\n{}",
+        out.status,
+        text(&out)
+    );
+    // No index (the process was ended in the middle): a scan reads what is there.
+    let v = text(&ffstream(&["verify", path_str(&part)]));
+    assert!(v.contains("by scanning"), "{v}");
+    resume_and_compare(&part, &full, &[]);
+}
