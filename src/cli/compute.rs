@@ -627,9 +627,11 @@ pub(super) fn execute(
     let report = if o.gather {
         ffstream::service::gather::run_gather_embedded(&job)?
     } else {
-        ffstream::service::interrupt::catch_signals()
-            .context("cannot install the SIGINT/SIGTERM handler")?;
-        ffstream::service::embedded::run_embedded(&job)?
+        use ffstream::service::interrupt;
+        interrupt::catch_signals().context("cannot install the SIGINT/SIGTERM handler")?;
+        let report = ffstream::service::embedded::run_embedded(&job);
+        interrupt::release();
+        report?
     };
     Ok(Outcome::Master(report))
 }
@@ -716,16 +718,24 @@ fn scene_for_rank(input: &SceneInput, rank: i32) -> SceneInput {
     input
 }
 
+/// A run stopped cleanly by a signal ([`ServiceError::Interrupted`]) is said in one
+/// line and ends with the shell's convention, 128 + the signal; any other error is
+/// passed on.
+///
+/// [`ServiceError::Interrupted`]: ffstream::service::ServiceError::Interrupted
+pub(super) fn stopped_by_signal(e: anyhow::Error) -> anyhow::Result<ExitCode> {
+    match e.downcast_ref::<ffstream::service::ServiceError>() {
+        Some(&ffstream::service::ServiceError::Interrupted { signal }) => {
+            super::say(&format!("ffstream: {e}"));
+            Ok(ExitCode::from(128u8.saturating_add(signal as u8)))
+        }
+        _ => Err(e),
+    }
+}
+
 pub(super) fn run(a: ComputeArgs) -> anyhow::Result<ExitCode> {
     let outcome = match execute(&a.input, a.output.clone(), &a.opts) {
-        Err(e) => match e.downcast_ref::<ffstream::service::ServiceError>() {
-            // Stopped by a signal, cleanly: the shell's convention, 128 + the signal.
-            Some(&ffstream::service::ServiceError::Interrupted { signal }) => {
-                super::say(&format!("ffstream: {e}"));
-                return Ok(ExitCode::from(128u8.saturating_add(signal as u8)));
-            }
-            _ => return Err(e),
-        },
+        Err(e) => return stopped_by_signal(e),
         Ok(o) => o,
     };
     match outcome {

@@ -7,7 +7,7 @@ use std::process::ExitCode;
 use clap::Args;
 
 use super::choices::{RowsArg, SolverArg};
-use super::compute::{execute, ComputeOptions, Outcome};
+use super::compute::{execute, stopped_by_signal, ComputeOptions, Outcome};
 use super::render::{render_to, ViewOptions};
 use super::solve::{solve_file, SolveOptions};
 use super::SceneInput;
@@ -44,10 +44,16 @@ pub(super) fn run(mut a: RunArgs) -> anyhow::Result<ExitCode> {
     a.compute.force |= !a.compute.resume;
     // A gathering solve never reads rows of patches that neither reflect nor emit.
     a.compute.rows.get_or_insert(RowsArg::Needed);
-    let report = match execute(&a.input, ffz.clone(), &a.compute)? {
-        Outcome::Master(r) => r,
-        Outcome::Worker => return Ok(ExitCode::SUCCESS),
+    let report = match execute(&a.input, ffz.clone(), &a.compute) {
+        Ok(Outcome::Master(r)) => r,
+        Ok(Outcome::Worker) => return Ok(ExitCode::SUCCESS),
+        Err(e) => return stopped_by_signal(e),
     };
+    // A signal that came as the last rows were written: the file is complete, but
+    // the user asked to stop before the solve.
+    if let Some(signal) = ffstream::service::interrupt::interrupted() {
+        return stopped_by_signal(ffstream::service::ServiceError::Interrupted { signal }.into());
+    }
     eprintln!("{}", report.summary());
     eprintln!("ffstream: wrote {}", ffz.display());
     if a.solve.ply.is_none() {

@@ -120,3 +120,18 @@ pub fn catch_signals() -> std::io::Result<()> {
     }
     Ok(())
 }
+
+/// Gives the signals [`catch_signals`] caught their default action back (after the
+/// run: a later phase, such as `run`'s solve, stops on Ctrl-C at once again). A signal
+/// already recorded stays recorded ([`interrupted`]).
+pub fn release() {
+    #[cfg(unix)]
+    for (k, &signal) in CAUGHT.iter().enumerate() {
+        if INSTALLED[k].swap(false, Ordering::Relaxed) {
+            // SAFETY: signal(2) with a valid signal number and SIG_DFL.
+            unsafe {
+                libc::signal(signal, libc::SIG_DFL);
+            }
+        }
+    }
+}

@@ -18,7 +18,7 @@ use crate::common::{
 };
 use crate::stress_cli::assert_one_error;
 
-const SCENE: &[&str] = &[
+pub(crate) const SCENE: &[&str] = &[
     "builtin:cornell",
     "--patches",
     "600",

@@ -14,12 +14,17 @@ use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
 use crate::common::{exe, ffstream, ok, output_of_within, path_str, resumed_counts};
-use crate::stress_faults::compute_args as args;
+use crate::stress_faults::{compute_args as args, SCENE};
 
-/// A run that stops itself (SIGSTOP) at row 300, once it is stopped.
+/// `compute` with `args(out, extra)`, stopped by itself (SIGSTOP) at row 300.
 fn stopped_run(out: &Path, extra: &[&str]) -> Child {
+    stopped_at_row_300(&args(out, extra))
+}
+
+/// `ffstream ARGS` once it has stopped itself (SIGSTOP) at row 300.
+fn stopped_at_row_300(args: &[&str]) -> Child {
     let mut child = Command::new(exe())
-        .args(args(out, extra))
+        .args(args)
         .env_remove("FFSTREAM_FAIL_ROW")
         .env("FFSTREAM_TEST_STOP_ROW", "300")
         .stdin(Stdio::null())
@@ -127,4 +132,38 @@ fn a_second_signal_stops_at_once_and_the_rows_written_are_kept() {
     let v = text(&ffstream(&["verify", path_str(&part)]));
     assert!(v.contains("by scanning"), "{v}");
     resume_and_compare(&part, &full, &[]);
+}
+
+/// `run` stops before its solve: the same exit code and message, and its `--resume`
+/// completes the file and goes on to the picture.
+#[test]
+fn a_signal_stops_run_before_the_solve_and_its_resume_finishes() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("run");
+    let run = |extra: &[&str]| {
+        let mut a = vec!["run"];
+        a.extend_from_slice(SCENE);
+        a.extend_from_slice(&["--out-dir", path_str(&out)]);
+        a.extend_from_slice(extra);
+        a.into_iter().map(String::from).collect::<Vec<_>>()
+    };
+    let first = run(&[]);
+    let child = stopped_at_row_300(&first.iter().map(String::as_str).collect::<Vec<_>>());
+    send(&child, libc::SIGINT);
+    send(&child, libc::SIGCONT);
+    let stopped = output_of_within(child, "run stopped by SIGINT");
+    assert_eq!(stopped.status.code(), Some(130), "{}", text(&stopped));
+    assert!(text(&stopped).contains("ffstream: stopped by SIGINT:"));
+    assert!(
+        !out.join("image.png").exists(),
+        "the solve ran after the stop"
+    );
+    let resumed = run(&["--resume"]);
+    let stderr = ok(&resumed.iter().map(String::as_str).collect::<Vec<_>>());
+    let (computed, present) = resumed_counts(&stderr);
+    assert!(
+        computed > 0 && present > 0,
+        "computed {computed}, kept {present}"
+    );
+    assert!(out.join("image.png").exists(), "{stderr}");
 }
