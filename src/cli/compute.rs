@@ -627,13 +627,19 @@ pub(super) fn execute(
     let report = if o.gather {
         ffstream::service::gather::run_gather_embedded(&job)?
     } else {
-        use ffstream::service::interrupt;
-        interrupt::catch_signals().context("cannot install the SIGINT/SIGTERM handler")?;
-        let report = ffstream::service::embedded::run_embedded(&job);
-        interrupt::release();
-        report?
+        embedded(&job)?
     };
     Ok(Outcome::Master(report))
+}
+
+/// An embedded run, stopped cleanly by SIGINT or SIGTERM while it computes
+/// ([`ffstream::service::interrupt`]).
+fn embedded(job: &ComputeJob) -> anyhow::Result<ComputeReport> {
+    use ffstream::service::interrupt;
+    interrupt::catch_signals().context("cannot install the SIGINT/SIGTERM handler")?;
+    let report = ffstream::service::embedded::run_embedded(job);
+    interrupt::release();
+    Ok(report?)
 }
 
 /// How long a failed rank waits for rank 0 to abort the job (it takes milliseconds:
@@ -649,8 +655,7 @@ fn execute_mpi(input: &SceneInput, output: PathBuf, o: &ComputeOptions) -> anyho
         // `mpirun -n 1`: nobody to compute for a pure master; run embedded.
         let job = build_job(input, output, o, Role::Alone)?;
         drop(ctx);
-        let report = ffstream::service::embedded::run_embedded(&job)?;
-        return Ok(Outcome::Master(report));
+        return Ok(Outcome::Master(embedded(&job)?));
     }
     let rank = ctx.rank();
     let input = scene_for_rank(input, rank);
@@ -664,12 +669,20 @@ fn execute_mpi(input: &SceneInput, output: PathBuf, o: &ComputeOptions) -> anyho
         if o.gather {
             run_gather(&ctx, &job)
         } else {
-            run(&ctx, &job)
+            use ffstream::service::interrupt;
+            interrupt::catch_signals().map_err(|e| {
+                ServiceError::Transport(format!("cannot install the SIGINT/SIGTERM handler: {e}"))
+            })?;
+            let result = run(&ctx, &job);
+            interrupt::release();
+            result
         }
     });
     match result {
         Ok(Some(report)) => Ok(Outcome::Master(report)),
         Ok(None) => Ok(Outcome::Worker),
+        // Every rank has stopped cleanly and the file is closed: no abort.
+        Err(e @ ServiceError::Interrupted { .. }) => Err(e.into()),
         Err(e) if rank == 0 => {
             // Rank 0 has finished the file with what it had; stop every rank.
             let mut message = format!("ffstream: error: {e}");

@@ -516,9 +516,9 @@ const LAURIE: [([f64; 3], f64); 19] = {
 /// the error at loose tolerances (bench/PERF.md §28).
 pub(crate) const UNRESOLVED: u32 = 64;
 
-/// Deepest refinement of a first triangle of the outer rule: its triangles at this
-/// depth (4⁻¹⁶ of its area, ~1e-5 of its edge) are not cut again, and what error they
-/// still estimate makes the pair's tolerance unmet.
+/// Refinement limit of a first triangle (depth 0) of the outer rule: its triangles at
+/// depth `MAX_DEPTH − 1` (cut 15 times: 4⁻¹⁵ of its area, ~3e-5 of its edge) are not
+/// cut again, and what error they still estimate makes the pair's tolerance unmet.
 const MAX_DEPTH: u32 = 16;
 
 /// Most evaluations of the integrand for one pair: the rule stops refining there and
@@ -771,8 +771,8 @@ pub(crate) fn polygon_hides(
 }
 
 /// Most cells [`split_at_events`] cuts P_i into. A kink left uncut can fool the rule:
-/// a triangle that barely crosses it may have all its samples, and its children's, on
-/// one side, so that they agree to rounding while the sliver beyond differs. With 64
+/// a triangle that barely crosses it may have all its samples on one side, so that its
+/// two rules agree to rounding while the sliver beyond differs. With 64
 /// cells a box between two squares came out 1.8e-8 of F⁰ off with its estimate at
 /// 1e-11; it needs 88 (bench/PERF.md §30). 256 cost nothing measurable on the Cornell
 /// box and 3 % on the room at 1e-3.

@@ -9,11 +9,16 @@
 //! signals their default action back when it runs, so a second one of either kind ends
 //! the process at once (the file then stays readable by a scan, as after SIGKILL).
 //!
-//! Only the embedded mode installs it: under `mpirun`, mpirun itself ends every rank
-//! on these signals (Open MPI sends SIGTERM, then SIGKILL), as before.
+//! Under MPI every rank installs it. A worker rank that is signalled hands over its
+//! finished rows and says done; rank 0, signalled, stops handing out rows, waits for
+//! every worker's done, closes the file and lets the workers finalise. A batch
+//! system's direct launch (srun) signals every rank; Open MPI's `mpirun` forwards
+//! SIGINT and SIGTERM to every rank as SIGTERM, then ends the job about two seconds
+//! later. If only workers are signalled, rank 0 finds rows missing at the end and says
+//! so (an error, not a complete file).
 //!
-//! A signal that is ignored when [`catch_signals`] is called (a job started with
-//! `nohup`, or in the background of a non-interactive shell for SIGINT) stays ignored.
+//! A signal that is ignored when [`catch_signals`] is called (SIGINT for a job started
+//! in the background of a non-interactive shell) stays ignored.
 
 use std::sync::atomic::{AtomicI32, Ordering};
 
@@ -37,18 +42,6 @@ pub fn signal_name(signal: i32) -> String {
         _ => {}
     }
     format!("signal {signal}")
-}
-
-/// Records `signal` as if it had been caught (for tests of the stop in one process).
-#[doc(hidden)]
-pub fn pretend(signal: i32) {
-    SIGNAL.store(signal, Ordering::Relaxed);
-}
-
-/// Clears a recorded signal (for tests).
-#[doc(hidden)]
-pub fn forget() {
-    SIGNAL.store(0, Ordering::Relaxed);
 }
 
 /// The signals caught, and whether [`catch_signals`] installed the handler for each.

@@ -197,6 +197,7 @@ fn master_loop(
             Schedule::Folded => DynamicQueue::new(Vec::new(), workers, 1, 1),
         },
         failure: None,
+        stopping: false,
         done: 0,
         frontier,
         tx,
@@ -207,15 +208,16 @@ fn master_loop(
     }
     let mut liveness = Liveness::new(workers, plan.stall);
     while state.done < workers {
-        if state.failure.is_none() {
+        if !state.stopping {
             if let Some(signal) = super::interrupt::interrupted() {
                 // From now on every request gets "no more work"; the workers hand over
-                // what they have finished and say done, and the file is closed.
+                // what they have finished and say done, and the file is closed. Whether
+                // the run then counts as stopped depends on what is missing at the end.
                 tracing::warn!(
                     "{}: finishing the rows in progress, then closing the file (the same signal again stops at once)",
                     super::interrupt::signal_name(signal)
                 );
-                state.failure = Some(ServiceError::Interrupted { signal });
+                state.stopping = true;
             }
         }
         let t0 = Instant::now();
@@ -257,12 +259,22 @@ fn master_loop(
         mut progress,
         ..
     } = state;
-    if failure.is_none() && frontier.as_ref().is_some_and(|f| !f.complete()) {
-        // Every worker said done but some half rows never reported: their blocks
-        // cannot be merged. Say so rather than finish a file with rows missing.
-        failure = Some(ServiceError::Transport(
-            "the workers finished but some half rows never reported; the file lacks their blocks (rerun with --resume)".into(),
-        ));
+    let incomplete = match &frontier {
+        Some(f) => !f.complete(),
+        None => outcome.rows_received < plan.todo.len() as u64,
+    };
+    if failure.is_none() && incomplete {
+        // Every worker said done but some rows (or half rows, whose blocks then cannot
+        // be merged) never reported: stopped by a signal (which the workers may have
+        // seen before the loop did), else lost. Either way, say so rather than finish a
+        // file with rows missing as if it were complete. A run that got every row is
+        // complete, signal or not.
+        failure = Some(match super::interrupt::interrupted() {
+            Some(signal) => ServiceError::Interrupted { signal },
+            None => ServiceError::Transport(
+                "the workers finished but some rows never reported; the file lacks them (rerun with --resume)".into(),
+            ),
+        });
     }
     progress.finish();
     outcome.wall_seconds = start.elapsed().as_secs_f64();
@@ -327,6 +339,8 @@ struct MasterState<'a> {
     progress: Progress,
     queue: DynamicQueue,
     failure: Option<ServiceError>,
+    /// A signal asked the run to stop ([`super::interrupt`]): no more rows are handed out.
+    stopping: bool,
     /// Workers that said they are done.
     done: usize,
     /// `--symmetric`: which half rows have reported, and which blocks are complete.
@@ -345,7 +359,7 @@ impl MasterState<'_> {
         match msg {
             ToMaster::Request { worker } => {
                 // After a failure, answer every request with "no more work".
-                let batch = if self.failure.is_some() {
+                let batch = if self.failure.is_some() || self.stopping {
                     Vec::new()
                 } else {
                     self.queue.next_batch()

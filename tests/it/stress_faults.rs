@@ -51,7 +51,7 @@ fn seeds() -> u64 {
 
 /// The ranks mpirun started: (pid, rank), once all `ranks` are up. Gives up after 30 s,
 /// killing the job first (a panic alone would leave it running past the test).
-fn rank_pids(mpirun_pid: u32, ranks: usize) -> Vec<(u32, usize)> {
+pub(crate) fn rank_pids(mpirun_pid: u32, ranks: usize) -> Vec<(u32, usize)> {
     let t0 = Instant::now();
     loop {
         let mut found = Vec::new();

@@ -13,8 +13,11 @@ use std::path::Path;
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
-use crate::common::{exe, ffstream, ok, output_of_within, path_str, resumed_counts};
-use crate::stress_faults::{compute_args as args, SCENE};
+use crate::common::{
+    exe, ffstream, kill_tree_and_wait, mpirun, need_mpi, ok, output_of_within, path_str,
+    resumed_counts, Within,
+};
+use crate::stress_faults::{compute_args as args, rank_pids, SCENE};
 
 /// `compute` with `args(out, extra)`, stopped by itself (SIGSTOP) at row 300.
 fn stopped_run(out: &Path, extra: &[&str]) -> Child {
@@ -34,10 +37,7 @@ fn stopped_at_row_300(args: &[&str]) -> Child {
         .expect("cannot start ffstream");
     let t0 = Instant::now();
     loop {
-        let stat = std::fs::read_to_string(format!("/proc/{}/stat", child.id())).unwrap();
-        // The state follows the command name in parentheses.
-        let state = stat.rsplit(')').next().unwrap().split_whitespace().next();
-        if state == Some("T") {
+        if is_stopped(child.id()) {
             return child;
         }
         if t0.elapsed() > Duration::from_secs(60) || child.try_wait().unwrap().is_some() {
@@ -48,8 +48,23 @@ fn stopped_at_row_300(args: &[&str]) -> Child {
     }
 }
 
+/// Whether process `pid` is stopped (state T in /proc/PID/stat).
+fn is_stopped(pid: u32) -> bool {
+    std::fs::read_to_string(format!("/proc/{pid}/stat")).is_ok_and(|stat| {
+        // The state follows the command name in parentheses.
+        stat.rsplit(')')
+            .next()
+            .and_then(|r| r.split_whitespace().next())
+            == Some("T")
+    })
+}
+
 fn send(child: &Child, signal: libc::c_int) {
-    let pid = libc::pid_t::try_from(child.id()).unwrap();
+    kill(child.id(), signal);
+}
+
+fn kill(pid: u32, signal: libc::c_int) {
+    let pid = libc::pid_t::try_from(pid).unwrap();
     // SAFETY: kill(2) takes plain integers and touches no memory of ours.
     assert_eq!(unsafe { libc::kill(pid, signal) }, 0, "kill {signal}");
 }
@@ -106,6 +121,21 @@ fn a_signal_closes_the_file_with_its_index_and_resume_completes_it() {
             v.contains("missing (finish them with compute --resume)"),
             "{v}"
         );
+        // The pair counts cover exactly the rows in the file (full rows), or none (half
+        // rows: those of unmerged blocks are computed again by the resume).
+        let info = text(&ffstream(&["info", path_str(&part)]));
+        let number_after = |key: &str| -> Option<u64> {
+            let rest = &info[info.find(key)? + key.len()..];
+            rest.split_whitespace().next()?.parse().ok()
+        };
+        let present = number_after("rows:").expect("info names the rows present");
+        match number_after("routes:        over the") {
+            Some(counted) => {
+                assert!(extra.contains(&"off"), "half rows counted: {info}");
+                assert_eq!(counted, present, "{info}");
+            }
+            None => assert!(!extra.contains(&"off"), "full rows not counted: {info}"),
+        }
         resume_and_compare(&part, &full, extra);
     }
 }
@@ -166,4 +196,61 @@ fn a_signal_stops_run_before_the_solve_and_its_resume_finishes() {
         "computed {computed}, kept {present}"
     );
     assert!(out.join("image.png").exists(), "{stderr}");
+}
+
+/// Under mpirun with each rank signalled (as a batch system's direct launch does): the
+/// ranks stop as in one process, rank 0 closes the file with its index and exits 143,
+/// and a resume with another rank count gives the rows of a run never stopped.
+#[test]
+fn under_mpirun_sigterm_to_every_rank_closes_the_file_and_resume_completes_it() {
+    if !need_mpi() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let full = dir.path().join("full.ffz");
+    ok(&args(&full, &[]));
+    let part = dir.path().join("mpi.ffz");
+    let mut child = mpirun(3, &args(&part, &[]))
+        .env("FFSTREAM_TEST_STOP_ROW", "300")
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let ranks = rank_pids(child.id(), 3);
+    let t0 = Instant::now();
+    while !ranks.iter().any(|&(pid, _)| is_stopped(pid)) {
+        if t0.elapsed() > Duration::from_secs(60) || child.try_wait().unwrap().is_some() {
+            kill_tree_and_wait(child.id());
+            panic!("no rank stopped itself at row 300 within 60 s");
+        }
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    for &(pid, _) in &ranks {
+        kill(pid, libc::SIGTERM);
+    }
+    for &(pid, _) in &ranks {
+        kill(pid, libc::SIGCONT);
+    }
+    let out = output_of_within(child, "mpirun, every rank given SIGTERM");
+    let said = text(&out);
+    assert_eq!(out.status.code(), Some(143), "{said}");
+    assert!(said.contains("ffstream: stopped by SIGTERM:"), "{said}");
+    let v = text(&ffstream(&["verify", path_str(&part)]));
+    assert!(!v.contains("unusable") && !v.contains("scanning"), "{v}");
+    assert!(
+        v.contains("missing (finish them with compute --resume)"),
+        "{v}"
+    );
+    let mut a = args(&part, &[]);
+    a.push("--resume");
+    let resumed = mpirun(2, &a).output_within("resume under mpirun -n 2");
+    assert!(resumed.status.success(), "{}", text(&resumed));
+    let (computed, present) = resumed_counts(&String::from_utf8_lossy(&resumed.stderr));
+    assert!(
+        computed > 0 && present > 0,
+        "computed {computed}, kept {present}"
+    );
+    let v = ffstream(&["verify", path_str(&part), "--against", path_str(&full)]);
+    assert_eq!(v.status.code(), Some(0), "{}", text(&v));
 }

@@ -210,6 +210,16 @@ pub fn agree_on_job(
 ///
 /// # Errors
 /// As the embedded service; on rank 0 the caller prints the cause and aborts the job.
+/// Rank 0: the file is closed; lets the workers finalise (they wait for this word).
+fn finish_workers(ctx: &MpiContext) {
+    let nothing: [u8; 0] = [];
+    for w in 1..ctx.size() {
+        ctx.world
+            .process_at_rank(w)
+            .send_with_tag(&nothing[..], protocol::FINISH);
+    }
+}
+
 pub fn run(ctx: &MpiContext, job: &ComputeJob) -> Result<Option<ComputeReport>, ServiceError> {
     let world = &ctx.world;
     let root = world.process_at_rank(0);
@@ -239,14 +249,14 @@ pub fn run(ctx: &MpiContext, job: &ComputeJob) -> Result<Option<ComputeReport>, 
             root.broadcast_into(&mut todo[..]);
         }
         let mut link = MpiMasterLink { world };
-        let outcome = run_master(&mut link, writer, &plan)?;
-        // The file is complete: let the workers finalise (they wait for this word).
-        let nothing: [u8; 0] = [];
-        for w in 1..ctx.size() {
-            world
-                .process_at_rank(w)
-                .send_with_tag(&nothing[..], protocol::FINISH);
-        }
+        // A stop by a signal ends like a run: every worker has said done and the file
+        // is closed. Any other error leaves the workers to the caller's abort.
+        let outcome = run_master(&mut link, writer, &plan).inspect_err(|e| {
+            if matches!(e, ServiceError::Interrupted { .. }) {
+                finish_workers(ctx);
+            }
+        })?;
+        finish_workers(ctx);
         Ok(Some(report(job, &plan, present, outcome)))
     } else {
         let mut head = [0u32; 2];
