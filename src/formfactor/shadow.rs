@@ -1072,9 +1072,6 @@ struct Cell {
     err: f64,
     /// Every sample saw no shadow.
     dark_free: bool,
-    /// Largest unoccluded F(x → P_j) over the samples (computed only when
-    /// `dark_free`; 0 otherwise).
-    lit_max: f64,
 }
 
 impl Run<'_, '_> {
@@ -1101,15 +1098,6 @@ impl Run<'_, '_> {
             }
             dark_free &= g == 0.0;
         }
-        // Only a cell that sees no shadow needs what it could hold (see `Run::push`).
-        let lit_max = if dark_free {
-            LAURIE
-                .iter()
-                .map(|&(b, _)| point_polygon(at(b), p.ni, p.pj.verts()))
-                .fold(0.0f64, f64::max)
-        } else {
-            0.0
-        };
         self.points += LAURIE.len() as u32;
         Some(Cell {
             t,
@@ -1117,8 +1105,21 @@ impl Run<'_, '_> {
             value: high * area,
             err: (high - low).abs() * area,
             dark_free,
-            lit_max,
         })
+    }
+
+    /// What the triangle of `c` could hold when its samples see no shadow: twice its
+    /// area times the largest unoccluded F(x → P_j) over the samples (a shadow may hide
+    /// between them). Asked only when such a triangle goes into the open list: the
+    /// first triangles of a lit cell ([`Run::start`]) never need it.
+    fn could_hold(&self, c: &Cell) -> f64 {
+        let (t, p) = (c.t, self.pair);
+        let at = |b: [f64; 3]| b[0] * t[0] + b[1] * t[1] + b[2] * t[2];
+        let lit_max = LAURIE
+            .iter()
+            .map(|&(b, _)| point_polygon(at(b), p.ni, p.pj.verts()))
+            .fold(0.0f64, f64::max);
+        2.0 * c.area * lit_max
     }
 
     /// Settles the cells that need no rule and puts the first triangles of the others
@@ -1160,12 +1161,11 @@ impl Run<'_, '_> {
 
     /// Puts triangle `c` (at refinement depth `depth`) in the open list with its error.
     /// A triangle whose samples all see no shadow has value 0 and as its error what it
-    /// could hold: at most its area times the largest unoccluded value over the
-    /// samples, with a margin (a shadow may hide between the samples); when that is 0
-    /// it is dropped. Any other carries its rules' difference.
+    /// could hold ([`Run::could_hold`]); when that is 0 it is dropped. Any other carries
+    /// its rules' difference.
     fn push(&mut self, open: &mut BinaryHeap<Open>, c: Cell, depth: u32) {
         let err = if c.dark_free {
-            2.0 * c.area * c.lit_max
+            self.could_hold(&c)
         } else {
             c.err
         };
