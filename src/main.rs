@@ -1,7 +1,7 @@
 //! The `ffstream` command. Kept thin: parse (clap, in `cli`), build validated settings,
 //! call the library. Exit codes: 0 success; 1 failure (one-line cause on stderr);
-//! 2 usage error; 3 `verify` found problems; 128 + N `compute` stopped cleanly by
-//! signal N (SIGINT 130, SIGTERM 143).
+//! 2 usage error; 3 `verify` found problems; 128 + N `compute` or `run` stopped
+//! cleanly by signal N (SIGINT 130, SIGTERM 143).
 
 mod cli;
 

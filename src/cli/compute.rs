@@ -18,7 +18,7 @@ use ffstream::patch::PatchSet;
 use ffstream::scene::{self, Scene};
 #[cfg(feature = "mpi")]
 use ffstream::service::ServiceError;
-use ffstream::service::{ComputeJob, ComputeReport};
+use ffstream::service::{interrupt, ComputeJob, ComputeReport};
 
 use super::choices::{
     number, top_k_tail, MethodArg, PresetArg, RowsArg, ScheduleArg, SymmetricArg, TopKSearchArg,
@@ -635,12 +635,13 @@ pub(super) fn execute(
 /// An embedded run, stopped cleanly by SIGINT or SIGTERM while it computes
 /// ([`ffstream::service::interrupt`]).
 fn embedded(job: &ComputeJob) -> anyhow::Result<ComputeReport> {
-    use ffstream::service::interrupt;
-    interrupt::catch_signals().context("cannot install the SIGINT/SIGTERM handler")?;
-    let report = ffstream::service::embedded::run_embedded(job);
-    interrupt::release();
+    let report = interrupt::while_computing(|| ffstream::service::embedded::run_embedded(job))
+        .context(HANDLER)?;
     Ok(report?)
 }
+
+/// Why a run could not start: installing the signal handler failed.
+const HANDLER: &str = "cannot install the SIGINT/SIGTERM handler";
 
 /// How long a failed rank waits for rank 0 to abort the job (it takes milliseconds:
 /// rank 0 finishes the file first) before leaving on its own.
@@ -669,13 +670,8 @@ fn execute_mpi(input: &SceneInput, output: PathBuf, o: &ComputeOptions) -> anyho
         if o.gather {
             run_gather(&ctx, &job)
         } else {
-            use ffstream::service::interrupt;
-            interrupt::catch_signals().map_err(|e| {
-                ServiceError::Transport(format!("cannot install the SIGINT/SIGTERM handler: {e}"))
-            })?;
-            let result = run(&ctx, &job);
-            interrupt::release();
-            result
+            interrupt::while_computing(|| run(&ctx, &job))
+                .map_err(|e| ServiceError::Transport(format!("{HANDLER}: {e}")))?
         }
     });
     match result {
@@ -738,12 +734,16 @@ fn scene_for_rank(input: &SceneInput, rank: i32) -> SceneInput {
 /// [`ServiceError::Interrupted`]: ffstream::service::ServiceError::Interrupted
 pub(super) fn stopped_by_signal(e: anyhow::Error) -> anyhow::Result<ExitCode> {
     match e.downcast_ref::<ffstream::service::ServiceError>() {
-        Some(&ffstream::service::ServiceError::Interrupted { signal }) => {
-            super::say(&format!("ffstream: {e}"));
-            Ok(ExitCode::from(128u8.saturating_add(signal as u8)))
-        }
+        Some(&ffstream::service::ServiceError::Interrupted { signal }) => Ok(stopped(signal)),
         _ => Err(e),
     }
+}
+
+/// Says that `signal` stopped the run and gives its exit code, 128 + the signal.
+pub(super) fn stopped(signal: i32) -> ExitCode {
+    let e = ffstream::service::ServiceError::Interrupted { signal };
+    super::say(&format!("ffstream: {e}"));
+    ExitCode::from(128u8.saturating_add(signal as u8))
 }
 
 pub(super) fn run(a: ComputeArgs) -> anyhow::Result<ExitCode> {

@@ -7,7 +7,7 @@ use std::process::ExitCode;
 use clap::Args;
 
 use super::choices::{RowsArg, SolverArg};
-use super::compute::{execute, stopped_by_signal, ComputeOptions, Outcome};
+use super::compute::{execute, stopped, stopped_by_signal, ComputeOptions, Outcome};
 use super::render::{render_to, ViewOptions};
 use super::solve::{solve_file, SolveOptions};
 use super::SceneInput;
@@ -52,7 +52,7 @@ pub(super) fn run(mut a: RunArgs) -> anyhow::Result<ExitCode> {
     // A signal that came as the last rows were written: the file is complete, but
     // the user asked to stop before the solve.
     if let Some(signal) = ffstream::service::interrupt::interrupted() {
-        return stopped_by_signal(ffstream::service::ServiceError::Interrupted { signal }.into());
+        return Ok(stopped(signal));
     }
     eprintln!("{}", report.summary());
     eprintln!("ffstream: wrote {}", ffz.display());

@@ -1095,6 +1095,11 @@ impl Run<'_, '_> {
     }
 }
 
+/// The point of triangle `t` with barycentric coordinates `b`.
+fn barycentric(t: &[DVec3; 3], b: [f64; 3]) -> DVec3 {
+    b[0] * t[0] + b[1] * t[1] + b[2] * t[2]
+}
+
 /// One triangle of the outer rule with its degree-8 estimate and that estimate's error.
 #[derive(Clone, Copy, Debug)]
 struct Cell {
@@ -1114,11 +1119,10 @@ impl Run<'_, '_> {
     fn cell(&mut self, t: [DVec3; 3], s: &mut ShadowScratch) -> Option<Cell> {
         let area = 0.5 * (t[1] - t[0]).cross(t[2] - t[0]).length();
         let p = self.pair;
-        let at = |b: [f64; 3]| b[0] * t[0] + b[1] * t[1] + b[2] * t[2];
         let (mut high, mut low, mut dark_free) = (0.0, 0.0, true);
         for (k, (b, w)) in LAURIE.into_iter().enumerate() {
             let g = blocked_at(
-                at(b),
+                barycentric(&t, b),
                 p.ni,
                 &self.receiver,
                 self.loose,
@@ -1147,11 +1151,10 @@ impl Run<'_, '_> {
     /// between them). Asked only when such a triangle goes into the open list: the
     /// first triangles of a lit cell ([`Run::start`]) never need it.
     fn could_hold(&self, c: &Cell) -> f64 {
-        let (t, p) = (c.t, self.pair);
-        let at = |b: [f64; 3]| b[0] * t[0] + b[1] * t[1] + b[2] * t[2];
+        let p = self.pair;
         let lit_max = LAURIE
             .iter()
-            .map(|&(b, _)| point_polygon(at(b), p.ni, p.pj.verts()))
+            .map(|&(b, _)| point_polygon(barycentric(&c.t, b), p.ni, p.pj.verts()))
             .fold(0.0f64, f64::max);
         2.0 * c.area * lit_max
     }

@@ -1,7 +1,7 @@
 //! A clean stop on SIGINT or SIGTERM: a batch system's time limit (Slurm sends SIGTERM,
 //! then SIGKILL after its grace period) or Ctrl-C.
 //!
-//! After [`catch_signals`], the first of these signals only sets a flag. The compute
+//! While [`while_computing`] runs its work, the first of these signals only sets a flag. The compute
 //! threads then take no new row and hand over the rows they have finished; the I/O
 //! master hands out no more work, writes what it received and closes the file with its
 //! index, as after a failed worker; the run ends with [`super::ServiceError::Interrupted`],
@@ -17,8 +17,8 @@
 //! later. If only workers are signalled, rank 0 finds rows missing at the end and says
 //! so (an error, not a complete file).
 //!
-//! A signal that is ignored when [`catch_signals`] is called (SIGINT for a job started
-//! in the background of a non-interactive shell) stays ignored.
+//! A signal that is ignored when the work starts (SIGINT for a job started in the
+//! background of a non-interactive shell) stays ignored.
 
 use std::sync::atomic::{AtomicI32, Ordering};
 
@@ -78,12 +78,23 @@ extern "C" fn on_signal(signal: libc::c_int) {
     }
 }
 
-/// Installs the handler for SIGINT and SIGTERM (see the module documentation). Call it
-/// once, before the run; a no-op where there are no such signals.
+/// Runs `work` with the handler in place (see the module documentation): installed
+/// before, and the signals given their default action back after ([`release`]), so a
+/// later phase, such as `run`'s solve, stops on Ctrl-C at once again. A signal caught
+/// during `work` stays recorded ([`interrupted`]).
 ///
 /// # Errors
-/// sigaction(2) failed (it should not).
-pub fn catch_signals() -> std::io::Result<()> {
+/// sigaction(2) failed (it should not); `work` has not run.
+pub fn while_computing<T>(work: impl FnOnce() -> T) -> std::io::Result<T> {
+    catch_signals()?;
+    let done = work();
+    release();
+    Ok(done)
+}
+
+/// Installs the handler for SIGINT and SIGTERM; a no-op where there are no such
+/// signals.
+fn catch_signals() -> std::io::Result<()> {
     #[cfg(unix)]
     for (k, &signal) in CAUGHT.iter().enumerate() {
         // SAFETY: sigaction(2) with a zeroed struct whose handler is an extern "C" fn
@@ -114,10 +125,8 @@ pub fn catch_signals() -> std::io::Result<()> {
     Ok(())
 }
 
-/// Gives the signals [`catch_signals`] caught their default action back (after the
-/// run: a later phase, such as `run`'s solve, stops on Ctrl-C at once again). A signal
-/// already recorded stays recorded ([`interrupted`]).
-pub fn release() {
+/// Gives the signals [`catch_signals`] caught their default action back.
+fn release() {
     #[cfg(unix)]
     for (k, &signal) in CAUGHT.iter().enumerate() {
         if INSTALLED[k].swap(false, Ordering::Relaxed) {

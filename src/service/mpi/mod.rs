@@ -205,11 +205,6 @@ pub fn agree_on_job(
     }
 }
 
-/// Run the streaming service on every rank. Rank 0 returns its report; workers return
-/// `None`.
-///
-/// # Errors
-/// As the embedded service; on rank 0 the caller prints the cause and aborts the job.
 /// Rank 0: the file is closed; lets the workers finalise (they wait for this word).
 fn finish_workers(ctx: &MpiContext) {
     let nothing: [u8; 0] = [];
@@ -220,6 +215,13 @@ fn finish_workers(ctx: &MpiContext) {
     }
 }
 
+/// Run the streaming service on every rank. Rank 0 returns its report; workers return
+/// `None`.
+///
+/// # Errors
+/// As the embedded service; on rank 0 the caller prints the cause and aborts the job
+/// (except after a stop by a signal, [`ServiceError::Interrupted`], where every rank
+/// has stopped and the workers are already let go).
 pub fn run(ctx: &MpiContext, job: &ComputeJob) -> Result<Option<ComputeReport>, ServiceError> {
     let world = &ctx.world;
     let root = world.process_at_rank(0);
