@@ -82,7 +82,7 @@ pub(crate) fn rank_pids(mpirun_pid: u32, ranks: usize) -> Vec<(u32, usize)> {
 }
 
 /// `verify A --against B` exits 0: every row present and bitwise identical.
-fn assert_same(a: &Path, b: &Path, what: &str) {
+pub(crate) fn assert_same(a: &Path, b: &Path, what: &str) {
     let v = ffstream(&["verify", path_str(a), "--against", path_str(b)]);
     assert_eq!(
         v.status.code(),
@@ -93,7 +93,7 @@ fn assert_same(a: &Path, b: &Path, what: &str) {
     );
 }
 
-fn output_text(o: &Output) -> String {
+pub(crate) fn output_text(o: &Output) -> String {
     format!(
         "{}\n{}",
         String::from_utf8_lossy(&o.stdout),

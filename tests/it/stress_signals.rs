@@ -17,7 +17,9 @@ use crate::common::{
     exe, ffstream, kill_tree_and_wait, mpirun, need_mpi, ok, output_of_within, path_str,
     resumed_counts, Within,
 };
-use crate::stress_faults::{compute_args as args, rank_pids, SCENE};
+use crate::stress_faults::{
+    assert_same, compute_args as args, output_text as text, rank_pids, SCENE,
+};
 
 /// `compute` with `args(out, extra)`, stopped by itself (SIGSTOP) at row 300.
 fn stopped_run(out: &Path, extra: &[&str]) -> Child {
@@ -35,14 +37,20 @@ fn stopped_at_row_300(args: &[&str]) -> Child {
         .stderr(Stdio::piped())
         .spawn()
         .expect("cannot start ffstream");
+    let pid = child.id();
+    await_stop(&mut child, &[pid]);
+    child
+}
+
+/// Waits until one of `pids` (`child` or processes under it) has stopped itself at row
+/// 300; past 60 s, or when `child` ends first, kills it and everything under it and
+/// fails.
+fn await_stop(child: &mut Child, pids: &[u32]) {
     let t0 = Instant::now();
-    loop {
-        if is_stopped(child.id()) {
-            return child;
-        }
+    while !pids.iter().any(|&pid| is_stopped(pid)) {
         if t0.elapsed() > Duration::from_secs(60) || child.try_wait().unwrap().is_some() {
-            let _ = child.kill();
-            panic!("the run did not stop itself at row 300 within 60 s");
+            kill_tree_and_wait(child.id());
+            panic!("nothing stopped itself at row 300 within 60 s");
         }
         std::thread::sleep(Duration::from_millis(5));
     }
@@ -69,27 +77,34 @@ fn kill(pid: u32, signal: libc::c_int) {
     assert_eq!(unsafe { libc::kill(pid, signal) }, 0, "kill {signal}");
 }
 
-fn text(o: &std::process::Output) -> String {
-    format!(
-        "{}\n{}",
-        String::from_utf8_lossy(&o.stdout),
-        String::from_utf8_lossy(&o.stderr)
-    )
-}
-
-/// Resumes `part` and checks its rows against `full` (`verify --against`, exit 0: every
-/// row present, bitwise the same, and the file sound, its route record included).
+/// Resumes `part` and checks it against `full` ([`assert_resumed`]).
 fn resume_and_compare(part: &Path, full: &Path, extra: &[&str]) {
     let mut a = args(part, extra);
     a.push("--resume");
-    let stderr = ok(&a);
-    let (computed, present) = resumed_counts(&stderr);
+    assert_resumed(&ok(&a), part, full);
+}
+
+/// A resume (its stderr `said`) kept rows and computed others, and `part` now has the
+/// rows of `full` (`verify --against`, exit 0: every row present, bitwise the same, and
+/// the file sound, its route record included).
+fn assert_resumed(said: &str, part: &Path, full: &Path) {
+    let (computed, present) = resumed_counts(said);
     assert!(
         computed > 0 && present > 0,
         "computed {computed}, kept {present}"
     );
-    let v = ffstream(&["verify", path_str(part), "--against", path_str(full)]);
-    assert_eq!(v.status.code(), Some(0), "{}", text(&v));
+    assert_same(part, full, "resumed after a stop");
+}
+
+/// `part` was closed with its index: verify reads it without a scan, and names the
+/// rows still to do.
+fn assert_closed_and_indexed(part: &Path) {
+    let v = text(&ffstream(&["verify", path_str(part)]));
+    assert!(!v.contains("unusable") && !v.contains("scanning"), "{v}");
+    assert!(
+        v.contains("missing (finish them with compute --resume)"),
+        "{v}"
+    );
 }
 
 #[test]
@@ -113,14 +128,7 @@ fn a_signal_closes_the_file_with_its_index_and_resume_completes_it() {
                 && said.contains("--resume computes the rest"),
             "{said}"
         );
-        // Closed with its index: verify reads it without a scan, and names the rows
-        // still to do.
-        let v = text(&ffstream(&["verify", path_str(&part)]));
-        assert!(!v.contains("unusable") && !v.contains("scanning"), "{v}");
-        assert!(
-            v.contains("missing (finish them with compute --resume)"),
-            "{v}"
-        );
+        assert_closed_and_indexed(&part);
         // The pair counts cover exactly the rows in the file (full rows), or none (half
         // rows: those of unmerged blocks are computed again by the resume).
         let info = text(&ffstream(&["info", path_str(&part)]));
@@ -170,15 +178,14 @@ fn a_second_signal_stops_at_once_and_the_rows_written_are_kept() {
 fn a_signal_stops_run_before_the_solve_and_its_resume_finishes() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("run");
-    let run = |extra: &[&str]| {
+    let run = |extra: &[&'static str]| {
         let mut a = vec!["run"];
         a.extend_from_slice(SCENE);
         a.extend_from_slice(&["--out-dir", path_str(&out)]);
         a.extend_from_slice(extra);
-        a.into_iter().map(String::from).collect::<Vec<_>>()
+        a
     };
-    let first = run(&[]);
-    let child = stopped_at_row_300(&first.iter().map(String::as_str).collect::<Vec<_>>());
+    let child = stopped_at_row_300(&run(&[]));
     send(&child, libc::SIGINT);
     send(&child, libc::SIGCONT);
     let stopped = output_of_within(child, "run stopped by SIGINT");
@@ -188,8 +195,7 @@ fn a_signal_stops_run_before_the_solve_and_its_resume_finishes() {
         !out.join("image.png").exists(),
         "the solve ran after the stop"
     );
-    let resumed = run(&["--resume"]);
-    let stderr = ok(&resumed.iter().map(String::as_str).collect::<Vec<_>>());
+    let stderr = ok(&run(&["--resume"]));
     let (computed, present) = resumed_counts(&stderr);
     assert!(
         computed > 0 && present > 0,
@@ -217,40 +223,25 @@ fn under_mpirun_sigterm_to_every_rank_closes_the_file_and_resume_completes_it() 
         .stderr(Stdio::piped())
         .spawn()
         .unwrap();
-    let ranks = rank_pids(child.id(), 3);
-    let t0 = Instant::now();
-    while !ranks.iter().any(|&(pid, _)| is_stopped(pid)) {
-        if t0.elapsed() > Duration::from_secs(60) || child.try_wait().unwrap().is_some() {
-            kill_tree_and_wait(child.id());
-            panic!("no rank stopped itself at row 300 within 60 s");
-        }
-        std::thread::sleep(Duration::from_millis(5));
-    }
-    for &(pid, _) in &ranks {
+    let ranks: Vec<u32> = rank_pids(child.id(), 3)
+        .iter()
+        .map(|&(pid, _)| pid)
+        .collect();
+    await_stop(&mut child, &ranks);
+    for &pid in &ranks {
         kill(pid, libc::SIGTERM);
     }
-    for &(pid, _) in &ranks {
+    for &pid in &ranks {
         kill(pid, libc::SIGCONT);
     }
     let out = output_of_within(child, "mpirun, every rank given SIGTERM");
     let said = text(&out);
     assert_eq!(out.status.code(), Some(143), "{said}");
     assert!(said.contains("ffstream: stopped by SIGTERM:"), "{said}");
-    let v = text(&ffstream(&["verify", path_str(&part)]));
-    assert!(!v.contains("unusable") && !v.contains("scanning"), "{v}");
-    assert!(
-        v.contains("missing (finish them with compute --resume)"),
-        "{v}"
-    );
+    assert_closed_and_indexed(&part);
     let mut a = args(&part, &[]);
     a.push("--resume");
     let resumed = mpirun(2, &a).output_within("resume under mpirun -n 2");
     assert!(resumed.status.success(), "{}", text(&resumed));
-    let (computed, present) = resumed_counts(&String::from_utf8_lossy(&resumed.stderr));
-    assert!(
-        computed > 0 && present > 0,
-        "computed {computed}, kept {present}"
-    );
-    let v = ffstream(&["verify", path_str(&part), "--against", path_str(&full)]);
-    assert_eq!(v.status.code(), Some(0), "{}", text(&v));
+    assert_resumed(&String::from_utf8_lossy(&resumed.stderr), &part, &full);
 }
