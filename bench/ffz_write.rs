@@ -105,6 +105,7 @@ fn top_k(i: u32, v: &[f32], k: usize) -> Row {
             cols: idx,
         },
         dropped: dropped as f32,
+        links: Vec::new(),
     }
 }
 
@@ -255,6 +256,7 @@ fn main() {
         scene_hash: ps.content_hash(),
         created: "bench/ffz_write.rs".into(),
         patches: ps.clone(),
+        clusters: None,
     };
     let opts = WriterOptions::default();
 

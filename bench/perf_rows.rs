@@ -181,6 +181,7 @@ fn sparse(i: u32, entries: &[(u32, f64)]) -> Row {
             vals: entries.iter().map(|e| e.1 as f32).collect(),
         },
         dropped: 0.0,
+        links: Vec::new(),
     }
 }
 

@@ -44,6 +44,32 @@ pub struct RowFaults {
     pub first: Option<String>,
 }
 
+/// Whether a row's `dropped` (f32) is the sum `linked` of its links' values (f32 each,
+/// summed in f64), up to the rounding of both: the writer stores the f32 of the f64 sum.
+pub fn links_match_dropped(linked: f64, dropped: f32) -> bool {
+    (linked - f64::from(dropped)).abs() <= 1e-6 * linked.abs().max(f64::from(dropped).abs()) + 1e-30
+}
+
+/// One link of a sparse row to a cluster of patches (spec §5.7): the form factor from
+/// the row patch to the patches at positions `start .. start + len` of the file's
+/// cluster order that the row neither keeps as patch entries nor is itself.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Link {
+    /// First position in the cluster order.
+    pub start: u32,
+    /// Number of positions (≥ 1).
+    pub len: u32,
+    /// F from the row patch to the link's patches, together.
+    pub value: f32,
+}
+
+impl Link {
+    /// One past the last position.
+    pub fn end(&self) -> u64 {
+        u64::from(self.start) + u64::from(self.len)
+    }
+}
+
 /// One row of the form-factor matrix.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Row {
@@ -51,8 +77,12 @@ pub struct Row {
     pub index: u32,
     pub values: RowValues,
     /// Σ of the entries that top-k dropped (0 for dense rows). A reader that wants
-    /// "no light lost" scales the kept entries by (stored + dropped) / stored.
+    /// "no light lost" scales the kept entries by (stored + dropped) / stored. In a
+    /// file with links it is the sum of the links' values (spec §5.7).
     pub dropped: f32,
+    /// Where the dropped mass goes: links to clusters of patches, disjoint and in
+    /// ascending order (empty for rows of files without a cluster order).
+    pub links: Vec<Link>,
 }
 
 impl Row {
@@ -61,6 +91,7 @@ impl Row {
             index,
             values: RowValues::Dense(vals),
             dropped: 0.0,
+            links: Vec::new(),
         }
     }
 
@@ -69,6 +100,7 @@ impl Row {
             index,
             values: RowValues::Skipped,
             dropped: 0.0,
+            links: Vec::new(),
         }
     }
 
@@ -128,20 +160,49 @@ impl Row {
                 );
             }
         });
+        for (m, l) in self.links.iter().enumerate() {
+            let x = l.value;
+            if !x.is_finite() {
+                f.non_finite += 1;
+                note(&mut f, format!("link {m}'s value {x} is not finite"));
+            } else if x < 0.0 {
+                f.negative += 1;
+                note(&mut f, format!("link {m}'s value {x:e} is negative"));
+            } else if x > MAX_FORM_FACTOR {
+                f.too_large += 1;
+                note(
+                    &mut f,
+                    format!("link {m}'s value {x:e} is above {MAX_FORM_FACTOR}: not a form factor"),
+                );
+            }
+        }
         let d = self.dropped;
-        if !(d.is_finite() && (0.0..=MAX_FORM_FACTOR).contains(&d)) {
+        let linked: f64 = self.links.iter().map(|l| f64::from(l.value)).sum();
+        if !self.links.is_empty() && !links_match_dropped(linked, d) {
+            f.bad_dropped = true;
+            note(
+                &mut f,
+                format!("dropped mass {d:e} is not the sum of the row's links ({linked:e})"),
+            );
+        } else if !(d.is_finite() && (0.0..=MAX_FORM_FACTOR).contains(&d)) {
             f.bad_dropped = true;
             note(
                 &mut f,
                 format!("dropped mass {d:e} is not a finite number in [0, {MAX_FORM_FACTOR}]"),
             );
         } else if d > 0.0
+            && self.links.is_empty()
             && matches!(self.values, RowValues::Sparse { .. })
             && self.stored_sum() == 0.0
         {
             f.lost_mass = true;
         }
         f
+    }
+
+    /// The sum of the links' values, accumulated in f64.
+    pub fn linked_sum(&self) -> f64 {
+        self.links.iter().map(|l| f64::from(l.value)).sum()
     }
 
     /// The row as n dense values (zeros where nothing is stored).

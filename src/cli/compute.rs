@@ -100,6 +100,20 @@ pub(crate) struct ComputeOptions {
     /// accurate 256, reference exact).
     #[arg(long, value_name = "exact|N", value_parser = top_k_tail)]
     pub top_k_tail: Option<TopKTail>,
+    /// With --top-k or --min-ff and the tree search: the most links a row carries to
+    /// clusters of patches for the mass it does not keep (spec §5.7), so that a solver
+    /// puts that light where it goes; `off` stores it as one number per row, which the
+    /// solver can only pool (docs/numerics.md §8). Default: off for now (the Python
+    /// reader does not read links yet); 256 is a good count. Links need the cluster
+    /// order in the header, are left out with --symmetric on (half rows), and are
+    /// read by the gathering solvers (gauss-seidel, jacobi), not by shooting.
+    #[arg(long, value_name = "N|off", value_parser = links_arg)]
+    pub links: Option<LinksArg>,
+    /// With links: a cluster is split while the spread of the kernel over it exceeds
+    /// TOL times the row's total (0 < TOL < 1; default 1e-3): smaller gives more,
+    /// finer links up to --links.
+    #[arg(long, value_name = "TOL", value_parser = number::open_unit)]
+    pub link_tol: Option<f64>,
     /// Compute threads per process (embedded) or per worker rank (MPI), 1 to 4096.
     /// Default: all cores.
     #[arg(long, value_name = "T", value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=MAX_THREADS as u64))]
@@ -298,6 +312,10 @@ pub(super) fn build_job(
         scene_hash: patches.content_hash(),
         created: creation_info(),
         patches: (*patches).clone(),
+        clusters: match symmetric {
+            true => None,
+            false => RowEngine::cluster_order_of(&patches, &cfg),
+        },
     };
     Ok(ComputeJob {
         output,
@@ -441,6 +459,16 @@ fn form_factor_config(o: &ComputeOptions) -> anyhow::Result<FormFactorConfig> {
     if let Some(search) = o.top_k_search {
         cfg.top_k_search = search.into();
     }
+    if let Some(LinksArg(links)) = o.links {
+        cfg.links = links;
+    }
+    if let Some(tol) = o.link_tol {
+        cfg.link_tol = tol;
+    }
+    if o.symmetric == SymmetricArg::On {
+        // Half rows are cut to top-k after their merge, without the tree.
+        cfg.links = None;
+    }
     if let Some(tail) = o.top_k_tail {
         cfg.top_k_tail = tail;
     }
@@ -574,6 +602,21 @@ fn symmetric_mode(o: &ComputeOptions, cfg: &FormFactorConfig) -> anyhow::Result<
         (SymmetricArg::Off, _) | (SymmetricArg::Auto, true) => false,
         (SymmetricArg::Auto, false) => !cfg.sparse_rows() && halves_ok,
     })
+}
+
+/// `--links`: the most links a row carries, or none (`off`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct LinksArg(Option<u32>);
+
+/// `--links`: a count of at least 1, or `off`.
+fn links_arg(s: &str) -> Result<LinksArg, String> {
+    match s {
+        "off" => Ok(LinksArg(None)),
+        _ => match s.parse::<u32>() {
+            Ok(0) | Err(_) => Err(format!("{s} is not `off` or a count of at least 1")),
+            Ok(m) => Ok(LinksArg(Some(m))),
+        },
+    }
 }
 
 /// "ffstream VERSION, YYYY-MM-DD HH:MM:SS UTC, host HOST": for the file header.

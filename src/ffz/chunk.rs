@@ -8,7 +8,7 @@
 use super::error::{FfzError, Result};
 use super::meta::Layout;
 use super::spec::{self, ChunkHeaderV1, RowDirEntryV1};
-use crate::rows::{Row, RowValues};
+use crate::rows::{links_match_dropped, Link, Row, RowValues};
 
 /// Whether the writer byte-shuffles float and column arrays (spec §5.5). The spec
 /// records the measurement behind this choice.
@@ -107,9 +107,18 @@ pub fn raw_row_len(row: &Row) -> usize {
     spec::ROW_DIR_ENTRY_LEN
         + match &row.values {
             RowValues::Dense(v) => 4 * v.len(),
-            RowValues::Sparse { cols, .. } => 8 * cols.len(),
+            RowValues::Sparse { cols, .. } => 8 * cols.len() + links_len(row),
             RowValues::Skipped => 0,
         }
+}
+
+/// Bytes a row's links take after its patch entries (spec §5.7): none without links,
+/// else the count and 12 bytes a link.
+fn links_len(row: &Row) -> usize {
+    match row.links.len() {
+        0 => 0,
+        m => 4 + 12 * m,
+    }
 }
 
 pub(crate) fn check_row(row: &Row, layout: Layout, n: u32) -> Result<()> {
@@ -150,14 +159,49 @@ pub(crate) fn check_row(row: &Row, layout: Layout, n: u32) -> Result<()> {
             if let Some(w) = cols.windows(2).position(|w| w[0] >= w[1]) {
                 return bad(format!("columns not strictly ascending at entry {}", w + 1));
             }
-            match cols.last() {
-                Some(&c) if c >= n => bad(format!("column {c} ≥ n = {n}")),
-                _ => Ok(()),
+            if let Some(&c) = cols.last().filter(|&&c| c >= n) {
+                return bad(format!("column {c} ≥ n = {n}"));
+            }
+            match check_links(&row.links, n) {
+                Err(what) => bad(what),
+                Ok(())
+                    if !row.links.is_empty()
+                        && !links_match_dropped(row.linked_sum(), row.dropped) =>
+                {
+                    bad(format!(
+                        "dropped mass {:e} is not the sum of its links {:e}",
+                        row.dropped,
+                        row.linked_sum()
+                    ))
+                }
+                Ok(()) => Ok(()),
             }
         }
+        _ if !row.links.is_empty() => bad("links on a row that is not sparse".into()),
         (RowValues::Dense(_), Layout::TopK { .. }) => bad("dense row in a top-k file".into()),
         (RowValues::Sparse { .. }, Layout::Dense) => bad("sparse row in a dense file".into()),
     }
+}
+
+/// Spec §5.7: links non-empty, inside [0, n), ascending and disjoint.
+pub(crate) fn check_links(links: &[Link], n: u32) -> std::result::Result<(), String> {
+    let mut end = 0u64;
+    for (m, l) in links.iter().enumerate() {
+        if l.len == 0 {
+            return Err(format!("link {m} is empty"));
+        }
+        if u64::from(l.start) < end {
+            return Err(format!(
+                "link {m} starts at {} inside the previous link (which ends at {end})",
+                l.start
+            ));
+        }
+        end = l.end();
+        if end > u64::from(n) {
+            return Err(format!("link {m} ends at {end}, beyond n = {n}"));
+        }
+    }
+    Ok(())
 }
 
 /// Write `words` as 4-byte little-endian values, byte-shuffled when asked (spec §5.5:
@@ -231,7 +275,13 @@ pub(crate) fn encode_raw(
     for r in rows {
         let (flags, nnz) = match &r.values {
             RowValues::Dense(v) => (0, v.len() as u32),
-            RowValues::Sparse { cols, .. } => (spec::ROW_FLAG_SPARSE, cols.len() as u32),
+            RowValues::Sparse { cols, .. } if r.links.is_empty() => {
+                (spec::ROW_FLAG_SPARSE, cols.len() as u32)
+            }
+            RowValues::Sparse { cols, .. } => (
+                spec::ROW_FLAG_SPARSE | spec::ROW_FLAG_LINKS,
+                cols.len() as u32,
+            ),
             RowValues::Skipped => {
                 skipped.push(r.index);
                 (spec::ROW_FLAG_SKIPPED, 0)
@@ -244,7 +294,7 @@ pub(crate) fn encode_raw(
             dropped: r.dropped,
             offset,
         };
-        offset += e.data_len();
+        offset += e.data_len() + links_len(r) as u64;
         e.encode_into(&mut out);
     }
     for r in rows {
@@ -259,6 +309,9 @@ pub(crate) fn encode_raw(
                 });
                 put_words(&mut out, ExactLen(deltas, cols.len()), shuffle);
                 put_words(&mut out, vals.iter().map(|x| x.to_bits()), shuffle);
+                if !r.links.is_empty() {
+                    put_links(&mut out, &r.links, shuffle);
+                }
             }
             RowValues::Skipped => {}
         }
@@ -270,6 +323,43 @@ pub(crate) fn encode_raw(
         row_ids: rows.iter().map(|r| r.index).collect(),
         skipped,
     })
+}
+
+/// A row's links (spec §5.7): their count, then the starts as gaps (the first start,
+/// then each start less the previous link's end), the lengths and the values.
+fn put_links(out: &mut Vec<u8>, links: &[Link], shuffle: bool) {
+    out.extend_from_slice(&(links.len() as u32).to_le_bytes());
+    let gaps = links.iter().scan(0u32, |end, l| {
+        let gap = l.start - *end;
+        *end = l.start + l.len;
+        Some(gap)
+    });
+    put_words(out, ExactLen(gaps, links.len()), shuffle);
+    put_words(out, links.iter().map(|l| l.len), shuffle);
+    put_words(out, links.iter().map(|l| l.value.to_bits()), shuffle);
+}
+
+/// Inverse of [`put_links`] on the `12 m` bytes after the count `m`; checks the links
+/// against n (spec §5.7).
+fn get_links(src: &[u8], n: u32, shuffle: bool) -> std::result::Result<Vec<Link>, String> {
+    let m = src.len() / 12;
+    let gaps = get_words(&src[..4 * m], shuffle);
+    let lens = get_words(&src[4 * m..8 * m], shuffle);
+    let vals = get_words(&src[8 * m..], shuffle);
+    let mut links = Vec::with_capacity(m);
+    let mut end = 0u64;
+    for k in 0..m {
+        let start = end + u64::from(gaps[k]);
+        let l = Link {
+            start: u32::try_from(start).map_err(|_| format!("link {k} starts beyond n = {n}"))?,
+            len: lens[k],
+            value: f32::from_bits(vals[k]),
+        };
+        end = l.end();
+        links.push(l);
+    }
+    check_links(&links, n)?;
+    Ok(links)
 }
 
 /// An iterator with a known length (`Scan` does not report one).
@@ -353,11 +443,22 @@ impl DecodedChunk {
     /// chunk and offset).
     pub(crate) fn row(&self, e: &RowDirEntryV1, n: u32) -> std::result::Result<Row, String> {
         let shuffle = self.header.flags & spec::CHUNK_FLAG_SHUFFLED != 0;
-        let data = usize::try_from(e.offset)
-            .ok()
-            .and_then(|start| Some(start..start.checked_add(usize::try_from(e.data_len()).ok()?)?))
-            .and_then(|r| self.raw.get(r))
+        let all = e
+            .data_len_in(&self.raw, n)
+            .and_then(|len| usize::try_from(len).ok())
+            .and_then(|len| {
+                let start = usize::try_from(e.offset).ok()?;
+                self.raw.get(start..start.checked_add(len)?)
+            })
             .ok_or_else(|| format!("row {}: data out of bounds", e.row))?;
+        let (data, link_data) = all.split_at(e.data_len() as usize);
+        let links = match link_data.len() {
+            0 => Vec::new(),
+            4 => return Err(format!("row {}: the links flag with no link", e.row)),
+            _ => {
+                get_links(&link_data[4..], n, shuffle).map_err(|w| format!("row {}: {w}", e.row))?
+            }
+        };
         let values = if e.flags & spec::ROW_FLAG_SKIPPED != 0 {
             RowValues::Skipped
         } else if e.flags & spec::ROW_FLAG_SPARSE != 0 {
@@ -388,11 +489,21 @@ impl DecodedChunk {
                     .collect(),
             )
         };
-        Ok(Row {
+        let row = Row {
             index: e.row,
             values,
             dropped: e.dropped,
-        })
+            links,
+        };
+        if !row.links.is_empty() && !links_match_dropped(row.linked_sum(), row.dropped) {
+            return Err(format!(
+                "row {}: dropped mass {:e} is not the sum of its links {:e}",
+                e.row,
+                row.dropped,
+                row.linked_sum()
+            ));
+        }
+        Ok(row)
     }
 }
 
@@ -413,7 +524,7 @@ pub fn decode_record(
     let dir_len = h.row_count as u64 * spec::ROW_DIR_ENTRY_LEN as u64;
     // Bound the allocation by what the header can honestly claim (spec §5.2).
     let max_raw =
-        (h.row_count as u64).saturating_mul(spec::ROW_DIR_ENTRY_LEN as u64 + 8 * n as u64);
+        (h.row_count as u64).saturating_mul(spec::ROW_DIR_ENTRY_LEN as u64 + 4 + 20 * n as u64);
     if h.raw_len < dir_len || h.raw_len > max_raw || h.row_count > n {
         return Err((
             16,
@@ -453,7 +564,10 @@ pub fn decode_record(
         if e.row >= n {
             return Err(bad(&format!("row id ≥ n = {n}")));
         }
-        if e.flags & !(spec::ROW_FLAG_SKIPPED | spec::ROW_FLAG_SPARSE) != 0 {
+        if e.flags & spec::ROW_FLAG_LINKS != 0 && e.flags & spec::ROW_FLAG_SPARSE == 0 {
+            return Err(bad("links on a row that is not sparse"));
+        }
+        if e.flags & !(spec::ROW_FLAG_SKIPPED | spec::ROW_FLAG_SPARSE | spec::ROW_FLAG_LINKS) != 0 {
             return Err(bad(&format!("unknown row flags {:#x}", e.flags)));
         }
         if skipped
@@ -478,7 +592,9 @@ pub fn decode_record(
         if e.offset != next {
             return Err(bad(&format!("data offset {} (expected {next})", e.offset)));
         }
-        next += e.data_len();
+        next += e
+            .data_len_in(&raw, n)
+            .ok_or_else(|| bad("link count beyond the payload or above n"))?;
         entries.push(e);
     }
     if next != h.raw_len {
@@ -535,6 +651,7 @@ mod tests {
                     vals: vec![0.5, 0.25, 1e-30],
                 },
                 dropped: 0.125,
+                links: Vec::new(),
             },
             Row::skipped(1),
             Row {
@@ -544,6 +661,7 @@ mod tests {
                     vals: vec![],
                 },
                 dropped: 0.0,
+                links: Vec::new(),
             },
         ];
         let layout = Layout::TopK { k: 3 };
@@ -568,6 +686,7 @@ mod tests {
                 cols,
             },
             dropped: 0.0,
+            links: Vec::new(),
         };
         let cases: Vec<(Row, Layout)> = vec![
             (Row::dense(0, vec![1.0; 3]), dense),
@@ -581,6 +700,7 @@ mod tests {
             (
                 Row {
                     dropped: f32::NAN,
+                    links: Vec::new(),
                     ..Row::skipped(0)
                 },
                 dense,

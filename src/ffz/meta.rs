@@ -61,6 +61,9 @@ pub struct FileMeta {
     /// Creation info (time, program version, host), free text.
     pub created: String,
     pub patches: PatchSet,
+    /// The cluster order of a file whose rows link to clusters (spec §4.3): a
+    /// permutation of the patches, in which every cluster is a range of positions.
+    pub clusters: Option<Vec<u32>>,
 }
 
 impl FileMeta {
@@ -127,10 +130,24 @@ pub(crate) fn encode_meta(meta: &FileMeta, zstd_level: i32) -> Result<Vec<u8>, s
         body.extend_from_slice(&len32(g, "group name")?.to_le_bytes());
         body.extend_from_slice(g.as_bytes());
     }
+    if let Some(order) = &meta.clusters {
+        if !meta.layout.is_sparse() {
+            return Err(InvalidMeta(
+                "a cluster order without the top-k layout".into(),
+            ));
+        }
+        check_cluster_order(order, n).map_err(InvalidMeta)?;
+        for &p in order {
+            body.extend_from_slice(&p.to_le_bytes());
+        }
+    }
     let meta_crc = spec::crc(&body);
     body.extend_from_slice(&meta_crc.to_le_bytes());
     let header = HeaderV1 {
-        flags: 0,
+        flags: match meta.clusters {
+            Some(_) => spec::HEADER_FLAG_CLUSTERS,
+            None => 0,
+        },
         n,
         layout,
         k,
@@ -145,6 +162,26 @@ pub(crate) fn encode_meta(meta: &FileMeta, zstd_level: i32) -> Result<Vec<u8>, s
     out.extend_from_slice(&header.encode());
     out.extend_from_slice(&body);
     Ok(out)
+}
+
+/// Spec §4.3: the cluster order holds every patch index below n exactly once.
+pub(crate) fn check_cluster_order(order: &[u32], n: u32) -> Result<(), String> {
+    if order.len() != n as usize {
+        return Err(format!("cluster order of {} patches, n = {n}", order.len()));
+    }
+    let mut seen = vec![false; n as usize];
+    for (k, &p) in order.iter().enumerate() {
+        match seen.get_mut(p as usize) {
+            None => {
+                return Err(format!(
+                    "cluster order position {k} holds patch {p} ≥ n = {n}"
+                ))
+            }
+            Some(true) => return Err(format!("cluster order holds patch {p} twice")),
+            Some(s) => *s = true,
+        }
+    }
+    Ok(())
 }
 
 /// Decode the fixed header from the first 64 bytes. `Err` holds (offset, reason); magic
@@ -241,6 +278,21 @@ pub(crate) fn decode_meta(bytes: &[u8], header: &HeaderV1) -> Result<FileMeta, s
         let len = r.u32().ok_or((off, format!("group {g} name cut short")))?;
         groups.push(string(&mut r, len, "group name")?);
     }
+    let clusters = match header.flags & spec::HEADER_FLAG_CLUSTERS {
+        0 => None,
+        _ => {
+            let off = at(&r);
+            let bytes = r
+                .take(4 * header.n as usize)
+                .ok_or((off, "cluster order cut short".to_string()))?;
+            let order: Vec<u32> = bytes
+                .chunks_exact(4)
+                .map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+                .collect();
+            check_cluster_order(&order, header.n).map_err(|w| (off, w))?;
+            Some(order)
+        }
+    };
     if r.pos() != body.len() {
         return Err((
             at(&r),
@@ -271,5 +323,6 @@ pub(crate) fn decode_meta(bytes: &[u8], header: &HeaderV1) -> Result<FileMeta, s
         scene_hash: header.scene_hash,
         created,
         patches: PatchSet { patches, groups },
+        clusters,
     })
 }

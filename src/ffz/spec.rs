@@ -51,6 +51,11 @@ pub(crate) const CHUNK_FLAG_SHUFFLED: u32 = 1;
 pub const ROW_FLAG_SKIPPED: u32 = 1;
 /// Row flag (spec §5.3): sparse row (columns + values); clear for dense rows.
 pub const ROW_FLAG_SPARSE: u32 = 2;
+/// Row directory flag (§5.7): the sparse row's data goes on with links to clusters.
+pub const ROW_FLAG_LINKS: u32 = 4;
+/// Header flag (§3.1, §4.3): the meta block holds a cluster order and rows may link to
+/// clusters of it (§5.7). Only with the top-k layout.
+pub const HEADER_FLAG_CLUSTERS: u32 = 1;
 
 /// Row state code in the index row table (spec §6).
 pub(crate) const STATE_MISSING: u32 = 0;
@@ -113,7 +118,7 @@ impl<'a> Le<'a> {
 pub struct HeaderV1 {
     // 0: magic [8] = FILE_MAGIC
     // 8: version u32 = 1
-    /// 12: flags u32; no flag is defined in version 1, so it must be 0.
+    /// 12: flags u32: `HEADER_FLAG_CLUSTERS` or 0.
     pub(crate) flags: u32,
     /// 16: n u32, the number of patches = rows = columns.
     pub n: u32,
@@ -187,8 +192,11 @@ impl HeaderV1 {
                 ),
             ));
         }
-        if flags != 0 {
+        if flags & !HEADER_FLAG_CLUSTERS != 0 {
             return Err((12, format!("unknown header flags {flags:#x}")));
+        }
+        if flags & HEADER_FLAG_CLUSTERS != 0 && layout != LAYOUT_TOPK {
+            return Err((12, "a cluster order without the top-k layout".into()));
         }
         match layout {
             LAYOUT_DENSE if k != 0 => return Err((24, format!("dense layout with k = {k}"))),
@@ -378,7 +386,7 @@ impl ChunkHeaderV1 {
 pub struct RowDirEntryV1 {
     /// 0: row u32, the row index i.
     pub row: u32,
-    /// 4: flags u32 (`ROW_FLAG_SKIPPED`, `ROW_FLAG_SPARSE`).
+    /// 4: flags u32 (`ROW_FLAG_SKIPPED`, `ROW_FLAG_SPARSE`, `ROW_FLAG_LINKS`).
     pub flags: u32,
     /// 8: nnz u32, values stored (n for dense, 0 for skipped).
     pub nnz: u32,
@@ -418,7 +426,22 @@ impl RowDirEntryV1 {
         }
     }
 
-    /// Bytes of row data this entry describes (spec §5.4).
+    /// Bytes of row data this entry describes inside `raw`, the decompressed payload:
+    /// [`RowDirEntryV1::data_len`], plus for a row with links (§5.7) the link count
+    /// and the links, whose count is read from the payload. `None` when that count
+    /// lies beyond the payload or cannot be a count of disjoint ranges of `n` positions.
+    pub(crate) fn data_len_in(&self, raw: &[u8], n: u32) -> Option<u64> {
+        let entries = self.data_len();
+        if self.flags & ROW_FLAG_LINKS == 0 {
+            return Some(entries);
+        }
+        let at = usize::try_from(self.offset.checked_add(entries)?).ok()?;
+        let m = u32::from_le_bytes(raw.get(at..at.checked_add(4)?)?.try_into().ok()?);
+        (m <= n).then(|| entries + 4 + 12 * u64::from(m))
+    }
+
+    /// Bytes of row data of the entry's patch entries (spec §5.4); a row with links has
+    /// its links after them (§5.7, [`RowDirEntryV1::data_len_in`]).
     pub(crate) fn data_len(&self) -> u64 {
         if self.flags & ROW_FLAG_SKIPPED != 0 {
             0

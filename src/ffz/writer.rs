@@ -785,6 +785,7 @@ mod tests {
             scene_hash: patches.content_hash(),
             created: String::new(),
             patches,
+            clusters: None,
         }
     }
 

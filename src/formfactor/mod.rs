@@ -140,7 +140,21 @@ pub struct FormFactorConfig {
     /// `contour` with [`Visibility::Exact`]: target error of an entry's blocked part,
     /// relative to the entry's unoccluded value.
     pub shadow_tol: f64,
+    /// Sparse rows of the tree search: the most links to clusters of patches a row
+    /// carries for the mass it does not keep (`engine/links.rs`, spec §5.7); `None`:
+    /// that mass is one number per row (the solver pools it).
+    pub links: Option<u32>,
+    /// With `links`: a cluster is opened into its two halves while the spread of the
+    /// kernel over it (an estimate of the mass a link to it would misplace) exceeds
+    /// this fraction of the row's total.
+    pub link_tol: f64,
 }
+
+/// Most links a sparse row carries when links are asked for without a count (the
+/// presets store no links yet: the Python reader does not read them).
+pub const DEFAULT_LINKS: u32 = 256;
+/// Default link tolerance ([`FormFactorConfig::link_tol`]).
+pub const DEFAULT_LINK_TOL: f64 = 1e-3;
 
 /// How `contour` finds what the occluders take away from a pair that may be occluded.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
@@ -227,6 +241,8 @@ impl FormFactorConfig {
             quad_tol: 1e-6,
             visibility: Visibility::Rays,
             shadow_tol: 1e-2,
+            links: None,
+            link_tol: DEFAULT_LINK_TOL,
         }
     }
 
@@ -250,6 +266,8 @@ impl FormFactorConfig {
             quad_tol: 1e-8,
             visibility: Visibility::Rays,
             shadow_tol: 1e-3,
+            links: None,
+            link_tol: DEFAULT_LINK_TOL,
         }
     }
 
@@ -271,6 +289,8 @@ impl FormFactorConfig {
             quad_tol: 1e-13,
             visibility: Visibility::Exact,
             shadow_tol: 1e-6,
+            links: None,
+            link_tol: DEFAULT_LINK_TOL,
         }
     }
 
@@ -371,6 +391,12 @@ impl FormFactorConfig {
         if !(self.shadow_tol > 0.0 && self.shadow_tol <= 0.1) {
             return bad(format!("shadow_tol {} outside (0, 0.1]", self.shadow_tol));
         }
+        if self.links == Some(0) {
+            return bad("links must be at least 1 (or none)".into());
+        }
+        if !(self.link_tol > 0.0 && self.link_tol <= 1.0) {
+            return bad(format!("link_tol {} outside (0, 1]", self.link_tol));
+        }
         if self.top_k_tail == TopKTail::Sampled(0) {
             return bad("top_k_tail sample count must be at least 1".into());
         }
@@ -382,6 +408,19 @@ impl FormFactorConfig {
             );
         }
         Ok(())
+    }
+
+    /// Whether sparse rows are found by the tree search (which links need).
+    pub(crate) fn searches_tree(&self) -> bool {
+        self.sparse_rows()
+            && self.method == Method::Contour
+            && self.top_k_search == TopKSearch::Tree
+            && matches!(self.top_k_tail, TopKTail::Sampled(_))
+    }
+
+    /// Whether the rows carry links to clusters (spec §5.7).
+    pub fn links_rows(&self) -> bool {
+        self.searches_tree() && self.links.is_some()
     }
 
     /// `key=value` pairs of every parameter that changes the numbers.

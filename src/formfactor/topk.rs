@@ -56,6 +56,7 @@ pub(crate) fn top_k_row(
         index,
         values: RowValues::Sparse { cols, vals },
         dropped: dropped as f32,
+        links: Vec::new(),
     }
 }
 

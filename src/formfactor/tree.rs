@@ -140,6 +140,8 @@ pub(crate) struct PatchTree {
     nodes: Vec<Node>,
     /// Patch indices, each leaf's ascending.
     order: Vec<u32>,
+    /// The inverse of `order` (u32::MAX for patches outside the tree).
+    pos: Vec<u32>,
     /// The engine's plane tolerance (a patch whose corners are all within it of i's
     /// plane, or behind, faces away) and the rounding allowance of plane distances,
     /// in length units.
@@ -157,6 +159,7 @@ impl PatchTree {
         let mut tree = PatchTree {
             nodes: Vec::with_capacity(2 * order.len() / LEAF_PATCHES + 1),
             order: Vec::new(),
+            pos: Vec::new(),
             plane_tol,
             slack,
         };
@@ -164,8 +167,18 @@ impl PatchTree {
             let n = order.len();
             tree.build(geom, &mut order, 0, n);
         }
+        tree.pos = vec![u32::MAX; geom.len()];
+        for (k, &j) in order.iter().enumerate() {
+            tree.pos[j as usize] = k as u32;
+        }
         tree.order = order;
         tree
+    }
+
+    /// Where patch `j` stands in [`PatchTree::cluster_order`] (`None` for a patch
+    /// outside the tree).
+    pub(crate) fn position(&self, j: u32) -> Option<u32> {
+        self.pos.get(j as usize).copied().filter(|&p| p != u32::MAX)
     }
 
     /// The root (node 0), if any patch is valid.
@@ -181,6 +194,22 @@ impl PatchTree {
     #[cfg(test)]
     pub(crate) fn len(&self) -> usize {
         self.nodes.len()
+    }
+
+    /// The cluster order of a linked file (spec §4.3): the valid patches in tree order,
+    /// so that node `id`'s patches are positions `range(id)`, then the others ascending.
+    pub(crate) fn cluster_order(&self, n: usize) -> Vec<u32> {
+        let mut in_tree = vec![false; n];
+        for &j in &self.order {
+            in_tree[j as usize] = true;
+        }
+        let rest = (0..n as u32).filter(|&j| !in_tree[j as usize]);
+        self.order.iter().copied().chain(rest).collect()
+    }
+
+    /// The positions of node `id`'s patches in [`PatchTree::cluster_order`].
+    pub(crate) fn range(&self, id: u32) -> (u32, u32) {
+        self.node(id).range
     }
 
     /// Every patch under node `id` (in tree order; a leaf's ascending).

@@ -77,6 +77,7 @@ fn rows_of_bucket(bucket: &[(u32, u32, f32)], base: u32, len: u32) -> Vec<Row> {
                     vals: Vec::with_capacity(count),
                 },
                 dropped: 0.0,
+                links: Vec::new(),
             });
         }
     }

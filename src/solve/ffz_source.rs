@@ -44,4 +44,8 @@ impl RowSource for FfzReader {
     fn may_drop(&self) -> bool {
         self.layout() != crate::ffz::Layout::Dense
     }
+
+    fn cluster_order(&self) -> Option<&[u32]> {
+        self.meta().clusters.as_deref()
+    }
 }

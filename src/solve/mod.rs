@@ -48,6 +48,7 @@ mod error;
 mod ffz_source;
 mod gauss_seidel;
 mod jacobi;
+mod links;
 mod output;
 mod pool;
 mod rowview;
@@ -289,6 +290,16 @@ pub fn solve(
         )));
     }
     let mut sys = System::new(src.patches(), emission_sets, rho, cfg.dropped)?;
+    sys.prepare_links(src);
+    if sys.links.is_some() && cfg.method == SolveMethod::Shooting {
+        // Shooting reads row i as where i's light lands, which is the gathering rows'
+        // transpose only for reciprocal rows: a link spreads its mass by area over the
+        // cluster, which is the gather's model, not the shot's.
+        return Err(SolveError::InvalidInput(
+            "this file's rows link to clusters of patches (spec §5.7), which gathering              solvers read: use --solver gauss-seidel (the default) or jacobi"
+                .into(),
+        ));
+    }
     let pool_passes = sys.prepare_pool(src)?;
     let mut it = match cfg.method {
         SolveMethod::Jacobi => jacobi::run(&sys, src, cfg)?,

@@ -187,6 +187,7 @@ mod tests {
                 vals: vec![val],
             },
             dropped: 1.0 - val,
+            links: Vec::new(),
         };
         let rows = vec![row(0, 1, 0.6), row(1, 0, 0.6), row(2, 0, 0.5)];
         let rho = vec![[0.5f32; 3]; 3];

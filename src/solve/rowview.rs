@@ -27,6 +27,10 @@ pub(crate) enum Entries<'r> {
 pub(crate) struct RowView<'r> {
     pub(crate) index: u32,
     pub(crate) entries: Entries<'r>,
+    /// The row's links to clusters (spec §5.7; empty for rows without), with the
+    /// cluster order and the patch areas that give them their patches.
+    pub(crate) links: &'r [crate::rows::Link],
+    pub(crate) space: Option<(&'r super::links::LinkSpace, &'r [f64])>,
     /// Factor applied to every stored entry (1 unless renormalising a top-k row).
     pub(crate) scale: f64,
     /// Dropped mass that the scale cannot put back (a row that stores nothing), when
@@ -85,7 +89,8 @@ impl<'r> RowView<'r> {
         }
         let mut scale = 1.0;
         let mut lost = 0.0;
-        if renormalize && row.dropped > 0.0 {
+        // A row with links places its dropped mass itself: nothing to scale.
+        if renormalize && row.dropped > 0.0 && row.links.is_empty() {
             let stored = row.stored_sum();
             // A row whose kept entries sum to 0 has nowhere to put the dropped light:
             // it stays as stored and the solve reports the light lost.
@@ -98,6 +103,8 @@ impl<'r> RowView<'r> {
         Ok(Some(RowView {
             index: row.index,
             entries,
+            links: &row.links,
+            space: None,
             scale,
             lost,
             dropped: f64::from(row.dropped.max(0.0)),
@@ -209,7 +216,20 @@ impl<'r> RowView<'r> {
                 }
             }
         }
+        if let (false, Some((space, area)), Entries::Sparse(cols, _)) =
+            (self.links.is_empty(), self.space, self.entries)
+        {
+            space.expand(self.links, self.index, cols, area, f);
+        }
         Ok(())
+    }
+
+    /// The cols of the kept entries (empty for dense rows).
+    pub(crate) fn cols(&self) -> &'r [u32] {
+        match self.entries {
+            Entries::Sparse(cols, _) => cols,
+            Entries::Dense(_) => &[],
+        }
     }
 
     /// The value of column `j` (0 when not stored). Dense rows only answer in O(1);
@@ -245,6 +265,7 @@ mod tests {
                 vals: vec![0.25, 0.5],
             },
             dropped: 0.25,
+            links: Vec::new(),
         };
         let v = RowView::new(&row, 4, true, true).unwrap().unwrap();
         assert!((v.scale - 1.0 / 0.75).abs() < 1e-15);
@@ -289,6 +310,7 @@ mod tests {
                 vals: vec![0.5],
             },
             dropped: 0.0,
+            links: Vec::new(),
         };
         let v = RowView::new(&far, 3, true, true).unwrap().unwrap();
         let mut acc = vec![0.0; 3];

@@ -42,6 +42,11 @@ pub trait RowSource {
     fn may_drop(&self) -> bool {
         true
     }
+
+    /// The cluster order the rows' links name ranges of (spec §4.3), if they link.
+    fn cluster_order(&self) -> Option<&[u32]> {
+        None
+    }
 }
 
 /// Rows held in memory, in the order given (that order is the "file order" of
@@ -52,6 +57,8 @@ pub struct MemoryRows {
     rows: Vec<Row>,
     /// `position[i]` = index into `rows` of row `i`.
     position: Vec<Option<usize>>,
+    /// The cluster order of linked rows.
+    clusters: Option<Vec<u32>>,
 }
 
 impl MemoryRows {
@@ -80,7 +87,14 @@ impl MemoryRows {
             patches,
             rows,
             position,
+            clusters: None,
         })
+    }
+
+    /// The same rows with the cluster order their links name ranges of.
+    pub fn with_clusters(mut self, order: Option<Vec<u32>>) -> Self {
+        self.clusters = order;
+        self
     }
 
     /// The rows, in scan order.
@@ -113,6 +127,10 @@ impl RowSource for MemoryRows {
 
     fn may_drop(&self) -> bool {
         self.rows.iter().any(|r| r.dropped != 0.0)
+    }
+
+    fn cluster_order(&self) -> Option<&[u32]> {
+        self.clusters.as_deref()
     }
 }
 

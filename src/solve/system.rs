@@ -39,6 +39,8 @@ pub(crate) struct System {
     /// Rows seen that store nothing but have dropped mass (their light cannot be
     /// kept, spec §5.6), by row: their dropped mass (0: none, or not seen).
     lost_mass: Vec<std::sync::atomic::AtomicU32>,
+    /// The cluster order of a source whose rows link to clusters (spec §5.7).
+    pub(crate) links: Option<super::links::LinkSpace>,
     /// Rows whose values have been checked ([`crate::rows::Row::faults`]): the rows of
     /// a source do not change between sweeps, so each is checked the first time only.
     checked: Vec<std::sync::atomic::AtomicBool>,
@@ -128,6 +130,7 @@ impl System {
             dark,
             dropped,
             pool: None,
+            links: None,
             lost_mass: (0..n)
                 .map(|_| std::sync::atomic::AtomicU32::new(0))
                 .collect(),
@@ -152,6 +155,21 @@ impl System {
             }
         }
         p
+    }
+}
+
+/// What a sweep's gathers need of the current radiosity besides each row's entries.
+pub(crate) struct Ambient {
+    /// The pool's β per column.
+    pub(crate) pool: Vec<f64>,
+    /// Prefix sums over the cluster order of A·b, for links (`links.rs`).
+    prefix: Option<Vec<f64>>,
+}
+
+impl std::ops::Index<usize> for Ambient {
+    type Output = f64;
+    fn index(&self, c: usize) -> &f64 {
+        &self.pool[c]
     }
 }
 
@@ -300,7 +318,7 @@ impl System {
     /// An index out of range, a row seen twice in the sweep, a Skipped row, a malformed
     /// row.
     pub(crate) fn gather_view<'r>(
-        &self,
+        &'r self,
         row: &'r crate::rows::Row,
         presence: &mut Presence,
         patches: &PatchSet,
@@ -317,7 +335,7 @@ impl System {
     }
 
     pub(crate) fn view<'r>(
-        &self,
+        &'r self,
         row: &'r crate::rows::Row,
     ) -> Result<Option<super::rowview::RowView<'r>>, SolveError> {
         let first_look = self
@@ -325,7 +343,16 @@ impl System {
             .get(row.index as usize)
             .is_none_or(|c| !c.swap(true, std::sync::atomic::Ordering::Relaxed));
         let scale = self.dropped == DroppedMass::Scale;
-        let view = super::rowview::RowView::new(row, self.n, scale, first_look)?;
+        let mut view = super::rowview::RowView::new(row, self.n, scale, first_look)?;
+        if let Some(v) = &mut view {
+            if !v.links.is_empty() {
+                let space = self.links.as_ref().ok_or_else(|| SolveError::BadRow {
+                    row: row.index,
+                    message: "the row links to clusters but the source has no cluster order".into(),
+                })?;
+                v.space = Some((space, &self.area));
+            }
+        }
         if let Some(v) = &view {
             if v.lost > 0.0 {
                 if let Some(slot) = self.lost_mass.get(row.index as usize) {
@@ -342,18 +369,30 @@ impl System {
     /// # Errors
     /// As [`Pool::measure`].
     pub(crate) fn prepare_pool(&mut self, src: &dyn RowSource) -> Result<usize, SolveError> {
-        if self.dropped != DroppedMass::Pool || !src.may_drop() {
+        if self.dropped != DroppedMass::Pool || !src.may_drop() || self.links.is_some() {
             return Ok(0);
         }
         self.pool = Some(Pool::measure(self, src)?);
         Ok(1)
     }
 
-    /// The pool's β for radiosity `b` (zeros without a pool).
-    pub(crate) fn beta(&self, b: &[f64]) -> Vec<f64> {
-        match &self.pool {
-            Some(p) => p.beta(b, self.m),
-            None => vec![0.0; self.m],
+    /// With a source whose rows link to clusters, the cluster order's gathering data
+    /// (`links.rs`).
+    pub(crate) fn prepare_links(&mut self, src: &dyn RowSource) {
+        self.links = src
+            .cluster_order()
+            .map(|order| super::links::LinkSpace::new(order, &self.area));
+    }
+
+    /// What every row's gather needs of radiosity `b` beyond its own entries: the
+    /// pool's β (zeros without a pool) and the prefix sums of the links.
+    pub(crate) fn beta(&self, b: &[f64]) -> Ambient {
+        Ambient {
+            pool: match &self.pool {
+                Some(p) => p.beta(b, self.m),
+                None => vec![0.0; self.m],
+            },
+            prefix: self.links.as_ref().map(|l| l.prefix(b, &self.area, self.m)),
         }
     }
 
@@ -367,12 +406,24 @@ impl System {
         &self,
         view: &super::rowview::RowView<'_>,
         b: &[f64],
-        beta: &[f64],
+        beta: &Ambient,
         acc: &mut [f64],
     ) -> Result<f64, SolveError> {
-        let abs_sum = view.gather(b, self.m, acc)?;
-        if self.pool.is_some() && view.dropped > 0.0 {
-            for (a, x) in acc.iter_mut().zip(beta) {
+        let mut abs_sum = view.gather(b, self.m, acc)?;
+        if let (false, Some(space), Some(prefix)) =
+            (view.links.is_empty(), &self.links, &beta.prefix)
+        {
+            abs_sum += space.gather(
+                view.links,
+                view.index,
+                view.cols(),
+                b,
+                &self.area,
+                prefix,
+                acc,
+            );
+        } else if self.pool.is_some() && view.dropped > 0.0 {
+            for (a, x) in acc.iter_mut().zip(&beta.pool) {
                 *a += view.dropped * x;
             }
         }

@@ -36,6 +36,7 @@ fn sparse_with(bad: Row) -> Vec<Row> {
                     vals: vec![0.25, 0.5],
                 },
                 dropped: 0.125,
+                links: Vec::new(),
             }
         })
         .collect()
@@ -61,6 +62,7 @@ fn sparse(vals: [f32; 2], dropped: f32) -> Row {
             vals: vals.to_vec(),
         },
         dropped,
+        links: Vec::new(),
     }
 }
 
@@ -207,6 +209,7 @@ fn a_row_storing_nothing_but_dropped_mass_is_reported_by_verify_and_solve() {
             vals: vec![],
         },
         dropped: 0.375,
+        links: Vec::new(),
     };
     let f = build(
         tmp.path(),

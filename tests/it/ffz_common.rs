@@ -56,6 +56,7 @@ pub(crate) fn meta(layout: Layout, patches: PatchSet) -> FileMeta {
         scene_hash: patches.content_hash(),
         created: "test".into(),
         patches,
+        clusters: None,
     }
 }
 
@@ -100,6 +101,7 @@ pub(crate) fn row(seed: u64, i: u32, n: u32, layout: Layout) -> Row {
                 index: i,
                 values: RowValues::Sparse { cols, vals },
                 dropped: if empty { 0.0 } else { r.next_f32() * 1e-3 },
+                links: Vec::new(),
             }
         }
     }

@@ -75,6 +75,7 @@ fn spec_rows(lines: &[String]) -> Vec<Row> {
                             vals: t[v + 1..d].iter().map(|x| x.parse().unwrap()).collect(),
                         },
                         dropped: t[d + 1].parse().unwrap(),
+                        links: Vec::new(),
                     }
                 }
                 other => panic!("unknown row kind {other}"),
@@ -132,6 +133,7 @@ fn example(n3: bool) -> (FileMeta, Vec<Vec<Row>>) {
             index: i,
             values: RowValues::Sparse { cols, vals },
             dropped,
+            links: Vec::new(),
         };
         let chunks = vec![
             vec![sparse(2, vec![0], vec![0.5], 0.125), Row::skipped(1)],
@@ -161,6 +163,7 @@ fn meta(layout: Layout, patches: PatchSet) -> FileMeta {
         scene_hash: patches.content_hash(),
         created: "2026-01-01T00:00:00Z ffstream golden example".into(),
         patches,
+        clusters: None,
     }
 }
 

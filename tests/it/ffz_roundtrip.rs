@@ -67,6 +67,7 @@ fn empty_rows_and_n_one() {
                 vals: vec![],
             },
             dropped: 0.0,
+            links: Vec::new(),
         },
         Row {
             index: 0,
@@ -75,6 +76,7 @@ fn empty_rows_and_n_one() {
                 vals: vec![0.5],
             },
             dropped: 0.25,
+            links: Vec::new(),
         },
     ];
     write(&p, &m, &rows, 1);

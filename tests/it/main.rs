@@ -12,6 +12,7 @@ mod ffz_python;
 mod ffz_roundtrip;
 mod ffz_tools;
 mod formfactor;
+mod links;
 mod mpi;
 mod pipeline;
 mod render;

@@ -27,6 +27,7 @@ fn cube_file(path: &std::path::Path) -> ffstream::patch::PatchSet {
         scene_hash: patches.content_hash(),
         created: "test".into(),
         patches: (*patches).clone(),
+        clusters: None,
     };
     let mut w = FfzWriter::create(path, &meta, WriterOptions::default()).unwrap();
     let mut scratch = Scratch::default();

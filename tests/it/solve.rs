@@ -125,6 +125,7 @@ fn ring_rows(n: usize, keep: Option<usize>) -> (Vec<Row>, f64) {
                 index: i as u32,
                 values: RowValues::Sparse { cols, vals },
                 dropped: dropped as f32,
+                links: Vec::new(),
             }
         })
         .collect();
@@ -824,6 +825,7 @@ fn sphere_top_50(n: usize, seed: u64) -> (Vec<f64>, Vec<usize>, MemoryRows) {
                     .collect(),
             },
             dropped: dropped as f32,
+            links: Vec::new(),
         })
         .collect();
     let src = source(&areas, rows);
@@ -904,6 +906,7 @@ fn the_pooled_solve_solves_the_documented_matrix_and_conserves_power() {
                 index: i as u32,
                 values: RowValues::Sparse { cols, vals },
                 dropped: (1.0 - stored) as f32,
+                links: Vec::new(),
             }
         })
         .collect();

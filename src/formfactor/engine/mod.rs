@@ -36,9 +36,7 @@ use super::scratch::{Counters, PairScratch};
 use super::shadow::{Caster, ShadowScratch};
 use super::solids::{Solids, NO_SOLID};
 use super::tree::PatchTree;
-use super::{
-    mc, point, topk, visibility, FormFactorConfig, Method, TopKSearch, TopKTail, Visibility,
-};
+use super::{mc, point, topk, visibility, FormFactorConfig, Method, TopKTail, Visibility};
 use crate::geometry::occluders::{
     Between, Occluders, MAX_PAIR_CANDIDATES, MAX_REJECTED_CANDIDATES, RAY_EPSILON,
 };
@@ -173,25 +171,12 @@ impl RowEngine {
     pub fn new(patches: &PatchSet, occluders: Arc<Occluders>, cfg: FormFactorConfig) -> Self {
         let geom: Vec<PatchGeom> = patches.patches.iter().map(PatchGeom::new).collect();
         let valid: Vec<bool> = geom.iter().map(PatchGeom::is_valid).collect();
-        let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
-        for g in &geom {
-            for c in g.poly.verts() {
-                lo = lo.min(*c);
-                hi = hi.max(*c);
-            }
-        }
-        let diag = if geom.is_empty() {
-            1.0
-        } else {
-            (hi - lo).length()
-        };
+        let (diag, magnitude) = extent(&geom);
         let clusters = if occluders.is_empty() {
             None
         } else {
             Clusters::new(&geom, &valid, diag, occluders.is_foreign())
         };
-        // Rounding of plane distances grows with the coordinates' magnitude too.
-        let magnitude = lo.abs().max(hi.abs()).max_element();
         let params = cfg.contour_params();
         let occluders_len = occluders.len();
         let cfg_visibility = cfg.visibility;
@@ -200,11 +185,9 @@ impl RowEngine {
         let span = diag.max(occluders.diagonal());
         let hide_margin = 4.0 * RAY_EPSILON * span;
         let bound_slack = 1e-12 * diag + 1e-14 * magnitude;
-        let tree = (cfg.sparse_rows()
-            && cfg.method == Method::Contour
-            && cfg.top_k_search == TopKSearch::Tree
-            && matches!(cfg.top_k_tail, TopKTail::Sampled(_)))
-        .then(|| PatchTree::new(&geom, &valid, tol, bound_slack));
+        let tree = cfg
+            .searches_tree()
+            .then(|| PatchTree::new(&geom, &valid, tol, bound_slack));
         let solids = if cfg_visibility == Visibility::Exact {
             let tris: Vec<[DVec3; 3]> = (0..occluders_len as u32)
                 .map(|k| occluders.world_triangle(k))
@@ -271,6 +254,35 @@ impl RowEngine {
         self
     }
 
+    /// The cluster order of the file when the rows link to clusters (spec §4.3): the
+    /// patches in the order of the tree the rows' links name ranges of. The same for
+    /// every engine of the same patches and settings, and what
+    /// [`RowEngine::cluster_order_of`] gives without building one.
+    pub fn cluster_order(&self) -> Option<Vec<u32>> {
+        match (&self.tree, self.cfg.links) {
+            (Some(tree), Some(_)) => Some(tree.cluster_order(self.n())),
+            _ => None,
+        }
+    }
+
+    /// [`RowEngine::cluster_order`] of an engine with `cfg` over `patches`, without
+    /// building the engine (rank 0 writes it into the header and computes no row).
+    pub fn cluster_order_of(patches: &PatchSet, cfg: &FormFactorConfig) -> Option<Vec<u32>> {
+        if !(cfg.searches_tree() && cfg.links.is_some()) {
+            return None;
+        }
+        let geom: Vec<PatchGeom> = patches.patches.iter().map(PatchGeom::new).collect();
+        let valid: Vec<bool> = geom.iter().map(PatchGeom::is_valid).collect();
+        let (diag, magnitude) = extent(&geom);
+        let tree = PatchTree::new(
+            &geom,
+            &valid,
+            PLANE_RELATIVE_TOLERANCE * diag,
+            1e-12 * diag + 1e-14 * magnitude,
+        );
+        Some(tree.cluster_order(geom.len()))
+    }
+
     /// Number of patches (rows and columns).
     pub fn n(&self) -> usize {
         self.geom.len()
@@ -302,7 +314,13 @@ impl RowEngine {
                     (crate::formfactor::TopKSearch::Tree, false) => "tree-walk",
                     (crate::formfactor::TopKSearch::Exhaustive, _) => "sampled",
                 };
-                format!(" dropped_mass={how}:{t}")
+                match (cfg.links, cfg.top_k_search) {
+                    (Some(m), crate::formfactor::TopKSearch::Tree) => format!(
+                        " dropped_mass=links:{t} links={m} link_tol={:e}",
+                        cfg.link_tol
+                    ),
+                    _ => format!(" dropped_mass={how}:{t}"),
+                }
             }
             (true, ..) => " dropped_mass=exact".to_string(),
         };
@@ -724,7 +742,24 @@ struct Unoccluded {
 
 mod closure;
 mod exact;
+mod links;
 #[cfg(test)]
 mod tests;
 mod topk_bounded;
 mod topk_tree;
+
+/// The diagonal of the patches' bounding box (1 without patches) and the largest
+/// magnitude of a coordinate (the rounding of plane distances grows with it).
+fn extent(geom: &[PatchGeom]) -> (f64, f64) {
+    let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
+    for g in geom {
+        for c in g.poly.verts() {
+            lo = lo.min(*c);
+            hi = hi.max(*c);
+        }
+    }
+    if geom.is_empty() {
+        return (1.0, 0.0);
+    }
+    ((hi - lo).length(), lo.abs().max(hi.abs()).max_element())
+}

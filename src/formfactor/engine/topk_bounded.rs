@@ -235,6 +235,8 @@ pub(super) struct Kept {
     k: usize,
     eps: f64,
     dropped: f64,
+    /// With links: the columns pushed out or below `eps`, with their final values.
+    pub(super) out: Option<Vec<(u32, f64)>>,
 }
 
 impl Kept {
@@ -245,7 +247,14 @@ impl Kept {
             k,
             eps,
             dropped: 0.0,
+            out: None,
         }
+    }
+
+    /// The same, recording the columns that do not stay (for links).
+    pub(super) fn recording(mut self) -> Self {
+        self.out = Some(Vec::new());
+        self
     }
 
     /// What a final value must reach to enter: `eps`, and once k are kept the smallest
@@ -276,12 +285,18 @@ impl Kept {
     pub(super) fn offer(&mut self, j: u32, value: f64) {
         if value < self.eps {
             self.dropped += value;
+            if let Some(out) = &mut self.out {
+                out.push((j, value));
+            }
             return;
         }
         self.heap.push(Reverse((value.to_bits(), Reverse(j))));
         if self.heap.len() > self.k {
-            if let Some(Reverse((bits, _))) = self.heap.pop() {
+            if let Some(Reverse((bits, Reverse(c)))) = self.heap.pop() {
                 self.dropped += f64::from_bits(bits);
+                if let Some(out) = &mut self.out {
+                    out.push((c, f64::from_bits(bits)));
+                }
             }
         }
     }
@@ -289,6 +304,12 @@ impl Kept {
     /// Row i of the kept entries (columns ascending; entries whose visibility came out
     /// 0 carry no mass and stay out), dropped = pushed out + `tail`.
     pub(super) fn into_row(self, i: u32, tail: f64) -> Row {
+        self.into_linked_row(i, tail, Vec::new())
+    }
+
+    /// As [`Kept::into_row`], with the row's `links`: when there are any, dropped is
+    /// the sum of their values (spec §5.7) and `tail` is not used.
+    pub(super) fn into_linked_row(self, i: u32, tail: f64, links: Vec<crate::rows::Link>) -> Row {
         let mut kept: Vec<(u32, f32)> = self
             .heap
             .into_iter()
@@ -302,7 +323,11 @@ impl Kept {
                 cols: kept.iter().map(|&(j, _)| j).collect(),
                 vals: kept.iter().map(|&(_, v)| v).collect(),
             },
-            dropped: (self.dropped + tail) as f32,
+            dropped: match links.is_empty() {
+                true => (self.dropped + tail) as f32,
+                false => links.iter().map(|l| f64::from(l.value)).sum::<f64>() as f32,
+            },
+            links,
         }
     }
 }

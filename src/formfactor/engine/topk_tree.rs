@@ -172,7 +172,7 @@ impl Shade {
 /// A tail item of the estimate: an evaluated column that needs rays, or an unopened
 /// node.
 #[derive(Clone, Copy, Debug)]
-enum Tail {
+pub(super) enum Tail {
     Column(u32, f64),
     Node(u32, f64),
 }
@@ -184,11 +184,18 @@ impl RowEngine {
         &self,
         tree: &PatchTree,
         i: u32,
-        mut kept: Kept,
+        kept: Kept,
         t: usize,
         scratch: &mut Scratch,
     ) -> Row {
         scratch.start_row(i);
+        let links = self.cfg.links.map(|m| m as usize);
+        let mut kept = match links {
+            Some(_) => kept.recording(),
+            None => kept,
+        };
+        // With links: the tail columns that need no visibility, with their values.
+        let mut exact_columns: Vec<(u32, f64)> = Vec::new();
         let Some(root) = tree.root().filter(|_| self.valid[i as usize]) else {
             return kept.into_row(i, 0.0);
         };
@@ -239,6 +246,9 @@ impl RowEngine {
                                 tail.push(Tail::Column(j, u.f));
                             } else {
                                 exact_tail += u.f;
+                                if links.is_some() {
+                                    exact_columns.push((j, u.f));
+                                }
                             }
                             continue;
                         }
@@ -264,6 +274,12 @@ impl RowEngine {
                 .map(|id| Tail::Node(id, tree.bound(id, &row).guess)),
         );
         let known = kept.known_mass() + exact_tail;
+        if let Some(max) = links {
+            let mut exact = kept.out.take().unwrap_or_default();
+            exact.extend(exact_columns);
+            let links = self.row_links(tree, i, &row, t, max, known, &exact, &tail, scratch);
+            return kept.into_linked_row(i, 0.0, links);
+        }
         let tail_mass = exact_tail + self.tree_tail_mass(tree, i, &row, t, &tail, known, scratch);
         kept.into_row(i, tail_mass)
     }
@@ -475,7 +491,7 @@ impl RowEngine {
 
     /// One walk down from node `id` to a column j (module docs): F_ij / p_j, 0 when the
     /// walk finds no column with a positive bound.
-    fn node_sample(
+    pub(super) fn node_sample(
         &self,
         tree: &PatchTree,
         mut id: u32,
