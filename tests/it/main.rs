@@ -26,6 +26,7 @@ mod stress_corrupt;
 mod stress_faults;
 mod stress_fuzz;
 mod stress_geom;
+mod stress_limits;
 mod stress_numeric;
 mod stress_props;
 mod stress_resume;
