@@ -30,3 +30,26 @@ fn more_than_256_threads_complete_a_run() {
     let v = ffstream(&["verify", path_str(&out)]);
     assert!(v.status.success(), "{}", String::from_utf8_lossy(&v.stdout));
 }
+
+/// `--stall-seconds 1e300` and `--flush-seconds 1e20` passed the old checks (finite
+/// and positive) and then panicked turning the number into a `Duration` (limit about 1.8e19 s).
+/// Every duration option is now bounded where it is read: a usage error naming it.
+#[test]
+fn durations_beyond_what_a_timer_holds_are_usage_errors() {
+    for arg in [
+        "--stall-seconds=1e300",
+        "--stall-seconds=2e19",
+        "--stall-seconds=inf",
+        "--flush-seconds=1e20",
+        "--flush-seconds=1e300",
+    ] {
+        let o = ffstream(&["compute", "builtin:cube", "-o", "/dev/null", arg]);
+        let stderr = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{arg}: {stderr}");
+        let option = arg.split('=').next().unwrap();
+        assert!(
+            stderr.contains(option) && stderr.contains("1e9"),
+            "{arg}: should name the option and its range: {stderr}"
+        );
+    }
+}
