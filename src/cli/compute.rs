@@ -746,7 +746,23 @@ pub(super) fn stopped(signal: i32) -> ExitCode {
     ExitCode::from(128u8.saturating_add(signal as u8))
 }
 
+/// The files a computation reads: the scene file and `--occluders`.
+pub(super) fn compute_inputs<'a>(
+    input: &'a SceneInput,
+    o: &'a ComputeOptions,
+) -> Vec<super::outputs::Named<'a>> {
+    let mut inputs = Vec::new();
+    if let Some(p) = super::outputs::scene_file(&input.scene) {
+        inputs.push(("SCENE", p));
+    }
+    if let Some(p) = &o.occluders {
+        inputs.push(("--occluders", p.as_path()));
+    }
+    inputs
+}
+
 pub(super) fn run(a: ComputeArgs) -> anyhow::Result<ExitCode> {
+    super::outputs::check(&compute_inputs(&a.input, &a.opts), &[("-o", &a.output)])?;
     let outcome = match execute(&a.input, a.output.clone(), &a.opts) {
         Err(e) => return stopped_by_signal(e),
         Ok(o) => o,

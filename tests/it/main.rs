@@ -30,4 +30,5 @@ mod stress_limits;
 mod stress_numeric;
 mod stress_props;
 mod stress_resume;
+mod stress_same_file;
 mod stress_signals;
