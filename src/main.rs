@@ -1,6 +1,6 @@
 //! The `ffstream` command. Kept thin: parse (clap, in `cli`), build validated settings,
 //! call the library. Exit codes: 0 success; 1 failure (one-line cause on stderr);
-//! 2 usage error; 3 `verify` found problems; 128 + N `compute` or `run` stopped
+//! 2 usage error (clap's, or a [`cli::Usage`] found later); 3 `verify` found problems; 128 + N `compute` or `run` stopped
 //! cleanly by signal N (SIGINT 130, SIGTERM 143).
 
 mod cli;
@@ -24,7 +24,12 @@ fn main() -> ExitCode {
                 .collect::<Vec<_>>()
                 .join(": ");
             eprintln!("ffstream: error: {line}");
-            ExitCode::from(1)
+            // A usage mistake found after parsing exits as clap's own do.
+            if e.chain().any(|c| c.is::<cli::Usage>()) {
+                ExitCode::from(2)
+            } else {
+                ExitCode::from(1)
+            }
         }
     }
 }

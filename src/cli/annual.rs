@@ -12,7 +12,7 @@ use ffstream::daylight::{
     glazing::Glazing,
     heatmap,
     report::{self, Metrics, Occupied},
-    scene::{grid_sensors, group_plane, read_sensors, scene_frame, SceneLight},
+    scene::{grid_sensors, group_plane, read_sensors, scene_frame, SceneLight, Sensor},
     weather, Site,
 };
 use ffstream::ffz::FfzReader;
@@ -206,6 +206,7 @@ pub(super) fn run(mut a: AnnualArgs) -> anyhow::Result<ExitCode> {
         (None, None) => anyhow::bail!("give --sensors FILE.csv or --grid GROUP:SPACING"),
     };
     std::fs::create_dir_all(&dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    check_files(&a, &dir, &sensors)?;
     let ffz = match &a.ffz {
         Some(f) => f.clone(),
         None => {
@@ -282,7 +283,7 @@ pub(super) fn run(mut a: AnnualArgs) -> anyhow::Result<ExitCode> {
     let when: Vec<(u32, u32)> = hours.iter().map(|h| (h.month, h.hour)).collect();
     let mut pictures = Vec::new();
     for (s, v) in sensors.iter().zip(&series) {
-        let path = dir.join(format!("heatmap_{}.png", file_safe(&s.name)));
+        let path = dir.join(heatmap_name(&s.name));
         let title = format!(
             "{}: illuminance, {:.2} N {:.2} E UTC{:+}, {}",
             s.name, w.site.latitude, w.site.longitude, w.site.time_zone, w.name
@@ -357,6 +358,46 @@ pub(super) fn run(mut a: AnnualArgs) -> anyhow::Result<ExitCode> {
         );
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// Refuse outputs that are inputs or each other ([`super::outputs`]): among them the
+/// heat maps of two sensors whose names become one file name (`a/b` and `a_b`).
+fn check_files(a: &AnnualArgs, dir: &std::path::Path, sensors: &[Sensor]) -> anyhow::Result<()> {
+    let mut inputs = super::compute::compute_inputs(&a.input, &a.compute);
+    for (option, path) in [
+        ("--weather", &a.weather),
+        ("--sensors", &a.sensors),
+        ("--ffz", &a.ffz),
+    ] {
+        if let Some(p) = path {
+            inputs.push((option, p.as_path()));
+        }
+    }
+    let mut outputs: Vec<(String, PathBuf)> = Vec::new();
+    if a.ffz.is_none() {
+        outputs.push(("form_factors.ffz".into(), dir.join("form_factors.ffz")));
+    }
+    outputs.push(("illuminance.csv".into(), dir.join("illuminance.csv")));
+    outputs.push(("metrics.csv".into(), dir.join("metrics.csv")));
+    if a.grid.is_some() {
+        outputs.push(("da_map.png".into(), dir.join("da_map.png")));
+    }
+    for s in sensors {
+        outputs.push((
+            format!("the heat map of sensor `{}`", s.name),
+            dir.join(heatmap_name(&s.name)),
+        ));
+    }
+    let named: Vec<_> = outputs
+        .iter()
+        .map(|(o, p)| (o.as_str(), p.as_path()))
+        .collect();
+    super::outputs::check(&inputs, &named)
+}
+
+/// The heat map file of sensor `name`.
+fn heatmap_name(name: &str) -> String {
+    format!("heatmap_{}.png", file_safe(name))
 }
 
 /// A sensor name as part of a file name: letters, digits, `-` and `_` kept, the rest `_`.

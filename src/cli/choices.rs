@@ -211,6 +211,29 @@ pub(crate) mod number {
         }
     }
 
+    /// Longest duration an option takes, in seconds: about 31.7 years. Far above any
+    /// run, and far below the 1.8e19 s where turning a number of seconds into a
+    /// `Duration` panics.
+    pub(crate) const MAX_SECONDS: f64 = 1e9;
+
+    /// A duration in seconds: a finite number ≥ 0, at most [`MAX_SECONDS`].
+    pub(crate) fn seconds(s: &str) -> Result<f64, String> {
+        match real(s)? {
+            x if (0.0..=MAX_SECONDS).contains(&x) => Ok(x),
+            x => Err(format!("{x} is not a duration from 0 to {MAX_SECONDS:e} s")),
+        }
+    }
+
+    /// A duration in seconds > 0, at most [`MAX_SECONDS`].
+    pub(crate) fn positive_seconds(s: &str) -> Result<f64, String> {
+        match real(s)? {
+            x if x > 0.0 && x <= MAX_SECONDS => Ok(x),
+            x => Err(format!(
+                "{x} is not a duration > 0 and at most {MAX_SECONDS:e} s"
+            )),
+        }
+    }
+
     /// A tolerance: a number in (0, 0.1].
     pub(crate) fn tolerance(s: &str) -> Result<f64, String> {
         match real(s)? {

@@ -160,14 +160,14 @@ pub(crate) struct ComputeOptions {
     #[arg(long, default_value_t = 1024, value_name = "KIB", value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=1 << 20))]
     pub chunk_kib: usize,
     /// Seconds after which a compute thread sends its pending rows even if its chunk is
-    /// not full (bounds the work a killed run loses). A finite number ≥ 0.
-    #[arg(long, default_value_t = 5.0, value_name = "SECONDS", value_parser = number::non_negative)]
+    /// not full (bounds the work a killed run loses). 0 to 1e9.
+    #[arg(long, default_value_t = 5.0, value_name = "SECONDS", value_parser = number::seconds)]
     pub flush_seconds: f64,
     /// MPI: rank 0 ends the job, keeping the rows written so far for --resume, when a
     /// worker rank has sent nothing for this many seconds (stopped by SIGSTOP, hung, its
     /// node lost). Quiet workers send a heartbeat every min(limit/4, 5 s), so a long row
-    /// is not silence. A finite number > 0.
-    #[arg(long, default_value_t = 600.0, value_name = "SECONDS", value_parser = number::positive)]
+    /// is not silence. A number > 0, at most 1e9.
+    #[arg(long, default_value_t = 600.0, value_name = "SECONDS", value_parser = number::positive_seconds)]
     pub stall_seconds: f64,
     /// Start even when the free disk is less than the file's size before compression
     /// (the plan printed first gives both; zstd may make the file fit, and a run that
@@ -789,7 +789,23 @@ pub(super) fn stopped(signal: i32) -> ExitCode {
     ExitCode::from(128u8.saturating_add(signal as u8))
 }
 
+/// The files a computation reads: the scene file and `--occluders`.
+pub(super) fn compute_inputs<'a>(
+    input: &'a SceneInput,
+    o: &'a ComputeOptions,
+) -> Vec<super::outputs::Named<'a>> {
+    let mut inputs = Vec::new();
+    if let Some(p) = super::outputs::scene_file(&input.scene) {
+        inputs.push(("SCENE", p));
+    }
+    if let Some(p) = &o.occluders {
+        inputs.push(("--occluders", p.as_path()));
+    }
+    inputs
+}
+
 pub(super) fn run(a: ComputeArgs) -> anyhow::Result<ExitCode> {
+    super::outputs::check(&compute_inputs(&a.input, &a.opts), &[("-o", &a.output)])?;
     let outcome = match execute(&a.input, a.output.clone(), &a.opts) {
         Err(e) => return stopped_by_signal(e),
         Ok(o) => o,

@@ -90,6 +90,16 @@ pub(super) fn export(a: ExportArgs) -> anyhow::Result<ExitCode> {
             "nothing to export: give --matrix F.mtx, --sparse F.txt, --npz F.npz and/or --patches-csv patches.csv"
         );
     }
+    let outputs: Vec<_> = [
+        ("--matrix", &a.matrix),
+        ("--sparse", &a.sparse),
+        ("--npz", &a.npz),
+        ("--patches-csv", &a.patches_csv),
+    ]
+    .into_iter()
+    .filter_map(|(o, p)| Some((o, p.as_deref()?)))
+    .collect();
+    super::outputs::check(&[("FILE", &a.file)], &outputs)?;
     let targets = ffstream::ffz::tools::ExportTargets {
         matrix: a.matrix.as_deref(),
         sparse: a.sparse.as_deref(),

@@ -5,6 +5,7 @@ mod annual;
 mod choices;
 mod compute;
 mod files;
+mod outputs;
 mod plan;
 mod render;
 mod run;
@@ -26,6 +27,20 @@ pub(crate) fn say(line: &str) {
     out.push('\n');
     let _ = std::io::stderr().lock().write_all(out.as_bytes());
 }
+
+/// A mistake on the command line found after clap's parse (an output that is an input,
+/// an option missing in this combination): `main` prints it as the one error line and
+/// exits 2, as clap does for its own usage errors.
+#[derive(Debug)]
+pub(crate) struct Usage(pub String);
+
+impl std::fmt::Display for Usage {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl std::error::Error for Usage {}
 
 #[derive(Parser, Debug)]
 #[command(

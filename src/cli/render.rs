@@ -134,6 +134,10 @@ pub(super) fn render_to(
 }
 
 pub(super) fn run(a: RenderArgs) -> anyhow::Result<ExitCode> {
+    super::outputs::check(
+        &[("FILE", &a.file), ("--radiosity", &a.radiosity)],
+        &[("-o", &a.output)],
+    )?;
     let reader = FfzReader::open(&a.file)?;
     let patches = reader.meta().patches.clone();
     let radiosity = ffstream::solve::read_radiosity_csv(&a.radiosity, patches.len())?;

@@ -40,6 +40,34 @@ pub(super) fn run(mut a: RunArgs) -> anyhow::Result<ExitCode> {
     std::fs::create_dir_all(&dir)
         .map_err(|e| anyhow::anyhow!("cannot create {}: {e}", dir.display()))?;
     let ffz = dir.join("form_factors.ffz");
+    let (csv, image, wireframe) = (
+        dir.join("radiosity.csv"),
+        dir.join("image.png"),
+        dir.join("wireframe.png"),
+    );
+    if a.solve.ply.is_none() {
+        a.solve.ply = Some(dir.join("lit.ply"));
+    }
+    // No output of the run may be one of its inputs (a scene kept in its own
+    // directory under an output's name) or another output (--ply image.png).
+    let mut inputs = super::compute::compute_inputs(&a.input, &a.compute);
+    inputs.extend(
+        super::solve::solve_inputs(&ffz, &a.solve)
+            .into_iter()
+            .skip(1),
+    );
+    let mut outputs = vec![
+        ("form_factors.ffz", ffz.as_path()),
+        ("radiosity.csv", csv.as_path()),
+        ("image.png", image.as_path()),
+    ];
+    if !a.view.wireframe {
+        outputs.push(("wireframe.png", wireframe.as_path()));
+    }
+    if let Some(ply) = &a.solve.ply {
+        outputs.push(("--ply", ply));
+    }
+    super::outputs::check(&inputs, &outputs)?;
     // `run` owns its directory: a rerun recomputes unless --resume is given.
     a.compute.force |= !a.compute.resume;
     // A gathering solve never reads rows of patches that neither reflect nor emit.
@@ -56,22 +84,11 @@ pub(super) fn run(mut a: RunArgs) -> anyhow::Result<ExitCode> {
     }
     eprintln!("{}", report.summary());
     eprintln!("ffstream: wrote {}", ffz.display());
-    if a.solve.ply.is_none() {
-        a.solve.ply = Some(dir.join("lit.ply"));
-    }
-    let csv = dir.join("radiosity.csv");
     let (solution, patches) = solve_file(&ffz, &csv, a.solver.into(), &a.solve)?;
     let radiosity = solution.radiosity_f32(0);
-    let image = dir.join("image.png");
     render_to(&patches, &radiosity, &image, &a.view, a.view.wireframe)?;
     if !a.view.wireframe {
-        render_to(
-            &patches,
-            &radiosity,
-            &dir.join("wireframe.png"),
-            &a.view,
-            true,
-        )?;
+        render_to(&patches, &radiosity, &wireframe, &a.view, true)?;
     }
     println!("picture: {}", image.display());
     Ok(ExitCode::SUCCESS)

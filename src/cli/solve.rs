@@ -111,6 +111,25 @@ pub(super) fn materials_from_scene(
     Ok((rho, emission))
 }
 
+/// The files a solve reads: the .ffz file, `--scene`'s file, `--emission`.
+pub(super) fn solve_inputs<'a>(
+    file: &'a Path,
+    o: &'a SolveOptions,
+) -> Vec<super::outputs::Named<'a>> {
+    let mut inputs = vec![("FILE", file)];
+    if let Some(p) = o
+        .materials_from
+        .as_deref()
+        .and_then(super::outputs::scene_file)
+    {
+        inputs.push(("--scene", p));
+    }
+    if let Some(p) = &o.emission {
+        inputs.push(("--emission", p));
+    }
+    inputs
+}
+
 /// Solve `file` and write the outputs; returns the solution and the patches.
 pub(super) fn solve_file(
     file: &Path,
@@ -134,6 +153,16 @@ pub(super) fn solve_file(
         Some(path) => solve::read_emission_cases(path, &patches)?,
         None => vec![own_emission],
     };
+    // Every output is known once the cases are: none may be an input or another.
+    let csvs: Vec<PathBuf> = (0..cases.len())
+        .map(|k| solve::case_path(output, k, cases.len()))
+        .collect();
+    let mut outputs: Vec<super::outputs::Named<'_>> =
+        csvs.iter().map(|p| ("-o", p.as_path())).collect();
+    if let Some(ply) = &o.ply {
+        outputs.push(("--ply", ply));
+    }
+    super::outputs::check(&solve_inputs(file, o), &outputs)?;
     let emits = |c: &Vec<[f32; 3]>| c.iter().any(|e| e.iter().any(|&x| x > 0.0));
     if !cases.iter().any(emits) {
         bail!(

@@ -507,6 +507,24 @@ impl DecodedChunk {
     }
 }
 
+/// Most a zstd payload can expand: a block holds at most 128 KiB and takes at least
+/// 4 bytes (a 3-byte block header and one byte of a run-length block), so no payload
+/// decompresses to more than 32768 times its size.
+const MAX_ZSTD_EXPANSION: u64 = 32_768;
+
+/// Decompress `payload`, reading at most `raw_len + 1` bytes out of it. Memory follows
+/// what actually comes out (the buffer starts at 64 MiB at most and grows), not the
+/// size a header declares, so a lie about it costs nothing.
+fn decompress_at_most(payload: &[u8], raw_len: u64) -> std::io::Result<Vec<u8>> {
+    use std::io::Read;
+    const FIRST: u64 = 64 << 20;
+    let mut raw = Vec::with_capacity(raw_len.min(FIRST) as usize);
+    zstd::stream::read::Decoder::with_buffer(payload)?
+        .take(raw_len.saturating_add(1))
+        .read_to_end(&mut raw)?;
+    Ok(raw)
+}
+
 /// Decompress and check the payload of a record that [`check_record`] accepted
 /// (spec §5.2 to §5.4): length and checksum of the raw bytes, then every directory
 /// entry against n, the layout and the canonical packing.
@@ -534,7 +552,31 @@ pub fn decode_record(
             ),
         ));
     }
-    let raw = zstd::bulk::decompress(payload, h.raw_len as usize)
+    // A declared size is not trusted before it is checked against the payload: the
+    // bound above lets a chunk of n rows of a large n claim 80 GB, and a forged header
+    // (checksums recomputed) made every reader abort allocating it (issue 48).
+    if let Ok(Some(declared)) = zstd::zstd_safe::get_frame_content_size(payload) {
+        if declared != h.raw_len {
+            return Err((
+                16,
+                format!(
+                    "raw length {} but the zstd frame declares {declared} bytes",
+                    h.raw_len
+                ),
+            ));
+        }
+    }
+    if h.raw_len > (payload.len() as u64).saturating_mul(MAX_ZSTD_EXPANSION) {
+        return Err((
+            16,
+            format!(
+                "raw length {} impossible for a payload of {} bytes (zstd expands at most {MAX_ZSTD_EXPANSION}-fold)",
+                h.raw_len,
+                payload.len()
+            ),
+        ));
+    }
+    let raw = decompress_at_most(payload, h.raw_len)
         .map_err(|e| here(format!("zstd payload does not decompress: {e}")))?;
     if raw.len() as u64 != h.raw_len {
         return Err(here(format!(

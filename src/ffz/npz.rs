@@ -31,18 +31,28 @@ fn is_device(path: &Path) -> bool {
     std::fs::metadata(path).is_ok_and(|m| !m.is_file())
 }
 
-/// Where the spill for an archive written to `npz` goes: `NAME.npz.spill` beside it,
-/// or, when `npz` exists and is no regular file (`/dev/stdout`, `/dev/full`),
-/// `ffstream-PID-NAME.spill` in the temporary directory (`TMPDIR`), not beside a device.
+/// Where the spill for an archive written to `npz` goes: `NAME.npz.PID-K.spill` beside
+/// it, or, when `npz` exists and is no regular file (`/dev/stdout`, `/dev/full`),
+/// `ffstream-PID-K-NAME.spill` in the temporary directory (`TMPDIR`), not beside a
+/// device. PID is this process and K counts the spills it made, so two exports to the
+/// same archive (two processes, or one process twice) never share a spill: with one
+/// name for all, each truncated and rewrote the other's entries (issue 48).
 pub(crate) fn spill_path(npz: &Path) -> PathBuf {
+    use std::sync::atomic::{AtomicU64, Ordering};
+    static MADE: AtomicU64 = AtomicU64::new(0);
+    let tag = format!(
+        "{}-{}",
+        std::process::id(),
+        MADE.fetch_add(1, Ordering::Relaxed)
+    );
     if is_device(npz) {
-        let mut name = std::ffi::OsString::from(format!("ffstream-{}-", std::process::id()));
+        let mut name = std::ffi::OsString::from(format!("ffstream-{tag}-"));
         name.push(npz.file_name().unwrap_or(npz.as_os_str()));
         name.push(".spill");
         return std::env::temp_dir().join(name);
     }
     let mut name = npz.as_os_str().to_owned();
-    name.push(".spill");
+    name.push(format!(".{tag}.spill"));
     PathBuf::from(name)
 }
 
@@ -323,20 +333,39 @@ fn npy_header(descr: &str, shape: &str) -> Vec<u8> {
 mod tests {
     use super::*;
 
-    /// Beside a file (existing or not); in the temporary directory for a device.
+    /// Beside a file (existing or not); in the temporary directory for a device; a
+    /// name of its own for every spill.
     #[test]
     fn the_spill_goes_beside_a_file_and_not_beside_a_device() {
         let dir = std::env::temp_dir().join(format!("ffs-spill-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
         let npz = dir.join("F.npz");
-        assert_eq!(spill_path(&npz), dir.join("F.npz.spill"));
+        let name = |p: &Path| p.file_name().unwrap().to_string_lossy().into_owned();
+        let pid = std::process::id();
+        let a = spill_path(&npz);
+        assert_eq!(a.parent(), Some(dir.as_path()));
+        assert!(name(&a).starts_with(&format!("F.npz.{pid}-")), "{a:?}");
+        assert!(name(&a).ends_with(".spill"), "{a:?}");
         std::fs::write(&npz, b"old").unwrap();
-        assert_eq!(spill_path(&npz), dir.join("F.npz.spill"));
+        assert_eq!(spill_path(&npz).parent(), Some(dir.as_path()));
         let dev = spill_path(Path::new("/dev/null"));
         assert_eq!(dev.parent(), Some(std::env::temp_dir().as_path()));
-        let name = dev.file_name().unwrap().to_string_lossy().into_owned();
-        assert_eq!(name, format!("ffstream-{}-null.spill", std::process::id()));
+        assert!(
+            name(&dev).starts_with(&format!("ffstream-{pid}-")),
+            "{dev:?}"
+        );
+        assert!(name(&dev).ends_with("-null.spill"), "{dev:?}");
         std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    /// Two exports to one archive shared `F.npz.spill`, each truncating the other's
+    /// entries (issue 48): every spill now has a name of its own.
+    #[test]
+    fn two_spills_for_one_archive_are_two_files() {
+        let npz = Path::new("/nonexistent-dir/F.npz");
+        assert_ne!(spill_path(npz), spill_path(npz));
+        let dev = Path::new("/dev/null");
+        assert_ne!(spill_path(dev), spill_path(dev));
     }
 
     #[test]

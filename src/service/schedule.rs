@@ -67,14 +67,17 @@ pub(crate) struct DynamicQueue {
 
 impl DynamicQueue {
     /// `min_batch` is usually the compute threads per worker, so one request keeps
-    /// every thread of a worker busy.
+    /// every thread of a worker busy. When it exceeds `max_batch` (more threads per
+    /// worker than the cap, e.g. `--threads 300` against 256) the floor wins: a
+    /// batch is never smaller than one row per thread.
     pub(crate) fn new(rows: Vec<u32>, workers: usize, min_batch: usize, max_batch: usize) -> Self {
+        let min_batch = min_batch.max(1);
         DynamicQueue {
             rows,
             next: 0,
             workers: workers.max(1),
-            min_batch: min_batch.max(1),
-            max_batch: max_batch.max(1),
+            min_batch,
+            max_batch: max_batch.max(min_batch),
         }
     }
 
@@ -148,5 +151,23 @@ mod tests {
         assert_eq!(seen, rows);
         assert!(sizes.first() >= sizes.last());
         assert!(*sizes.iter().max().unwrap() <= 256);
+    }
+
+    /// `--threads 300` gave a floor of 300 above the cap of 256 and `clamp` panicked
+    /// ("min > max"): the floor wins, every row is dealt once.
+    #[test]
+    fn a_batch_floor_above_the_cap_does_not_panic() {
+        let rows: Vec<u32> = (0..1000).collect();
+        let mut q = DynamicQueue::new(rows.clone(), 2, 300, 256);
+        let mut seen = Vec::new();
+        loop {
+            let b = q.next_batch();
+            if b.is_empty() {
+                break;
+            }
+            assert!(b.len() >= 300 || q.remaining() == 0, "batch {}", b.len());
+            seen.extend(b);
+        }
+        assert_eq!(seen, rows);
     }
 }

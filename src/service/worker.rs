@@ -75,7 +75,8 @@ impl WorkerConfig {
 /// four times per limit, at least every 5 s (tiny messages; a thousand ranks send a few
 /// hundred a second at most), and no more often than every 50 ms.
 fn heartbeat(stall_seconds: f64) -> Duration {
-    Duration::from_secs_f64((stall_seconds / 4.0).clamp(0.05, 5.0))
+    Duration::try_from_secs_f64((stall_seconds / 4.0).clamp(0.05, 5.0))
+        .unwrap_or(Duration::from_secs(5))
 }
 
 /// What a compute thread hands back to the driver.
@@ -371,7 +372,10 @@ fn compute_thread(
     let mut scratch = Scratch::default();
     let mut pending = Pending::new(cfg);
     let mut oldest: Option<Instant> = None;
-    let flush_after = Duration::from_secs_f64(cfg.flush_seconds.max(0.01));
+    // The command line bounds --flush-seconds; a library caller's huge value means
+    // "never", not a panic.
+    let flush_after =
+        Duration::try_from_secs_f64(cfg.flush_seconds.max(0.01)).unwrap_or(Duration::MAX);
     loop {
         let wait = oldest.map_or(flush_after, |t| flush_after.saturating_sub(t.elapsed()));
         let (next, finished) = match jobs.recv_timeout(wait) {

@@ -319,3 +319,39 @@ fn a_file_from_another_scene_is_refused_by_solve_and_verify() {
     let stdout = String::from_utf8_lossy(&v.stdout);
     assert!(stdout.contains("n 96 vs 24"), "{stdout}");
 }
+
+/// One crafted chunk header (its checksum recomputed) declaring 80 GB of raw rows for
+/// its real payload of a few hundred kB: n = 100 000 lets a dense chunk of n rows
+/// honestly hold 80 GB, so the old bound (rows × (directory + 8 n)) let `info`,
+/// `verify`, `solve` and `export` allocate it and abort. The declared size is now
+/// bounded by what the payload can decompress to before anything is allocated: every
+/// command names the chunk (exit 1; `verify` exit 3), none aborts.
+#[test]
+fn a_chunk_header_declaring_more_than_its_payload_can_hold_is_refused_before_allocating() {
+    use crate::ffz_common::{meta, patches, row, write};
+    use ffstream::ffz::Layout;
+    let dir = tempfile::tempdir().unwrap();
+    let n = 100_000;
+    let good = dir.path().join("big.ffz");
+    let rows: Vec<_> = (0..3).map(|i| row(5, i, n, Layout::Dense)).collect();
+    write(&good, &meta(Layout::Dense, patches(n, 3)), &rows, 1 << 20);
+    let at = FfzReader::open(&good).unwrap().chunk_offsets()[0] as usize;
+    let mut b = std::fs::read(&good).unwrap();
+    put_u64(&mut b, at + 16, 80_000_000_000);
+    put_u32(&mut b, at + 24, n);
+    let c = crc32c::crc32c(&b[at..at + 36]);
+    put_u32(&mut b, at + 36, c);
+    let p = dir.path().join("forged.ffz");
+    std::fs::write(&p, &b).unwrap();
+    let o = ffstream(&["info", path_str(&p)]);
+    assert_no_panic(&o, "info");
+    let v = verify(&p, None);
+    assert_no_panic(&v, "verify");
+    assert_eq!(v.status.code(), Some(3));
+    let stdout = String::from_utf8_lossy(&v.stdout);
+    assert!(stdout.contains("FAIL: chunk 0"), "{stdout}");
+    let s = solve(&p, dir.path());
+    assert_one_error(&s, "solve", &["forged.ffz", "chunk 0", "raw length"]);
+    let e = ffstream(&["export", path_str(&p), "--matrix", "/dev/null"]);
+    assert_one_error(&e, "export", &["forged.ffz", "chunk 0", "raw length"]);
+}

@@ -245,7 +245,9 @@ pub fn run(ctx: &MpiContext, job: &ComputeJob) -> Result<Option<ComputeReport>, 
         }
         root.broadcast_into(&mut head[..]);
         let (writer, mut plan, present) = prepared?;
-        plan.stall = Some(std::time::Duration::from_secs_f64(job.stall_seconds));
+        // The command line bounds --stall-seconds; a library caller's huge value means
+        // no limit, not a panic.
+        plan.stall = std::time::Duration::try_from_secs_f64(job.stall_seconds).ok();
         if head[1] > 0 {
             let mut todo = plan.todo.clone();
             root.broadcast_into(&mut todo[..]);
