@@ -58,7 +58,8 @@ pub(crate) struct AnnualArgs {
     pub grid: Option<Grid>,
     /// The site as LAT,LON,TZ[,ELEV]: degrees north, degrees east, hours from UTC of the
     /// local standard time, metres. Default: the weather file's; required without one.
-    #[arg(long, value_name = "LAT,LON,TZ[,ELEV]", value_parser = location)]
+    /// South latitudes and west longitudes are negative: `--location -33.9,18.4,2`.
+    #[arg(long, value_name = "LAT,LON,TZ[,ELEV]", allow_hyphen_values = true, value_parser = location)]
     pub location: Option<Site>,
     /// Output directory (default: out/SCENE_NAME-annual). It receives form_factors.ffz
     /// (unless --ffz), illuminance.csv, metrics.csv and heatmap_SENSOR.png per sensor.
