@@ -186,6 +186,7 @@ pub(super) fn run(mut a: AnnualArgs) -> anyhow::Result<ExitCode> {
     let w = match (&a.weather, &a.location) {
         (Some(path), site) => {
             let mut w = weather::read(path)?;
+            w.check_year(path, a.year)?;
             if let Some(site) = site {
                 w.site = site.clone();
             }

@@ -41,6 +41,8 @@ pub struct Hour {
     pub dew_point: f64,
     /// Station pressure, mbar.
     pub pressure: f64,
+    /// The line of the file it was read from (0 when it was not read from a file).
+    pub line: usize,
 }
 
 impl Hour {
@@ -67,6 +69,44 @@ pub struct Weather {
     pub name: String,
     /// The hours in file order.
     pub hours: Vec<Hour>,
+}
+
+impl Weather {
+    /// Check the weather read from `path` against `year`, the year the sun is computed
+    /// for: a February 29 in the file needs a leap year (the sun of a day that does not
+    /// exist cannot be computed; before this check the run stopped after computing the
+    /// form factors, on a debug dump of the time).
+    ///
+    /// # Errors
+    /// [`InputError::At`] naming the line of the first February 29, with the nearest
+    /// leap years as a hint.
+    pub fn check_year(&self, path: &Path, year: i32) -> Result<(), InputError> {
+        if super::sun::days_in_month(year, 2) == 29 {
+            return Ok(());
+        }
+        match self.hours.iter().find(|h| (h.month, h.day) == (2, 29)) {
+            None => Ok(()),
+            Some(h) => {
+                let before = (year - 3..year)
+                    .rev()
+                    .find(|&y| super::sun::days_in_month(y, 2) == 29);
+                let after = (year + 1..=year + 4).find(|&y| super::sun::days_in_month(y, 2) == 29);
+                let hint: Vec<String> = [before, after]
+                    .iter()
+                    .flatten()
+                    .map(|y| y.to_string())
+                    .collect();
+                Err(InputError::at(
+                    path,
+                    h.line,
+                    format!(
+                        "February 29, but the sun is computed for {year}, not a leap year: give a leap year with --year ({}), or remove the day from the file",
+                        hint.join(" or ")
+                    ),
+                ))
+            }
+        }
+    }
 }
 
 /// The weather in `path`: EPW when its first line starts with `LOCATION`, TMY3
@@ -198,6 +238,7 @@ fn parse_epw(path: &Path, text: &str) -> Result<Weather, InputError> {
             ghi: number(path, rec, 13, "global horizontal radiation", IRRADIANCE)?,
             dni: number(path, rec, 14, "direct normal radiation", IRRADIANCE)?,
             dhi: number(path, rec, 15, "diffuse horizontal radiation", IRRADIANCE)?,
+            line: rec.line,
         });
     }
     finish(path, site, name_of(loc), hours)
@@ -259,6 +300,7 @@ fn parse_tmy3(path: &Path, text: &str) -> Result<Weather, InputError> {
             dhi: number(path, rec, c_dhi, "DHI (W/m^2)", IRRADIANCE)?,
             dew_point: number(path, rec, c_dew, "Dew-point (C)", -90.0..=70.0)?,
             pressure: number(path, rec, c_p, "Pressure (mbar)", 310.0..=1200.0)?,
+            line: rec.line,
         });
     }
     finish(path, site, name_of(head), hours)

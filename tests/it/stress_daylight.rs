@@ -36,3 +36,77 @@ fn a_southern_latitude_is_a_value_not_an_option() {
     assert_eq!(o.status.code(), Some(2), "{stderr}");
     assert!(stderr.contains("latitude"), "{stderr}");
 }
+
+/// The shipped TMY3 year (Greensboro) as text.
+fn greensboro_text() -> String {
+    let p = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/data/weather/723170TYA.CSV.zst");
+    let bytes = zstd::decode_all(std::fs::read(p).unwrap().as_slice()).unwrap();
+    String::from_utf8(bytes).unwrap()
+}
+
+/// The shipped year with February 29 added after February 28 (a copy of it): 8784
+/// hours, a whole leap year. Returns the text and the line of the first February 29.
+fn leap_year_text() -> (String, usize) {
+    let text = greensboro_text();
+    let mut out = Vec::new();
+    let mut first = 0;
+    let lines: Vec<&str> = text.lines().collect();
+    for l in &lines {
+        out.push(l.to_string());
+        if l.starts_with("02/28/") && l.split(',').nth(1) == Some("24:00") {
+            first = out.len() + 1;
+            for d in lines.iter().filter(|x| x.starts_with("02/28/")) {
+                out.push(d.replacen("02/28/", "02/29/", 1));
+            }
+        }
+    }
+    assert!(first > 0);
+    (out.join("\n") + "\n", first)
+}
+
+/// A weather file with February 29 under the default `--year 2005` stopped, after the
+/// form factors were computed, on a debug dump (`time LocalTime { year: 2005, ... }:
+/// not a valid date and time`). It is now refused before any work, naming the file and
+/// the line and suggesting a leap year; with `--year 2004` the same file runs.
+#[test]
+fn february_29_in_a_common_year_names_the_line_and_suggests_a_leap_year() {
+    let dir = tempfile::tempdir().unwrap();
+    let (text, line) = leap_year_text();
+    let w = dir.path().join("leap.csv");
+    std::fs::write(&w, text).unwrap();
+    let out = dir.path().join("out");
+    let args = [
+        "annual",
+        "builtin:office",
+        "--weather",
+        path_str(&w),
+        "--grid",
+        "floor:1",
+        "--patches",
+        "100",
+        "-o",
+        path_str(&out),
+        "--quiet",
+    ];
+    let o = ffstream(&args);
+    crate::stress_cli::assert_one_error(
+        &o,
+        "February 29 in 2005",
+        &[
+            "leap.csv",
+            &format!("line {line}"),
+            "February 29",
+            "--year",
+            "2004",
+        ],
+    );
+    assert!(
+        !out.join("form_factors.ffz").exists(),
+        "the form factors were computed before the check"
+    );
+    let mut a = args.to_vec();
+    a.extend(["--year", "2004"]);
+    let o = ffstream(&a);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+}
