@@ -110,3 +110,58 @@ fn february_29_in_a_common_year_names_the_line_and_suggests_a_leap_year() {
     let o = ffstream(&a);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
 }
+
+/// `--grid floor:1e-4` on the office (24 m² of floor) made 2.4e9 grid points and
+/// aborted allocating 9.7 GB; `floor:0.01` (240 000 sensors, about 100 GB over a
+/// year at 0.4 MB each) would run for hours into the memory limit. Both are refused
+/// at once, before the form factors: the first by the grid's point limit (1e6), the
+/// second by the memory check when the machine has less than 100 GB available.
+#[test]
+fn a_sensor_grid_too_fine_for_memory_is_refused_up_front() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out");
+    let run = |grid: &str| {
+        let start = std::time::Instant::now();
+        let o = ffstream(&[
+            "annual",
+            "builtin:office",
+            "--location",
+            "36,-80,-5",
+            "--grid",
+            grid,
+            "--patches",
+            "100",
+            "-o",
+            path_str(&out),
+            "--quiet",
+        ]);
+        assert!(
+            start.elapsed().as_secs() < 20,
+            "{grid}: not refused up front"
+        );
+        assert!(!out.join("form_factors.ffz").exists());
+        o
+    };
+    let o = run("floor:1e-4");
+    crate::stress_cli::assert_one_error(&o, "floor:1e-4", &["--grid", "spacing", "1000000"]);
+    // 240 000 sensors need about 103 GB: refused wherever less is available (a
+    // machine with more would start the run, which this test does not wait for).
+    let available_kb: u64 = std::fs::read_to_string("/proc/meminfo")
+        .ok()
+        .and_then(|m| {
+            let line = m
+                .lines()
+                .find(|l| l.starts_with("MemAvailable:"))?
+                .to_string();
+            line.split_whitespace().nth(1)?.parse().ok()
+        })
+        .unwrap_or(u64::MAX);
+    if available_kb < 100_000_000 {
+        let o = run("floor:0.01");
+        crate::stress_cli::assert_one_error(
+            &o,
+            "floor:0.01",
+            &["240000 sensors", "memory", "available"],
+        );
+    }
+}
