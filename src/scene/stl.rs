@@ -42,7 +42,9 @@ pub(super) fn load_stl(path: &Path) -> Result<Scene, SceneError> {
     if ascii {
         let text = String::from_utf8_lossy(&bytes).into_owned();
         let mut first = 1u32;
-        for (name, block, line) in solids(&text) {
+        let blocks =
+            solids(&text).map_err(|(line, what)| element(path, &format!("line {line}"), what))?;
+        for (name, block, line) in blocks {
             let name = if name.is_empty() { stem.clone() } else { name };
             first = read_block(path, &mut out, &name, &block, first, line)?;
         }
@@ -100,11 +102,19 @@ fn element(path: &Path, element: &str, reason: String) -> SceneError {
     }
 }
 
-/// The `solid NAME ... endsolid` blocks of an ASCII STL: (name, the block as stl_io
-/// reads it, 1-based line of its `solid`).
-fn solids(text: &str) -> Vec<(String, String, u32)> {
+/// One `solid NAME ... endsolid` block: (name, the block as stl_io reads it, 1-based
+/// line of its `solid`).
+type Solid = (String, String, u32);
+
+/// The `solid NAME ... endsolid` blocks of an ASCII STL.
+///
+/// # Errors
+/// The line and what is wrong when anything but white space lies outside every
+/// block: facets after the last `endsolid` were dropped without a word.
+fn solids(text: &str) -> Result<Vec<Solid>, (u32, String)> {
     let mut out = Vec::new();
-    let mut current: Option<(String, String, u32)> = None;
+    let mut current: Option<Solid> = None;
+    let mut closed = None;
     for (i, raw) in text.lines().enumerate() {
         let t = raw.trim();
         if let Some(rest) = t.strip_prefix("endsolid") {
@@ -112,6 +122,7 @@ fn solids(text: &str) -> Vec<(String, String, u32)> {
                 if let Some((name, mut block, line)) = current.take() {
                     block.push_str("endsolid\n");
                     out.push((name, block, line));
+                    closed = Some(i + 1);
                 }
                 continue;
             }
@@ -124,14 +135,37 @@ fn solids(text: &str) -> Vec<(String, String, u32)> {
                 continue;
             }
         }
-        if let Some((_, block, _)) = current.as_mut() {
-            block.push_str(t);
-            block.push('\n');
+        match current.as_mut() {
+            Some((_, block, _)) => {
+                block.push_str(t);
+                block.push('\n');
+            }
+            None if t.is_empty() => {}
+            None => {
+                let after = closed.map_or(String::new(), |l| {
+                    format!(" (the last one ended at line {l})")
+                });
+                return Err((
+                    (i + 1) as u32,
+                    format!(
+                        "`{}` outside any `solid ... endsolid` block{after}",
+                        cut(t, 60)
+                    ),
+                ));
+            }
         }
     }
     // A last solid without `endsolid` is read as far as it goes.
     out.extend(current);
-    out
+    Ok(out)
+}
+
+/// The first `max` characters of `s`, with `...` when it was longer.
+fn cut(s: &str, max: usize) -> String {
+    match s.char_indices().nth(max) {
+        Some((at, _)) => format!("{}...", &s[..at]),
+        None => s.to_string(),
+    }
 }
 
 /// Read one ASCII solid into group `name`; its facets are numbered from `first`.

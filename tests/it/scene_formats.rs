@@ -499,7 +499,28 @@ const BAD: &[(&str, &str)] = &[
         "facet 2 (solid `box` of line 1): malformed facet",
     ),
     ("ply_truncated.ply", "not readable as PLY"),
-    ("ply_wrong_count.ply", "not readable as PLY"),
+    (
+        "ply_wrong_count.ply",
+        "line 16: the file ends after 2 of the header's 3 `face` elements",
+    ),
+    // Issue 48: a face count one short, a value too many, facets after `endsolid`
+    // were dropped or ignored without a word.
+    (
+        "ply_face_count_short.ply",
+        "line 15: data after the last element the header declares (4 `vertex`, 1 `face`)",
+    ),
+    (
+        "ply_extra_value.ply",
+        "line 12: 4 values, but a `vertex` element here has 3",
+    ),
+    (
+        "ply_binary_extra.ply",
+        "file: 13 bytes after the last element the header declares",
+    ),
+    (
+        "stl_after_endsolid.stl",
+        "line 10: `facet normal 0 0 1` outside any `solid ... endsolid` block (the last one ended at line 9)",
+    ),
     ("ply_index.ply", "face 2: vertex index 9 out of range"),
     ("ply_nan.ply", "face 1: vertex coordinate NaN"),
     ("ply_points.ply", "no `face` element"),
