@@ -707,3 +707,60 @@ fn ply_polygons_are_repaired_as_obj_faces_are() {
         );
     }
 }
+
+/// Which kind an STL is (issue 48): a binary file whose 80-byte header starts with
+/// `solid` and whose size is 84 + 50 × its count is binary; an ASCII file with a UTF-8
+/// byte-order mark, or written in upper case (`SOLID`, `FACET NORMAL`), is ASCII (both
+/// were read as binary and refused as "truncated binary STL" with a count of a billion
+/// facets); UTF-16 text is an error that says so.
+#[test]
+fn stl_kind_is_decided_by_size_then_by_solid_in_any_case() {
+    let dir = tempfile::tempdir().unwrap();
+    let square = [
+        [[0.0f32, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0]],
+        [[0.0, 0.0, 0.0], [1.0, 1.0, 0.0], [0.0, 1.0, 0.0]],
+    ];
+    let mut binary = b"solid exported by a CAD tool".to_vec();
+    binary.resize(80, b' ');
+    binary.extend(2u32.to_le_bytes());
+    for t in &square {
+        binary.extend([0u8; 12]);
+        for v in t {
+            for x in v {
+                binary.extend(x.to_le_bytes());
+            }
+        }
+        binary.extend([0u8; 2]);
+    }
+    let mut ascii = String::from("solid box\n");
+    for t in &square {
+        ascii += "  facet normal 0 0 1\n    outer loop\n";
+        for v in t {
+            ascii += &format!("      vertex {} {} {}\n", v[0], v[1], v[2]);
+        }
+        ascii += "    endloop\n  endfacet\n";
+    }
+    ascii += "endsolid box\n";
+    let mut bom = b"\xef\xbb\xbf".to_vec();
+    bom.extend(ascii.as_bytes());
+    let utf16: Vec<u8> = std::iter::once(0xfeff_u16)
+        .chain(ascii.encode_utf16())
+        .flat_map(|u| u.to_le_bytes())
+        .collect();
+    let cases: [(&str, Vec<u8>, &str); 3] = [
+        ("binary_solid.stl", binary, "binary_solid"),
+        ("bom.stl", bom, "box"),
+        ("upper.stl", ascii.to_uppercase().into_bytes(), "BOX"),
+    ];
+    for (name, bytes, group) in cases {
+        let p = dir.path().join(name);
+        std::fs::write(&p, bytes).unwrap();
+        let s = open_scene(path_str(&p)).unwrap_or_else(|e| panic!("{name}: {e}"));
+        assert_eq!(s.faces.len(), 2, "{name}");
+        assert_eq!(s.groups, vec![group.to_string()], "{name}");
+    }
+    let p = dir.path().join("utf16.stl");
+    std::fs::write(&p, utf16).unwrap();
+    let e = open_scene(path_str(&p)).unwrap_err().to_string();
+    assert!(e.contains("utf16.stl") && e.contains("UTF-16"), "{e}");
+}
