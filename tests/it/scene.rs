@@ -376,3 +376,44 @@ fn polylines_are_ignored_and_ungrouped_faces_get_a_group() {
     assert_eq!(s.warnings.len(), 1, "{:?}", s.warnings);
     assert!(s.warnings[0].contains("ignored 1 line element") && s.warnings[0].contains("line 13"));
 }
+
+/// OBJ and MTL text as editors write it (issue 48): a UTF-8 byte-order mark before
+/// `mtllib` (OBJ) or `newmtl` (MTL) made the statement an unknown keyword, so every
+/// `usemtl` failed; a tab after `mtllib` gave "missing file name". Both load now. A
+/// file whose lines end in CR alone is one line to the loader: its error used to quote
+/// the whole file (and its CRs sent the cursor back over the message); the quote is
+/// now cut to 200 characters, control characters escaped.
+#[test]
+fn byte_order_marks_tabs_and_cr_only_files_are_read_or_quoted_briefly() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let body = "v 0 0 0\nv 1 0 0\nv 1 1 0\nusemtl white\nf 1 2 3\n";
+    std::fs::write(d.join("m.mtl"), "newmtl white\nKd 0.5 0.5 0.5\nKe 1 1 1\n").unwrap();
+    std::fs::write(
+        d.join("bom.mtl"),
+        "\u{feff}newmtl white\nKd 0.5 0.5 0.5\nKe 1 1 1\n",
+    )
+    .unwrap();
+    for (name, text) in [
+        ("bom.obj", format!("\u{feff}mtllib m.mtl\n{body}")),
+        ("tab.obj", format!("mtllib\tm.mtl\n{body}")),
+        ("bom_mtl.obj", format!("mtllib bom.mtl\n{body}")),
+    ] {
+        let p = d.join(name);
+        std::fs::write(&p, text).unwrap();
+        let s = load_obj(&p).unwrap_or_else(|e| panic!("{name}: {e}"));
+        assert_eq!(s.faces.len(), 1, "{name}");
+        assert_eq!(s.materials[0].emission, [1.0, 1.0, 1.0], "{name}");
+    }
+    let mut cr = String::from("mtllib m.mtl\r");
+    for i in 0..300 {
+        cr += &format!("v {i} 0 0\rv {i} 1 0\rv {i} 1 1\r");
+    }
+    cr += "usemtl white\rf 1 2 3\r";
+    let p = d.join("cr.obj");
+    std::fs::write(&p, &cr).unwrap();
+    let e = load_obj(&p).unwrap_err().to_string();
+    assert!(e.contains("cr.obj:1"), "{e}");
+    assert!(e.len() < 400, "{} characters: {e}", e.len());
+    assert!(!e.contains('\r') && e.contains("characters in all"), "{e}");
+}
