@@ -51,7 +51,11 @@ pub const SENSORS_HEADER: &str = "name,x,y,z,nx,ny,nz";
 /// number of fields, a non-number, a non-finite coordinate, a zero normal, or a name
 /// used before (each naming the file and line).
 pub fn read_sensors(path: &Path) -> Result<Vec<Sensor>, InputError> {
-    let text = std::fs::read_to_string(path).map_err(|e| InputError::io(path, e))?;
+    let bytes = crate::input::read(path).map_err(|e| InputError::io(path, e))?;
+    let text = String::from_utf8(bytes).map_err(|e| {
+        let at = e.utf8_error().valid_up_to();
+        InputError::file(path, format!("not UTF-8 text (byte {at})"))
+    })?;
     let at = |line: usize, what: String| InputError::at(path, line, what);
     let mut records = crate::table::records(&text);
     match records.next() {

@@ -109,13 +109,17 @@ impl Weather {
     }
 }
 
+/// Most bytes a compressed weather file may decompress to: a year of hours is about
+/// 1.6 MB as EPW, 1.8 MB as TMY3 CSV; a small `.zst` can hold gigabytes.
+const MAX_WEATHER_BYTES: u64 = 64 << 20;
+
 /// The weather in `path`: EPW when its first line starts with `LOCATION`, TMY3
 /// otherwise; a name ending in `.zst` is decompressed first (zstd).
 pub fn read(path: &Path) -> Result<Weather, InputError> {
     let io = |e| InputError::io(path, e);
-    let mut bytes = std::fs::read(path).map_err(io)?;
+    let mut bytes = crate::input::read(path).map_err(io)?;
     if path.extension().is_some_and(|e| e == "zst") {
-        bytes = zstd::decode_all(bytes.as_slice()).map_err(io)?;
+        bytes = crate::input::zstd_capped(&bytes, MAX_WEATHER_BYTES).map_err(io)?;
     }
     let text = String::from_utf8(bytes).map_err(|e| {
         let at = e.utf8_error().valid_up_to();

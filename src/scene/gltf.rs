@@ -48,7 +48,7 @@ const MAX_KD: f32 = 0.99;
 /// triangles, an index out of range or a coordinate that is not finite;
 /// [`SceneError::Empty`] when no triangle is usable.
 pub(super) fn load_gltf(path: &Path) -> Result<Scene, SceneError> {
-    let bytes = std::fs::read(path).map_err(|cause| SceneError::Read {
+    let bytes = crate::input::read(path).map_err(|cause| SceneError::Read {
         path: path.to_owned(),
         cause,
     })?;
@@ -197,7 +197,7 @@ fn load_buffers(path: &Path, gltf: &::gltf::Gltf) -> Result<Vec<Vec<u8>>, SceneE
                 Some(_) => data_uri(&uri[5..]).map_err(err)?,
                 None => {
                     let file = dir.join(percent_decoded(uri));
-                    std::fs::read(&file)
+                    crate::input::read(&file)
                         .map_err(|e| err(format!("cannot read {}: {e}", file.display())))?
                 }
             },

@@ -108,7 +108,7 @@ fn read_text(path: &Path, warnings: &mut Vec<String>) -> Result<String, SceneErr
         path: path.to_owned(),
         cause,
     };
-    let bytes = std::fs::read(path).map_err(read_error)?;
+    let bytes = crate::input::read(path).map_err(read_error)?;
     let bytes = match String::from_utf8(bytes) {
         Ok(text) => return Ok(plain(text)),
         Err(e) => e.into_bytes(),

@@ -28,7 +28,7 @@ const UNIT: &str = "face";
 /// finite (naming the vertex's first face); as [`Assembler::new`] for a bad materials
 /// file; [`SceneError::Empty`] when no face is usable.
 pub(super) fn load_ply(path: &Path) -> Result<Scene, SceneError> {
-    let file = std::fs::File::open(path).map_err(|cause| SceneError::Read {
+    let file = crate::input::open(path).map_err(|cause| SceneError::Read {
         path: path.to_owned(),
         cause,
     })?;

@@ -30,7 +30,7 @@ const UNIT: &str = "facet";
 /// size, or a coordinate that is not finite; as [`Assembler::new`] for a bad
 /// materials file; [`SceneError::Empty`] when no facet is usable.
 pub(super) fn load_stl(path: &Path) -> Result<Scene, SceneError> {
-    let mut bytes = std::fs::read(path).map_err(|cause| SceneError::Read {
+    let mut bytes = crate::input::read(path).map_err(|cause| SceneError::Read {
         path: path.to_owned(),
         cause,
     })?;

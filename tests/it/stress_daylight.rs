@@ -165,3 +165,32 @@ fn a_sensor_grid_too_fine_for_memory_is_refused_up_front() {
         );
     }
 }
+
+/// A weather file of a few kB that decompresses to 200 MB (a `.epw.zst` of spaces):
+/// it was decompressed whole, however large. Refused past 64 MiB, naming the file.
+#[test]
+fn a_compressed_weather_file_is_decompressed_only_up_to_a_cap() {
+    use std::io::Write;
+    let dir = tempfile::tempdir().unwrap();
+    let w = dir.path().join("bomb.epw.zst");
+    let mut e = zstd::stream::Encoder::new(std::fs::File::create(&w).unwrap(), 3).unwrap();
+    e.write_all(b"LOCATION,").unwrap();
+    let spaces = vec![b' '; 1 << 20];
+    for _ in 0..200 {
+        e.write_all(&spaces).unwrap();
+    }
+    e.finish().unwrap();
+    assert!(std::fs::metadata(&w).unwrap().len() < 100_000);
+    let out = dir.path().join("out");
+    let o = ffstream(&[
+        "annual",
+        "builtin:office",
+        "--weather",
+        path_str(&w),
+        "--grid",
+        "floor:1",
+        "-o",
+        path_str(&out),
+    ]);
+    crate::stress_cli::assert_one_error(&o, "bomb", &["bomb.epw.zst", "more than 67108864 bytes"]);
+}
