@@ -16,7 +16,7 @@ use std::path::{Path, PathBuf};
 use glam::DVec3;
 
 use super::mesh::{finish, Tally, MAX_COORDINATE};
-use super::polygon::repair;
+use super::polygon::{repair, MAX_FACE_CORNERS};
 use super::{Face, Material, Scene, SceneError};
 
 /// One face element (`f`, or `l` which `tobj` also returns as a face) in file order.
@@ -494,6 +494,11 @@ fn check_element<'a>(
         }
     }
     let (least, what) = if kw == "f" { (3, "face") } else { (2, "line") };
+    if kw == "f" && count > MAX_FACE_CORNERS {
+        return Err(malformed(format!(
+            "a face of {count} corners, more than the {MAX_FACE_CORNERS} a face may have: split it"
+        )));
+    }
     if count < least {
         return Err(malformed(format!(
             "a {what} needs at least {least} vertices, found {count}"

@@ -15,6 +15,7 @@ use ply_rs_bw::parser::{Parser, Reader};
 use ply_rs_bw::ply::{DefaultElement, Encoding, Header, Payload, Property};
 
 use super::mesh::{check_point, one_line, Assembler};
+use super::polygon::MAX_FACE_CORNERS;
 use super::{Scene, SceneError};
 
 const UNIT: &str = "face";
@@ -90,6 +91,15 @@ pub(super) fn load_ply(path: &Path) -> Result<Scene, SceneError> {
             .or_else(|| f.get("vertex_index"))
             .and_then(indices)
             .ok_or_else(|| err(&here, "no integer `vertex_indices` list".into()))?;
+        if list.len() > MAX_FACE_CORNERS {
+            return Err(err(
+                &here,
+                format!(
+                    "a face of {} corners, more than the {MAX_FACE_CORNERS} a face may have: split it",
+                    list.len()
+                ),
+            ));
+        }
         if list.len() < 3 {
             return Err(err(
                 &here,
