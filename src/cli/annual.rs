@@ -21,7 +21,7 @@ use ffstream::geometry::merge::OccluderMesh;
 use ffstream::solve::{RowSource, SolveConfig};
 
 use super::choices::RowsArg;
-use super::compute::{execute, ComputeOptions, Outcome};
+use super::compute::{execute, stopped, stopped_by_signal, ComputeOptions, Outcome};
 use super::SceneInput;
 
 #[derive(Args, Debug)]
@@ -217,9 +217,16 @@ pub(super) fn run(mut a: AnnualArgs) -> anyhow::Result<ExitCode> {
             let f = dir.join("form_factors.ffz");
             a.compute.force |= !a.compute.resume;
             a.compute.rows.get_or_insert(RowsArg::Needed);
-            match execute(&a.input, f.clone(), &a.compute)? {
-                Outcome::Master(r) => eprintln!("{}", r.summary()),
-                Outcome::Worker => return Ok(ExitCode::SUCCESS),
+            match execute(&a.input, f.clone(), &a.compute) {
+                Ok(Outcome::Master(r)) => eprintln!("{}", r.summary()),
+                Ok(Outcome::Worker) => return Ok(ExitCode::SUCCESS),
+                // SIGTERM or SIGINT stopped the form factors: 143 or 130, as `compute`
+                // and `run` exit (it was 1).
+                Err(e) => return stopped_by_signal(e),
+            }
+            // A signal that came as the last rows were written: stop before the year.
+            if let Some(signal) = ffstream::service::interrupt::interrupted() {
+                return Ok(stopped(signal));
             }
             f
         }
