@@ -75,17 +75,17 @@ impl Weather {
     /// Check the weather read from `path` against `year`, the year the sun is computed
     /// for: a February 29 in the file needs a leap year (the sun of a day that does not
     /// exist cannot be computed; before this check the run stopped after computing the
-    /// form factors, on a debug dump of the time).
+    /// form factors, on a debug dump of the time); and the file must hold a whole year,
+    /// 8760 hours (8784 with February 29).
     ///
     /// # Errors
     /// [`InputError::At`] naming the line of the first February 29, with the nearest
-    /// leap years as a hint.
+    /// leap years as a hint; [`InputError::File`] naming the first missing hour.
     pub fn check_year(&self, path: &Path, year: i32) -> Result<(), InputError> {
-        if super::sun::days_in_month(year, 2) == 29 {
-            return Ok(());
-        }
-        match self.hours.iter().find(|h| (h.month, h.day) == (2, 29)) {
-            None => Ok(()),
+        let feb29 = self.hours.iter().find(|h| (h.month, h.day) == (2, 29));
+        match feb29 {
+            _ if super::sun::days_in_month(year, 2) == 29 => {}
+            None => {}
             Some(h) => {
                 let before = (year - 3..year)
                     .rev()
@@ -96,16 +96,44 @@ impl Weather {
                     .flatten()
                     .map(|y| y.to_string())
                     .collect();
-                Err(InputError::at(
+                return Err(InputError::at(
                     path,
                     h.line,
                     format!(
                         "February 29, but the sun is computed for {year}, not a leap year: give a leap year with --year ({}), or remove the day from the file",
                         hint.join(" or ")
                     ),
-                ))
+                ));
             }
         }
+        // A whole year: every hour once (duplicates and impossible dates are refused
+        // when the file is read), with or without February 29. One hour passed as a
+        // year, and the metrics (shares of the year's hours) meant nothing.
+        let leap = feb29.is_some();
+        let want = if leap { 8784 } else { 8760 };
+        if self.hours.len() == want {
+            return Ok(());
+        }
+        let have: std::collections::HashSet<(u32, u32, u32)> = self
+            .hours
+            .iter()
+            .map(|h| (h.month, h.day, h.hour))
+            .collect();
+        let calendar = if leap { 2024 } else { 2025 };
+        let missing = (1..=12)
+            .flat_map(|m| (1..=super::sun::days_in_month(calendar, m)).map(move |d| (m, d)))
+            .flat_map(|(m, d)| (1..=24).map(move |h| (m, d, h)))
+            .find(|k| !have.contains(k));
+        let first = missing.map_or(String::new(), |(m, d, h)| {
+            format!(": the first missing is month {m}, day {d}, hour {h}")
+        });
+        Err(InputError::file(
+            path,
+            format!(
+                "{} hours, not a whole year ({want}){first}; annual needs every hour of a year (its metrics are shares of them)",
+                self.hours.len()
+            ),
+        ))
     }
 }
 

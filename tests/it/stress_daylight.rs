@@ -194,3 +194,49 @@ fn a_compressed_weather_file_is_decompressed_only_up_to_a_cap() {
     ]);
     crate::stress_cli::assert_one_error(&o, "bomb", &["bomb.epw.zst", "more than 67108864 bytes"]);
 }
+
+/// A weather file of one hour was taken as the year (its metrics, shares of the
+/// year's hours, then meant nothing), and one with an hour missing likewise. `annual`
+/// needs every hour of a year (8760, or 8784 with February 29): the error names the
+/// count and the first missing hour, before any work.
+#[test]
+fn weather_that_is_not_a_whole_year_is_refused_naming_the_first_missing_hour() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = greensboro_text();
+    let lines: Vec<&str> = text.lines().collect();
+    // Header lines 1-2; line 3 is 01/01 hour 1, so line 3 + 24·31 + 10 is 02/01 hour 11.
+    let gap = 2 + 24 * 31 + 10;
+    assert!(lines[gap].starts_with("02/01/") && lines[gap].contains(",11:00,"));
+    let one_hour = lines[..3].join("\n") + "\n";
+    let mut holed = lines.clone();
+    holed.remove(gap);
+    let holed = holed.join("\n") + "\n";
+    for (name, text, want) in [
+        (
+            "hour.csv",
+            one_hour,
+            "1 hours, not a whole year (8760): the first missing is month 1, day 1, hour 2",
+        ),
+        (
+            "holed.csv",
+            holed,
+            "8759 hours, not a whole year (8760): the first missing is month 2, day 1, hour 11",
+        ),
+    ] {
+        let w = dir.path().join(name);
+        std::fs::write(&w, text).unwrap();
+        let out = dir.path().join("out");
+        let o = ffstream(&[
+            "annual",
+            "builtin:office",
+            "--weather",
+            path_str(&w),
+            "--grid",
+            "floor:1",
+            "-o",
+            path_str(&out),
+        ]);
+        crate::stress_cli::assert_one_error(&o, name, &[name, want]);
+        assert!(!out.join("form_factors.ffz").exists());
+    }
+}
