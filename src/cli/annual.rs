@@ -36,7 +36,8 @@ pub(crate) struct AnnualArgs {
     pub weather: Option<PathBuf>,
     /// Linke turbidity of the clear sky used without --weather: about 2 for clean
     /// mountain air, 3 for a clean lowland sky, 4–7 for hazy or polluted air.
-    #[arg(long, default_value_t = clearsky::DEFAULT_LINKE, value_name = "TL", conflicts_with = "weather", value_parser = super::choices::number::finite)]
+    /// A finite number ≥ 1.
+    #[arg(long, default_value_t = clearsky::DEFAULT_LINKE, value_name = "TL", conflicts_with = "weather", value_parser = linke)]
     pub linke_turbidity: f64,
     /// Faces of group GROUP are glazing of visible transmittance TAU (0 < TAU ≤ 1):
     /// daylight passes them scaled by TAU instead of being blocked, and light from
@@ -71,7 +72,9 @@ pub(crate) struct AnnualArgs {
     pub ffz: Option<PathBuf>,
     /// The year the sun is computed for. Weather files of typical years mix months of
     /// different years; any non-leap year gives the same geometry to 0.1°.
-    #[arg(long, default_value_t = 2005, value_name = "YEAR")]
+    /// −2000 to 6000, the range of the solar position algorithm (NREL's SPA).
+    #[arg(long, default_value_t = 2005, value_name = "YEAR", allow_hyphen_values = true,
+          value_parser = clap::value_parser!(i32).range(-2000..=6000))]
     pub year: i32,
     /// Reflectance of the ground outside (below the horizon, seen through openings).
     #[arg(long, default_value_t = 0.2, value_name = "RHO", value_parser = super::choices::number::open_unit)]
@@ -138,6 +141,17 @@ fn grid(s: &str) -> Result<Grid, String> {
     }
 }
 
+/// `--linke-turbidity`: a finite number ≥ 1 (1 is a dry, clean atmosphere), checked
+/// when the command line is read (it was refused only when the clear year was made).
+fn linke(s: &str) -> Result<f64, String> {
+    match super::choices::number::finite(s)? {
+        x if x >= 1.0 => Ok(x),
+        x => Err(format!(
+            "Linke turbidity {x}: expected a number ≥ 1 (1 is a dry, clean atmosphere)"
+        )),
+    }
+}
+
 fn glazing(s: &str) -> Result<(String, f64), String> {
     let bad = || format!("`{s}`: expected GROUP:TAU with 0 < TAU ≤ 1");
     let (g, t) = s.rsplit_once(':').ok_or_else(bad)?;
@@ -184,20 +198,23 @@ pub(super) fn run(mut a: AnnualArgs) -> anyhow::Result<ExitCode> {
         PathBuf::from(d)
     });
     // Inputs first: a bad weather or sensors file costs no form factors.
-    let w = match (&a.weather, &a.location) {
-        (Some(path), site) => {
-            let mut w = weather::read(path)?;
-            w.check_year(path, a.year)?;
-            if let Some(site) = site {
-                w.site = site.clone();
+    let w =
+        match (&a.weather, &a.location) {
+            (Some(path), site) => {
+                let mut w = weather::read(path)?;
+                w.check_year(path, a.year)?;
+                if let Some(site) = site {
+                    w.site = site.clone();
+                }
+                w
             }
-            w
-        }
-        (None, Some(site)) => clearsky::clear_year(site, a.year, a.linke_turbidity)?,
-        (None, None) => anyhow::bail!(
-            "give --weather FILE, or --location LAT,LON,TZ[,ELEV] for a year of clear skies"
-        ),
-    };
+            (None, Some(site)) => clearsky::clear_year(site, a.year, a.linke_turbidity)?,
+            (None, None) => return Err(super::Usage(
+                "give --weather FILE, or --location LAT,LON,TZ[,ELEV] for a year of clear skies"
+                    .into(),
+            )
+            .into()),
+        };
     let scene = super::compute::load_scene(&a.input.scene)?;
     // Computing the form factors prints the scene's warnings; a reused file does not.
     super::compute::scene_warnings(&a.input, &scene, a.ffz.is_some())?;
@@ -394,6 +411,18 @@ fn sensors_fit(sensors: usize) -> anyhow::Result<()> {
 /// Refuse outputs that are inputs or each other ([`super::outputs`]): among them the
 /// heat maps of two sensors whose names become one file name (`a/b` and `a_b`).
 fn check_files(a: &AnnualArgs, dir: &std::path::Path, sensors: &[Sensor]) -> anyhow::Result<()> {
+    // Named first, as the sensors' own problem (their names, not the command line).
+    let mut maps: std::collections::HashMap<String, &str> = std::collections::HashMap::new();
+    for s in sensors {
+        if let Some(other) = maps.insert(heatmap_name(&s.name), &s.name) {
+            anyhow::bail!(
+                "sensors `{other}` and `{}` would both write {}: a heat map's name keeps \
+                 letters, digits, - and _ of the sensor's name; rename one of them",
+                s.name,
+                heatmap_name(&s.name)
+            );
+        }
+    }
     let mut inputs = super::compute::compute_inputs(&a.input, &a.compute);
     for (option, path) in [
         ("--weather", &a.weather),

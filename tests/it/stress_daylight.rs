@@ -240,3 +240,81 @@ fn weather_that_is_not_a_whole_year_is_refused_naming_the_first_missing_hour() {
         assert!(!out.join("form_factors.ffz").exists());
     }
 }
+
+/// Sensors `a/b` and `a_b` both wrote `heatmap_a_b.png`, the second over the first.
+/// The clash is refused before any work, naming both sensors.
+#[test]
+fn sensors_whose_heat_maps_would_share_a_file_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = dir.path().join("sensors.csv");
+    std::fs::write(
+        &csv,
+        "name,x,y,z,nx,ny,nz\na/b,1,1,0.8,0,0,1\na_b,2,1,0.8,0,0,1\n",
+    )
+    .unwrap();
+    let out = dir.path().join("out");
+    let o = ffstream(&[
+        "annual",
+        "builtin:office",
+        "--location",
+        "36,-80,-5",
+        "--sensors",
+        path_str(&csv),
+        "-o",
+        path_str(&out),
+    ]);
+    crate::stress_cli::assert_one_error(&o, "a/b and a_b", &["`a/b`", "`a_b`", "heatmap_a_b.png"]);
+    assert!(!out.join("form_factors.ffz").exists());
+}
+
+/// Usage mistakes of `annual` and `render` found after clap's parse exited 1: no
+/// `--weather` and no `--location`, `--linke-turbidity 0`, `render --exposure 1e300`
+/// (infinite as the 32-bit float it is used as), a `--year` outside the solar
+/// position algorithm's range. Each is a usage error, exit 2, naming the option.
+#[test]
+fn annual_and_render_usage_mistakes_exit_2() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out");
+    let annual = |extra: &[&str]| {
+        let mut a = vec![
+            "annual",
+            "builtin:office",
+            "--grid",
+            "floor:1",
+            "-o",
+            path_str(&out),
+        ];
+        a.extend_from_slice(extra);
+        ffstream(&a)
+    };
+    let cases = [
+        (annual(&[]), "--location"),
+        (
+            annual(&["--location", "36,-80,-5", "--linke-turbidity", "0"]),
+            "--linke-turbidity",
+        ),
+        (
+            annual(&["--location", "36,-80,-5", "--year", "99999"]),
+            "--year",
+        ),
+        (
+            ffstream(&[
+                "render",
+                "x.ffz",
+                "--radiosity",
+                "r.csv",
+                "-o",
+                "i.png",
+                "--exposure",
+                "1e300",
+            ]),
+            "--exposure",
+        ),
+    ];
+    for (o, option) in cases {
+        let stderr = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{option}: {stderr}");
+        assert!(stderr.contains(option), "{option}: {stderr}");
+    }
+    assert!(!out.join("form_factors.ffz").exists());
+}
