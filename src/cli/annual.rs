@@ -1,6 +1,7 @@
 //! `ffstream annual`: illuminance at sensor points for every hour of a weather year
 //! (docs/daylight.md). Computes the form factors (or reuses a file), then the daylight.
 
+use std::ops::ControlFlow;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Instant;
@@ -198,23 +199,7 @@ pub(super) fn run(mut a: AnnualArgs) -> anyhow::Result<ExitCode> {
         PathBuf::from(d)
     });
     // Inputs first: a bad weather or sensors file costs no form factors.
-    let w =
-        match (&a.weather, &a.location) {
-            (Some(path), site) => {
-                let mut w = weather::read(path)?;
-                w.check_year(path, a.year)?;
-                if let Some(site) = site {
-                    w.site = site.clone();
-                }
-                w
-            }
-            (None, Some(site)) => clearsky::clear_year(site, a.year, a.linke_turbidity)?,
-            (None, None) => return Err(super::Usage(
-                "give --weather FILE, or --location LAT,LON,TZ[,ELEV] for a year of clear skies"
-                    .into(),
-            )
-            .into()),
-        };
+    let w = year_of(&a)?;
     let scene = super::compute::load_scene(&a.input.scene)?;
     // Computing the form factors prints the scene's warnings; a reused file does not.
     super::compute::scene_warnings(&a.input, &scene, a.ffz.is_some())?;
@@ -228,25 +213,9 @@ pub(super) fn run(mut a: AnnualArgs) -> anyhow::Result<ExitCode> {
     sensors_fit(sensors.len())?;
     std::fs::create_dir_all(&dir).with_context(|| format!("cannot create {}", dir.display()))?;
     check_files(&a, &dir, &sensors)?;
-    let ffz = match &a.ffz {
-        Some(f) => f.clone(),
-        None => {
-            let f = dir.join("form_factors.ffz");
-            a.compute.force |= !a.compute.resume;
-            a.compute.rows.get_or_insert(RowsArg::Needed);
-            match execute(&a.input, f.clone(), &a.compute) {
-                Ok(Outcome::Master(r)) => eprintln!("{}", r.summary()),
-                Ok(Outcome::Worker) => return Ok(ExitCode::SUCCESS),
-                // SIGTERM or SIGINT stopped the form factors: 143 or 130, as `compute`
-                // and `run` exit (it was 1).
-                Err(e) => return stopped_by_signal(e),
-            }
-            // A signal that came as the last rows were written: stop before the year.
-            if let Some(signal) = ffstream::service::interrupt::interrupted() {
-                return Ok(stopped(signal));
-            }
-            f
-        }
+    let ffz = match form_factors(&mut a, &dir)? {
+        ControlFlow::Continue(f) => f,
+        ControlFlow::Break(code) => return Ok(code),
     };
     let reader = FfzReader::open(&ffz).with_context(|| format!("{}", ffz.display()))?;
     let mut patches = RowSource::patches(&reader).clone();
@@ -321,38 +290,124 @@ pub(super) fn run(mut a: AnnualArgs) -> anyhow::Result<ExitCode> {
         pictures.push(path);
     }
     if let Some(g) = &a.grid {
-        let da_map = dir.join("da_map.png");
-        match group_plane(&scene, &g.group) {
-            Some((o, u, v)) => {
-                let at: Vec<(f64, f64)> = sensors
-                    .iter()
-                    .map(|s| ((s.point - o).dot(u), (s.point - o).dot(v)))
-                    .collect();
-                let da: Vec<f64> = table.iter().map(|m| m.da).collect();
-                let title = format!(
-                    "DA{} over {}: share of hours {}-{} h with >= {} lux, {}",
-                    a.da_threshold,
-                    g.group,
-                    a.occupied.start,
-                    a.occupied.end,
-                    a.da_threshold,
-                    w.name
-                );
-                heatmap::write_grid_map(&da_map, &title, &at, &da, g.spacing, 100.0, "%")
-                    .with_context(|| format!("cannot write {}", da_map.display()))?;
-                println!("daylight autonomy map: {}", da_map.display());
-            }
-            None => eprintln!(
-                "ffstream: annual: group {} is not planar: no DA map (the metrics table has \
-                 every sensor)",
-                g.group
-            ),
-        }
+        da_map(&a, g, &dir, &scene, &sensors, &table, &w.name)?;
     }
     step(&format!(
         "wrote the tables and heat maps; peak RSS {:.0} MB",
         ffstream::service::rss::peak_rss_bytes() as f64 / 1e6
     ));
+    print_table(&a, &sensors, &table);
+    print_files(&[&csv, &mcsv], &pictures, &dir);
+    Ok(ExitCode::SUCCESS)
+}
+
+/// The hours of the year: the weather file's (checked against `--year`, the site
+/// from `--location` when given), or a clear year at `--location`.
+fn year_of(a: &AnnualArgs) -> anyhow::Result<weather::Weather> {
+    Ok(match (&a.weather, &a.location) {
+        (Some(path), site) => {
+            let mut w = weather::read(path)?;
+            w.check_year(path, a.year)?;
+            if let Some(site) = site {
+                w.site = site.clone();
+            }
+            w
+        }
+        (None, Some(site)) => clearsky::clear_year(site, a.year, a.linke_turbidity)?,
+        (None, None) => {
+            return Err(super::Usage(
+                "give --weather FILE, or --location LAT,LON,TZ[,ELEV] for a year of clear skies"
+                    .into(),
+            )
+            .into())
+        }
+    })
+}
+
+/// The form-factor file: `--ffz`, or one computed into `dir`. `Break` with the exit
+/// code when this process is an MPI worker or a signal stopped the computation.
+fn form_factors(
+    a: &mut AnnualArgs,
+    dir: &std::path::Path,
+) -> anyhow::Result<ControlFlow<ExitCode, PathBuf>> {
+    if let Some(f) = &a.ffz {
+        return Ok(ControlFlow::Continue(f.clone()));
+    }
+    let f = dir.join("form_factors.ffz");
+    a.compute.force |= !a.compute.resume;
+    a.compute.rows.get_or_insert(RowsArg::Needed);
+    match execute(&a.input, f.clone(), &a.compute) {
+        Ok(Outcome::Master(r)) => eprintln!("{}", r.summary()),
+        Ok(Outcome::Worker) => return Ok(ControlFlow::Break(ExitCode::SUCCESS)),
+        // SIGTERM or SIGINT stopped the form factors: 143 or 130, as `compute` and
+        // `run` exit (it was 1).
+        Err(e) => return stopped_by_signal(e).map(ControlFlow::Break),
+    }
+    // A signal that came as the last rows were written: stop before the year.
+    if let Some(signal) = ffstream::service::interrupt::interrupted() {
+        return Ok(ControlFlow::Break(stopped(signal)));
+    }
+    Ok(ControlFlow::Continue(f))
+}
+
+/// The daylight autonomy of a `--grid` as a map over its group's plane (`da_map.png`
+/// in `dir`), or a note when the group is not planar.
+fn da_map(
+    a: &AnnualArgs,
+    g: &Grid,
+    dir: &std::path::Path,
+    scene: &ffstream::scene::Scene,
+    sensors: &[Sensor],
+    table: &[Metrics],
+    weather: &str,
+) -> anyhow::Result<()> {
+    let da_map = dir.join("da_map.png");
+    match group_plane(scene, &g.group) {
+        Some((o, u, v)) => {
+            let at: Vec<(f64, f64)> = sensors
+                .iter()
+                .map(|s| ((s.point - o).dot(u), (s.point - o).dot(v)))
+                .collect();
+            let da: Vec<f64> = table.iter().map(|m| m.da).collect();
+            let title = format!(
+                "DA{} over {}: share of hours {}-{} h with >= {} lux, {}",
+                a.da_threshold, g.group, a.occupied.start, a.occupied.end, a.da_threshold, weather
+            );
+            heatmap::write_grid_map(&da_map, &title, &at, &da, g.spacing, 100.0, "%")
+                .with_context(|| format!("cannot write {}", da_map.display()))?;
+            println!("daylight autonomy map: {}", da_map.display());
+        }
+        None => eprintln!(
+            "ffstream: annual: group {} is not planar: no DA map (the metrics table has \
+             every sensor)",
+            g.group
+        ),
+    }
+    Ok(())
+}
+
+/// The files written: the two tables, and the heat maps (by name up to 8 of them).
+fn print_files(tables: &[&std::path::Path; 2], pictures: &[PathBuf], dir: &std::path::Path) {
+    println!(
+        "illuminance: {}\nmetrics: {}",
+        tables[0].display(),
+        tables[1].display()
+    );
+    if pictures.len() <= 8 {
+        for p in pictures {
+            println!("heat map: {}", p.display());
+        }
+    } else {
+        println!(
+            "heat maps: {} files {}/heatmap_*.png",
+            pictures.len(),
+            dir.display()
+        );
+    }
+}
+
+/// The metrics table on stdout, one line per sensor.
+fn print_table(a: &AnnualArgs, sensors: &[Sensor], table: &[Metrics]) {
     println!(
         "{:<16} {:>8} {:>7} {:>9} {:>9} {:>10} {:>10}",
         "sensor",
@@ -363,29 +418,12 @@ pub(super) fn run(mut a: AnnualArgs) -> anyhow::Result<ExitCode> {
         "mean lx",
         "max lx"
     );
-    for (s, m) in sensors.iter().zip(&table) {
+    for (s, m) in sensors.iter().zip(table) {
         println!(
             "{:<16} {:>7.1}% {:>6.1}% {:>8.1}% {:>8.1}% {:>10.0} {:>10.0}",
             s.name, m.da, m.udi[0], m.udi[1], m.udi[2], m.mean, m.max
         );
     }
-    println!(
-        "illuminance: {}\nmetrics: {}",
-        csv.display(),
-        mcsv.display()
-    );
-    if pictures.len() <= 8 {
-        for p in &pictures {
-            println!("heat map: {}", p.display());
-        }
-    } else {
-        println!(
-            "heat maps: {} files {}/heatmap_*.png",
-            pictures.len(),
-            dir.display()
-        );
-    }
-    Ok(ExitCode::SUCCESS)
 }
 
 /// Memory a sensor takes over a year of hours, measured: the 9600 sensors of
