@@ -21,6 +21,7 @@ pub mod daylight;
 pub mod ffz;
 pub mod formfactor;
 pub mod geometry;
+mod input;
 pub mod patch;
 pub mod render;
 pub mod rows;

@@ -1,6 +1,7 @@
 //! `ffstream annual`: illuminance at sensor points for every hour of a weather year
 //! (docs/daylight.md). Computes the form factors (or reuses a file), then the daylight.
 
+use std::ops::ControlFlow;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Instant;
@@ -15,12 +16,13 @@ use ffstream::daylight::{
     scene::{grid_sensors, group_plane, read_sensors, scene_frame, SceneLight, Sensor},
     weather, Site,
 };
+use ffstream::ffz::size::human_bytes;
 use ffstream::ffz::FfzReader;
 use ffstream::geometry::merge::OccluderMesh;
 use ffstream::solve::{RowSource, SolveConfig};
 
 use super::choices::RowsArg;
-use super::compute::{execute, ComputeOptions, Outcome};
+use super::compute::{execute, stopped, stopped_by_signal, ComputeOptions, Outcome};
 use super::SceneInput;
 
 #[derive(Args, Debug)]
@@ -35,7 +37,8 @@ pub(crate) struct AnnualArgs {
     pub weather: Option<PathBuf>,
     /// Linke turbidity of the clear sky used without --weather: about 2 for clean
     /// mountain air, 3 for a clean lowland sky, 4–7 for hazy or polluted air.
-    #[arg(long, default_value_t = clearsky::DEFAULT_LINKE, value_name = "TL", conflicts_with = "weather", value_parser = super::choices::number::finite)]
+    /// A finite number ≥ 1.
+    #[arg(long, default_value_t = clearsky::DEFAULT_LINKE, value_name = "TL", conflicts_with = "weather", value_parser = linke)]
     pub linke_turbidity: f64,
     /// Faces of group GROUP are glazing of visible transmittance TAU (0 < TAU ≤ 1):
     /// daylight passes them scaled by TAU instead of being blocked, and light from
@@ -58,7 +61,8 @@ pub(crate) struct AnnualArgs {
     pub grid: Option<Grid>,
     /// The site as LAT,LON,TZ[,ELEV]: degrees north, degrees east, hours from UTC of the
     /// local standard time, metres. Default: the weather file's; required without one.
-    #[arg(long, value_name = "LAT,LON,TZ[,ELEV]", value_parser = location)]
+    /// South latitudes and west longitudes are negative: `--location -33.9,18.4,2`.
+    #[arg(long, value_name = "LAT,LON,TZ[,ELEV]", allow_hyphen_values = true, value_parser = location)]
     pub location: Option<Site>,
     /// Output directory (default: out/SCENE_NAME-annual). It receives form_factors.ffz
     /// (unless --ffz), illuminance.csv, metrics.csv and heatmap_SENSOR.png per sensor.
@@ -69,7 +73,9 @@ pub(crate) struct AnnualArgs {
     pub ffz: Option<PathBuf>,
     /// The year the sun is computed for. Weather files of typical years mix months of
     /// different years; any non-leap year gives the same geometry to 0.1°.
-    #[arg(long, default_value_t = 2005, value_name = "YEAR")]
+    /// −2000 to 6000, the range of the solar position algorithm (NREL's SPA).
+    #[arg(long, default_value_t = 2005, value_name = "YEAR", allow_hyphen_values = true,
+          value_parser = clap::value_parser!(i32).range(-2000..=6000))]
     pub year: i32,
     /// Reflectance of the ground outside (below the horizon, seen through openings).
     #[arg(long, default_value_t = 0.2, value_name = "RHO", value_parser = super::choices::number::open_unit)]
@@ -136,6 +142,17 @@ fn grid(s: &str) -> Result<Grid, String> {
     }
 }
 
+/// `--linke-turbidity`: a finite number ≥ 1 (1 is a dry, clean atmosphere), checked
+/// when the command line is read (it was refused only when the clear year was made).
+fn linke(s: &str) -> Result<f64, String> {
+    match super::choices::number::finite(s)? {
+        x if x >= 1.0 => Ok(x),
+        x => Err(format!(
+            "Linke turbidity {x}: expected a number ≥ 1 (1 is a dry, clean atmosphere)"
+        )),
+    }
+}
+
 fn glazing(s: &str) -> Result<(String, f64), String> {
     let bad = || format!("`{s}`: expected GROUP:TAU with 0 < TAU ≤ 1");
     let (g, t) = s.rsplit_once(':').ok_or_else(bad)?;
@@ -182,19 +199,7 @@ pub(super) fn run(mut a: AnnualArgs) -> anyhow::Result<ExitCode> {
         PathBuf::from(d)
     });
     // Inputs first: a bad weather or sensors file costs no form factors.
-    let w = match (&a.weather, &a.location) {
-        (Some(path), site) => {
-            let mut w = weather::read(path)?;
-            if let Some(site) = site {
-                w.site = site.clone();
-            }
-            w
-        }
-        (None, Some(site)) => clearsky::clear_year(site, a.year, a.linke_turbidity)?,
-        (None, None) => anyhow::bail!(
-            "give --weather FILE, or --location LAT,LON,TZ[,ELEV] for a year of clear skies"
-        ),
-    };
+    let w = year_of(&a)?;
     let scene = super::compute::load_scene(&a.input.scene)?;
     // Computing the form factors prints the scene's warnings; a reused file does not.
     super::compute::scene_warnings(&a.input, &scene, a.ffz.is_some())?;
@@ -205,20 +210,12 @@ pub(super) fn run(mut a: AnnualArgs) -> anyhow::Result<ExitCode> {
             .map_err(|e| anyhow::anyhow!("--grid {}: {e}", g.group))?,
         (None, None) => anyhow::bail!("give --sensors FILE.csv or --grid GROUP:SPACING"),
     };
+    sensors_fit(sensors.len())?;
     std::fs::create_dir_all(&dir).with_context(|| format!("cannot create {}", dir.display()))?;
     check_files(&a, &dir, &sensors)?;
-    let ffz = match &a.ffz {
-        Some(f) => f.clone(),
-        None => {
-            let f = dir.join("form_factors.ffz");
-            a.compute.force |= !a.compute.resume;
-            a.compute.rows.get_or_insert(RowsArg::Needed);
-            match execute(&a.input, f.clone(), &a.compute)? {
-                Outcome::Master(r) => eprintln!("{}", r.summary()),
-                Outcome::Worker => return Ok(ExitCode::SUCCESS),
-            }
-            f
-        }
+    let ffz = match form_factors(&mut a, &dir)? {
+        ControlFlow::Continue(f) => f,
+        ControlFlow::Break(code) => return Ok(code),
     };
     let reader = FfzReader::open(&ffz).with_context(|| format!("{}", ffz.display()))?;
     let mut patches = RowSource::patches(&reader).clone();
@@ -293,38 +290,124 @@ pub(super) fn run(mut a: AnnualArgs) -> anyhow::Result<ExitCode> {
         pictures.push(path);
     }
     if let Some(g) = &a.grid {
-        let da_map = dir.join("da_map.png");
-        match group_plane(&scene, &g.group) {
-            Some((o, u, v)) => {
-                let at: Vec<(f64, f64)> = sensors
-                    .iter()
-                    .map(|s| ((s.point - o).dot(u), (s.point - o).dot(v)))
-                    .collect();
-                let da: Vec<f64> = table.iter().map(|m| m.da).collect();
-                let title = format!(
-                    "DA{} over {}: share of hours {}-{} h with >= {} lux, {}",
-                    a.da_threshold,
-                    g.group,
-                    a.occupied.start,
-                    a.occupied.end,
-                    a.da_threshold,
-                    w.name
-                );
-                heatmap::write_grid_map(&da_map, &title, &at, &da, g.spacing, 100.0, "%")
-                    .with_context(|| format!("cannot write {}", da_map.display()))?;
-                println!("daylight autonomy map: {}", da_map.display());
-            }
-            None => eprintln!(
-                "ffstream: annual: group {} is not planar: no DA map (the metrics table has \
-                 every sensor)",
-                g.group
-            ),
-        }
+        da_map(&a, g, &dir, &scene, &sensors, &table, &w.name)?;
     }
     step(&format!(
         "wrote the tables and heat maps; peak RSS {:.0} MB",
         ffstream::service::rss::peak_rss_bytes() as f64 / 1e6
     ));
+    print_table(&a, &sensors, &table);
+    print_files(&[&csv, &mcsv], &pictures, &dir);
+    Ok(ExitCode::SUCCESS)
+}
+
+/// The hours of the year: the weather file's (checked against `--year`, the site
+/// from `--location` when given), or a clear year at `--location`.
+fn year_of(a: &AnnualArgs) -> anyhow::Result<weather::Weather> {
+    Ok(match (&a.weather, &a.location) {
+        (Some(path), site) => {
+            let mut w = weather::read(path)?;
+            w.check_year(path, a.year)?;
+            if let Some(site) = site {
+                w.site = site.clone();
+            }
+            w
+        }
+        (None, Some(site)) => clearsky::clear_year(site, a.year, a.linke_turbidity)?,
+        (None, None) => {
+            return Err(super::Usage(
+                "give --weather FILE, or --location LAT,LON,TZ[,ELEV] for a year of clear skies"
+                    .into(),
+            )
+            .into())
+        }
+    })
+}
+
+/// The form-factor file: `--ffz`, or one computed into `dir`. `Break` with the exit
+/// code when this process is an MPI worker or a signal stopped the computation.
+fn form_factors(
+    a: &mut AnnualArgs,
+    dir: &std::path::Path,
+) -> anyhow::Result<ControlFlow<ExitCode, PathBuf>> {
+    if let Some(f) = &a.ffz {
+        return Ok(ControlFlow::Continue(f.clone()));
+    }
+    let f = dir.join("form_factors.ffz");
+    a.compute.force |= !a.compute.resume;
+    a.compute.rows.get_or_insert(RowsArg::Needed);
+    match execute(&a.input, f.clone(), &a.compute) {
+        Ok(Outcome::Master(r)) => eprintln!("{}", r.summary()),
+        Ok(Outcome::Worker) => return Ok(ControlFlow::Break(ExitCode::SUCCESS)),
+        // SIGTERM or SIGINT stopped the form factors: 143 or 130, as `compute` and
+        // `run` exit (it was 1).
+        Err(e) => return stopped_by_signal(e).map(ControlFlow::Break),
+    }
+    // A signal that came as the last rows were written: stop before the year.
+    if let Some(signal) = ffstream::service::interrupt::interrupted() {
+        return Ok(ControlFlow::Break(stopped(signal)));
+    }
+    Ok(ControlFlow::Continue(f))
+}
+
+/// The daylight autonomy of a `--grid` as a map over its group's plane (`da_map.png`
+/// in `dir`), or a note when the group is not planar.
+fn da_map(
+    a: &AnnualArgs,
+    g: &Grid,
+    dir: &std::path::Path,
+    scene: &ffstream::scene::Scene,
+    sensors: &[Sensor],
+    table: &[Metrics],
+    weather: &str,
+) -> anyhow::Result<()> {
+    let da_map = dir.join("da_map.png");
+    match group_plane(scene, &g.group) {
+        Some((o, u, v)) => {
+            let at: Vec<(f64, f64)> = sensors
+                .iter()
+                .map(|s| ((s.point - o).dot(u), (s.point - o).dot(v)))
+                .collect();
+            let da: Vec<f64> = table.iter().map(|m| m.da).collect();
+            let title = format!(
+                "DA{} over {}: share of hours {}-{} h with >= {} lux, {}",
+                a.da_threshold, g.group, a.occupied.start, a.occupied.end, a.da_threshold, weather
+            );
+            heatmap::write_grid_map(&da_map, &title, &at, &da, g.spacing, 100.0, "%")
+                .with_context(|| format!("cannot write {}", da_map.display()))?;
+            println!("daylight autonomy map: {}", da_map.display());
+        }
+        None => eprintln!(
+            "ffstream: annual: group {} is not planar: no DA map (the metrics table has \
+             every sensor)",
+            g.group
+        ),
+    }
+    Ok(())
+}
+
+/// The files written: the two tables, and the heat maps (by name up to 8 of them).
+fn print_files(tables: &[&std::path::Path; 2], pictures: &[PathBuf], dir: &std::path::Path) {
+    println!(
+        "illuminance: {}\nmetrics: {}",
+        tables[0].display(),
+        tables[1].display()
+    );
+    if pictures.len() <= 8 {
+        for p in pictures {
+            println!("heat map: {}", p.display());
+        }
+    } else {
+        println!(
+            "heat maps: {} files {}/heatmap_*.png",
+            pictures.len(),
+            dir.display()
+        );
+    }
+}
+
+/// The metrics table on stdout, one line per sensor.
+fn print_table(a: &AnnualArgs, sensors: &[Sensor], table: &[Metrics]) {
     println!(
         "{:<16} {:>8} {:>7} {:>9} {:>9} {:>10} {:>10}",
         "sensor",
@@ -335,34 +418,49 @@ pub(super) fn run(mut a: AnnualArgs) -> anyhow::Result<ExitCode> {
         "mean lx",
         "max lx"
     );
-    for (s, m) in sensors.iter().zip(&table) {
+    for (s, m) in sensors.iter().zip(table) {
         println!(
             "{:<16} {:>7.1}% {:>6.1}% {:>8.1}% {:>8.1}% {:>10.0} {:>10.0}",
             s.name, m.da, m.udi[0], m.udi[1], m.udi[2], m.mean, m.max
         );
     }
-    println!(
-        "illuminance: {}\nmetrics: {}",
-        csv.display(),
-        mcsv.display()
-    );
-    if pictures.len() <= 8 {
-        for p in &pictures {
-            println!("heat map: {}", p.display());
-        }
-    } else {
-        println!(
-            "heat maps: {} files {}/heatmap_*.png",
-            pictures.len(),
-            dir.display()
-        );
+}
+
+/// Memory a sensor takes over a year of hours, measured: the 9600 sensors of
+/// `--grid floor:0.05` on `builtin:office` (100 patches) peaked at 4.07 GB, 424 kB each.
+const SENSOR_BYTES: u64 = 430_000;
+
+/// Refuse, before the form factors, a sensor set this machine has not the memory for
+/// (as `compute` refuses a patch count before subdividing).
+fn sensors_fit(sensors: usize) -> anyhow::Result<()> {
+    let need = (sensors as u64).saturating_mul(SENSOR_BYTES);
+    match super::plan::mem_available() {
+        Some(available) if need > available => anyhow::bail!(
+            "{sensors} sensors need about {} of memory over a year (about {} each) and this \
+             machine has {} available: use fewer sensors (a larger --grid spacing)",
+            human_bytes(need),
+            human_bytes(SENSOR_BYTES),
+            human_bytes(available)
+        ),
+        _ => Ok(()),
     }
-    Ok(ExitCode::SUCCESS)
 }
 
 /// Refuse outputs that are inputs or each other ([`super::outputs`]): among them the
 /// heat maps of two sensors whose names become one file name (`a/b` and `a_b`).
 fn check_files(a: &AnnualArgs, dir: &std::path::Path, sensors: &[Sensor]) -> anyhow::Result<()> {
+    // Named first, as the sensors' own problem (their names, not the command line).
+    let mut maps: std::collections::HashMap<String, &str> = std::collections::HashMap::new();
+    for s in sensors {
+        if let Some(other) = maps.insert(heatmap_name(&s.name), &s.name) {
+            anyhow::bail!(
+                "sensors `{other}` and `{}` would both write {}: a heat map's name keeps \
+                 letters, digits, - and _ of the sensor's name; rename one of them",
+                s.name,
+                heatmap_name(&s.name)
+            );
+        }
+    }
     let mut inputs = super::compute::compute_inputs(&a.input, &a.compute);
     for (option, path) in [
         ("--weather", &a.weather),

@@ -213,7 +213,7 @@ fn statvfs_free(dir: &Path) -> Option<u64> {
 }
 
 /// MemAvailable of /proc/meminfo (Linux), in bytes.
-fn mem_available() -> Option<u64> {
+pub(super) fn mem_available() -> Option<u64> {
     let info = std::fs::read_to_string("/proc/meminfo").ok()?;
     let line = info.lines().find(|l| l.starts_with("MemAvailable:"))?;
     let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;

@@ -62,9 +62,18 @@ fn render_spp(s: &str) -> Result<u32, String> {
     }
 }
 
-/// `--exposure`: a finite number > 0.
+/// `--exposure`: a number > 0 that is finite and not 0 as a 32-bit float (1e300 became
+/// infinity and was refused only when the picture was drawn, exit 1).
 fn render_exposure(s: &str) -> Result<f32, String> {
-    super::choices::number::positive(s).map(|x| x as f32)
+    let x = super::choices::number::positive(s)? as f32;
+    match x.is_finite() && x > 0.0 {
+        true => Ok(x),
+        false => Err(format!(
+            "{s} is not a finite number > 0 as a 32-bit float ({:e} to {:e})",
+            f32::MIN_POSITIVE,
+            f32::MAX
+        )),
+    }
 }
 
 /// `--camera`, checked when the command line is read (a usage error).

@@ -112,6 +112,7 @@ pub fn clear_year(site: &Site, year: i32, linke: f64) -> Result<Weather, SunErro
                     dhi: c.dhi,
                     dew_point: DEFAULT_DEW_POINT,
                     pressure,
+                    line: 0,
                 });
             }
         }

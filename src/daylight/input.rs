@@ -8,10 +8,12 @@ use crate::table;
 /// the file, and the line where there is one.
 #[derive(Debug, thiserror::Error)]
 pub enum InputError {
-    #[error("{path}: {source}")]
+    /// The OS's error, quoted in the message (and so not also the error's source,
+    /// which `main` would print a second time).
+    #[error("{path}: {cause}")]
     Io {
         path: PathBuf,
-        source: std::io::Error,
+        cause: std::io::Error,
     },
     /// Something wrong at a place in the file.
     #[error("{path}: line {line}: {what}")]
@@ -29,7 +31,7 @@ impl InputError {
     pub(crate) fn io(path: &Path, source: std::io::Error) -> Self {
         InputError::Io {
             path: path.to_owned(),
-            source,
+            cause: source,
         }
     }
 

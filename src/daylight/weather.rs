@@ -41,6 +41,8 @@ pub struct Hour {
     pub dew_point: f64,
     /// Station pressure, mbar.
     pub pressure: f64,
+    /// The line of the file it was read from (0 when it was not read from a file).
+    pub line: usize,
 }
 
 impl Hour {
@@ -69,13 +71,83 @@ pub struct Weather {
     pub hours: Vec<Hour>,
 }
 
+impl Weather {
+    /// Check the weather read from `path` against `year`, the year the sun is computed
+    /// for: a February 29 in the file needs a leap year (the sun of a day that does not
+    /// exist cannot be computed; before this check the run stopped after computing the
+    /// form factors, on a debug dump of the time); and the file must hold a whole year,
+    /// 8760 hours (8784 with February 29).
+    ///
+    /// # Errors
+    /// [`InputError::At`] naming the line of the first February 29, with the nearest
+    /// leap years as a hint; [`InputError::File`] naming the first missing hour.
+    pub fn check_year(&self, path: &Path, year: i32) -> Result<(), InputError> {
+        let feb29 = self.hours.iter().find(|h| (h.month, h.day) == (2, 29));
+        match feb29 {
+            _ if super::sun::days_in_month(year, 2) == 29 => {}
+            None => {}
+            Some(h) => {
+                let before = (year - 3..year)
+                    .rev()
+                    .find(|&y| super::sun::days_in_month(y, 2) == 29);
+                let after = (year + 1..=year + 4).find(|&y| super::sun::days_in_month(y, 2) == 29);
+                let hint: Vec<String> = [before, after]
+                    .iter()
+                    .flatten()
+                    .map(|y| y.to_string())
+                    .collect();
+                return Err(InputError::at(
+                    path,
+                    h.line,
+                    format!(
+                        "February 29, but the sun is computed for {year}, not a leap year: give a leap year with --year ({}), or remove the day from the file",
+                        hint.join(" or ")
+                    ),
+                ));
+            }
+        }
+        // A whole year: every hour once (duplicates and impossible dates are refused
+        // when the file is read), with or without February 29. One hour passed as a
+        // year, and the metrics (shares of the year's hours) meant nothing.
+        let leap = feb29.is_some();
+        let want = if leap { 8784 } else { 8760 };
+        if self.hours.len() == want {
+            return Ok(());
+        }
+        let have: std::collections::HashSet<(u32, u32, u32)> = self
+            .hours
+            .iter()
+            .map(|h| (h.month, h.day, h.hour))
+            .collect();
+        let calendar = if leap { 2024 } else { 2025 };
+        let missing = (1..=12)
+            .flat_map(|m| (1..=super::sun::days_in_month(calendar, m)).map(move |d| (m, d)))
+            .flat_map(|(m, d)| (1..=24).map(move |h| (m, d, h)))
+            .find(|k| !have.contains(k));
+        let first = missing.map_or(String::new(), |(m, d, h)| {
+            format!(": the first missing is month {m}, day {d}, hour {h}")
+        });
+        Err(InputError::file(
+            path,
+            format!(
+                "{} hours, not a whole year ({want}){first}; annual needs every hour of a year (its metrics are shares of them)",
+                self.hours.len()
+            ),
+        ))
+    }
+}
+
+/// Most bytes a compressed weather file may decompress to: a year of hours is about
+/// 1.6 MB as EPW, 1.8 MB as TMY3 CSV; a small `.zst` can hold gigabytes.
+const MAX_WEATHER_BYTES: u64 = 64 << 20;
+
 /// The weather in `path`: EPW when its first line starts with `LOCATION`, TMY3
 /// otherwise; a name ending in `.zst` is decompressed first (zstd).
 pub fn read(path: &Path) -> Result<Weather, InputError> {
     let io = |e| InputError::io(path, e);
-    let mut bytes = std::fs::read(path).map_err(io)?;
+    let mut bytes = crate::input::read(path).map_err(io)?;
     if path.extension().is_some_and(|e| e == "zst") {
-        bytes = zstd::decode_all(bytes.as_slice()).map_err(io)?;
+        bytes = crate::input::zstd_capped(&bytes, MAX_WEATHER_BYTES).map_err(io)?;
     }
     let text = String::from_utf8(bytes).map_err(|e| {
         let at = e.utf8_error().valid_up_to();
@@ -198,6 +270,7 @@ fn parse_epw(path: &Path, text: &str) -> Result<Weather, InputError> {
             ghi: number(path, rec, 13, "global horizontal radiation", IRRADIANCE)?,
             dni: number(path, rec, 14, "direct normal radiation", IRRADIANCE)?,
             dhi: number(path, rec, 15, "diffuse horizontal radiation", IRRADIANCE)?,
+            line: rec.line,
         });
     }
     finish(path, site, name_of(loc), hours)
@@ -259,6 +332,7 @@ fn parse_tmy3(path: &Path, text: &str) -> Result<Weather, InputError> {
             dhi: number(path, rec, c_dhi, "DHI (W/m^2)", IRRADIANCE)?,
             dew_point: number(path, rec, c_dew, "Dew-point (C)", -90.0..=70.0)?,
             pressure: number(path, rec, c_p, "Pressure (mbar)", 310.0..=1200.0)?,
+            line: rec.line,
         });
     }
     finish(path, site, name_of(head), hours)

@@ -512,6 +512,36 @@ impl DecodedChunk {
 /// decompresses to more than 32768 times its size.
 const MAX_ZSTD_EXPANSION: u64 = 32_768;
 
+/// Check a declared raw length against its payload before anything is allocated: the
+/// bound of [`decode_record`] lets a chunk of n rows of a large n claim 80 GB, and a
+/// forged header (checksums recomputed) made every reader abort allocating it (issue
+/// 48). The length must be the zstd frame's declared content size, when the frame has
+/// one, and at most [`MAX_ZSTD_EXPANSION`] times the payload.
+fn raw_len_fits(h: &ChunkHeaderV1, payload: &[u8]) -> std::result::Result<(), ChunkFault> {
+    if let Ok(Some(declared)) = zstd::zstd_safe::get_frame_content_size(payload) {
+        if declared != h.raw_len {
+            return Err((
+                16,
+                format!(
+                    "raw length {} but the zstd frame declares {declared} bytes",
+                    h.raw_len
+                ),
+            ));
+        }
+    }
+    if h.raw_len > (payload.len() as u64).saturating_mul(MAX_ZSTD_EXPANSION) {
+        return Err((
+            16,
+            format!(
+                "raw length {} impossible for a payload of {} bytes (zstd expands at most {MAX_ZSTD_EXPANSION}-fold)",
+                h.raw_len,
+                payload.len()
+            ),
+        ));
+    }
+    Ok(())
+}
+
 /// Decompress `payload`, reading at most `raw_len + 1` bytes out of it. Memory follows
 /// what actually comes out (the buffer starts at 64 MiB at most and grows), not the
 /// size a header declares, so a lie about it costs nothing.
@@ -552,30 +582,7 @@ pub fn decode_record(
             ),
         ));
     }
-    // A declared size is not trusted before it is checked against the payload: the
-    // bound above lets a chunk of n rows of a large n claim 80 GB, and a forged header
-    // (checksums recomputed) made every reader abort allocating it (issue 48).
-    if let Ok(Some(declared)) = zstd::zstd_safe::get_frame_content_size(payload) {
-        if declared != h.raw_len {
-            return Err((
-                16,
-                format!(
-                    "raw length {} but the zstd frame declares {declared} bytes",
-                    h.raw_len
-                ),
-            ));
-        }
-    }
-    if h.raw_len > (payload.len() as u64).saturating_mul(MAX_ZSTD_EXPANSION) {
-        return Err((
-            16,
-            format!(
-                "raw length {} impossible for a payload of {} bytes (zstd expands at most {MAX_ZSTD_EXPANSION}-fold)",
-                h.raw_len,
-                payload.len()
-            ),
-        ));
-    }
+    raw_len_fits(&h, payload)?;
     let raw = decompress_at_most(payload, h.raw_len)
         .map_err(|e| here(format!("zstd payload does not decompress: {e}")))?;
     if raw.len() as u64 != h.raw_len {

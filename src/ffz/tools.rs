@@ -8,6 +8,7 @@ use super::error::{FfzError, Result};
 use super::npz::Spill;
 use super::reader::FfzReader;
 use super::spec;
+use super::staged::Staged;
 use super::verify::{compare, VerifyOptions};
 use crate::table::TableWriter;
 
@@ -358,16 +359,38 @@ fn write_entries(
     r: &FfzReader,
     outputs: &[(&Path, String)],
     kept: impl Fn(f32) -> bool,
+    spill: Option<&mut Spill>,
+) -> Result<()> {
+    let mut staged = Vec::with_capacity(outputs.len());
+    let mut sinks = Vec::with_capacity(outputs.len());
+    let written = (|| {
+        for (out, head) in outputs {
+            let (s, f) = Staged::create(out)?;
+            staged.push(s);
+            let mut w = BufWriter::with_capacity(1 << 20, f);
+            w.write_all(head.as_bytes())
+                .map_err(|e| FfzError::io(out, "write", e))?;
+            sinks.push((*out, w));
+        }
+        fill_entries(r, &mut sinks, kept, spill)
+    })();
+    match written {
+        Ok(()) => staged.into_iter().try_for_each(Staged::commit),
+        Err(e) => {
+            drop(sinks);
+            staged.into_iter().for_each(Staged::discard);
+            Err(e)
+        }
+    }
+}
+
+/// The entry pass of [`write_entries`] into its open `sinks`, flushed at the end.
+fn fill_entries(
+    r: &FfzReader,
+    sinks: &mut Vec<(&Path, BufWriter<std::fs::File>)>,
+    kept: impl Fn(f32) -> bool,
     mut spill: Option<&mut Spill>,
 ) -> Result<()> {
-    let mut sinks = Vec::with_capacity(outputs.len());
-    for (out, head) in outputs {
-        let f = std::fs::File::create(out).map_err(|e| FfzError::io(out, "create", e))?;
-        let mut w = BufWriter::with_capacity(1 << 20, f);
-        w.write_all(head.as_bytes())
-            .map_err(|e| FfzError::io(out, "write", e))?;
-        sinks.push((*out, w));
-    }
     let mut werr: Option<(&Path, std::io::Error)> = None;
     let mut serr: Option<FfzError> = None;
     let (mut cols, mut vals) = (Vec::new(), Vec::new());
@@ -401,7 +424,7 @@ fn write_entries(
     if let Some(e) = serr {
         return Err(e);
     }
-    for (out, mut w) in sinks {
+    for (out, w) in sinks.iter_mut() {
         w.flush().map_err(|e| FfzError::io(out, "write", e))?;
     }
     Ok(())
@@ -513,25 +536,38 @@ pub fn export(path: &Path, to: ExportTargets<'_>) -> Result<()> {
         }
     }
     if let Some(csv) = to.patches_csv {
-        let e = |err| FfzError::io(csv, "write", err);
-        let mut w = TableWriter::create(csv).map_err(|err| FfzError::io(csv, "create", err))?;
-        w.record(PATCHES_CSV_HEADER.split(',')).map_err(e)?;
-        let ps = &r.meta().patches;
-        for (i, p) in ps.patches.iter().enumerate() {
-            let c = p.centroid();
-            let group = ps.groups.get(p.group as usize).map_or("", |s| s.as_str());
-            let mut fields = vec![i.to_string(), group.to_string()];
-            fields.extend(
-                [p.area, c.x, c.y, c.z, p.normal.x, p.normal.y, p.normal.z].map(|x| x.to_string()),
-            );
-            fields.extend(p.rho.iter().chain(&p.emission).map(|x| x.to_string()));
-            match sums[i] {
-                Some(sum) => fields.extend([sum.to_string(), (1.0 - sum).to_string()]),
-                None => fields.extend([String::new(), String::new()]),
+        let (staged, f) = Staged::create(csv)?;
+        match patches_table(&r, &sums, csv, f) {
+            Ok(()) => staged.commit()?,
+            Err(e) => {
+                staged.discard();
+                return Err(e);
             }
-            w.record(&fields).map_err(e)?;
         }
-        w.finish().map_err(e)?;
     }
     Ok(())
+}
+
+/// The patch table of `export --patches-csv` into `f` (the file for `csv`), with each
+/// row's sum from `sums`.
+fn patches_table(r: &FfzReader, sums: &[Option<f64>], csv: &Path, f: std::fs::File) -> Result<()> {
+    let e = |err| FfzError::io(csv, "write", err);
+    let mut w = TableWriter::new(BufWriter::new(f));
+    w.record(PATCHES_CSV_HEADER.split(',')).map_err(e)?;
+    let ps = &r.meta().patches;
+    for (i, p) in ps.patches.iter().enumerate() {
+        let c = p.centroid();
+        let group = ps.groups.get(p.group as usize).map_or("", |s| s.as_str());
+        let mut fields = vec![i.to_string(), group.to_string()];
+        fields.extend(
+            [p.area, c.x, c.y, c.z, p.normal.x, p.normal.y, p.normal.z].map(|x| x.to_string()),
+        );
+        fields.extend(p.rho.iter().chain(&p.emission).map(|x| x.to_string()));
+        match sums[i] {
+            Some(sum) => fields.extend([sum.to_string(), (1.0 - sum).to_string()]),
+            None => fields.extend([String::new(), String::new()]),
+        }
+        w.record(&fields).map_err(e)?;
+    }
+    w.finish().map_err(e)
 }

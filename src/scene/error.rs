@@ -3,6 +3,29 @@
 
 use std::path::{Path, PathBuf};
 
+/// Longest text from a file an error quotes, in characters.
+const ECHO_CHARS: usize = 200;
+
+/// Text from a file as an error quotes it: control characters escaped (a carriage
+/// return would send the terminal's cursor back over the message) and cut after
+/// [`ECHO_CHARS`] characters, saying how long it was. A file whose lines end in CR
+/// alone is one line to the loader, and its errors used to echo the whole file.
+pub(crate) fn echo(text: &str) -> String {
+    let mut out = String::new();
+    for (shown, c) in text.chars().enumerate() {
+        if shown == ECHO_CHARS {
+            out.push_str(&format!("... ({} characters in all)", text.chars().count()));
+            return out;
+        }
+        if c.is_control() {
+            out.extend(c.escape_default());
+        } else {
+            out.push(c);
+        }
+    }
+    out
+}
+
 /// Why a scene could not be loaded, built or written.
 #[derive(Debug, thiserror::Error)]
 pub enum SceneError {
@@ -13,7 +36,7 @@ pub enum SceneError {
         cause: std::io::Error,
     },
     /// A statement the loader needs could not be parsed.
-    #[error("{}:{line}: malformed `{keyword}` statement: {reason}", path.display())]
+    #[error("{}:{line}: malformed `{}` statement: {}", path.display(), echo(keyword), echo(reason))]
     Malformed {
         path: PathBuf,
         line: u32,
@@ -32,8 +55,9 @@ pub enum SceneError {
     /// A vertex coordinate is NaN, infinite, or so large (|x| > 1e150) that lengths and
     /// areas would overflow.
     #[error(
-        "{}:{line}: vertex coordinate `{value}` is not finite or too large (|x| ≤ 1e150 keeps lengths and areas finite)",
-        path.display()
+        "{}:{line}: vertex coordinate `{}` is not finite or too large (|x| ≤ 1e150 keeps lengths and areas finite)",
+        path.display(),
+        echo(value)
     )]
     NonFinite {
         path: PathBuf,
@@ -41,7 +65,7 @@ pub enum SceneError {
         value: String,
     },
     /// An `mtllib` names a file that does not exist or cannot be read.
-    #[error("{}:{line}: material library {} cannot be read: {reason}", path.display(), mtl.display())]
+    #[error("{}:{line}: material library {} cannot be read: {reason}", path.display(), echo(&mtl.to_string_lossy()))]
     MissingMtl {
         path: PathBuf,
         line: u32,
@@ -49,7 +73,7 @@ pub enum SceneError {
         reason: String,
     },
     /// A `usemtl` names a material no material library defines.
-    #[error("{}:{line}: material `{name}` is not defined by a material library loaded before this line", path.display())]
+    #[error("{}:{line}: material `{}` is not defined by a material library loaded before this line", path.display(), echo(name))]
     MissingMaterial {
         path: PathBuf,
         line: u32,

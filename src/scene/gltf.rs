@@ -6,12 +6,16 @@
 //! error naming it, never a wrong mesh).
 //!
 //! The nodes of the default scene (else the first) are walked from the roots with their
-//! transforms; every triangle primitive of a node's mesh becomes faces (a transform
+//! transforms (after a check that the hierarchy has no cycle and expands to at most
+//! [`MAX_NODE_INSTANCES`] nodes; the walk keeps its own stack, so a deep legal chain
+//! is no error); every triangle primitive of a node's mesh becomes faces (a transform
 //! that mirrors reverses the corner order, so fronts stay fronts). Groups: the node's
 //! name, else its mesh's, else `node<N>`. Materials: `baseColorFactor` (rgb) is the
 //! reflectance Kd (clamped below 1 with a warning, since a white of exactly 1 keeps all
 //! light), `emissiveFactor` × `KHR_materials_emissive_strength` the exitance Ke, in the
-//! scene's radiosity units; textures are ignored. A materials file beside the file
+//! scene's radiosity units; a negative base colour, emissive factor or strength is an
+//! error, as a negative Kd or Ke in MTL; textures are ignored. Only asset version 2.x
+//! is read. A materials file beside the file
 //! ([`super::mesh::materials_file`]) overrides by group name. Triangles are numbered
 //! from 1 over the primitives in walk order: errors and warnings name them so.
 
@@ -25,8 +29,12 @@ use super::{Material, Scene, SceneError};
 
 const UNIT: &str = "triangle";
 
-/// Largest node depth followed (a guard against cycles the JSON could declare).
-const MAX_DEPTH: usize = 256;
+/// Most node instances a walk makes: a node whose parents share it is walked once per
+/// path from a root, which a crafted file (each level's node the child of both nodes
+/// of the level above) makes 2^depth; a million instances is far above any real scene
+/// (glTF hierarchies are trees: the glTF 2.0 specification, "Nodes and Hierarchy":
+/// "each node MUST have zero or one parent node").
+const MAX_NODE_INSTANCES: u64 = 1_000_000;
 
 /// Largest reflectance a base colour becomes.
 const MAX_KD: f32 = 0.99;
@@ -40,7 +48,7 @@ const MAX_KD: f32 = 0.99;
 /// triangles, an index out of range or a coordinate that is not finite;
 /// [`SceneError::Empty`] when no triangle is usable.
 pub(super) fn load_gltf(path: &Path) -> Result<Scene, SceneError> {
-    let bytes = std::fs::read(path).map_err(|cause| SceneError::Read {
+    let bytes = crate::input::read(path).map_err(|cause| SceneError::Read {
         path: path.to_owned(),
         cause,
     })?;
@@ -55,8 +63,15 @@ pub(super) fn load_gltf(path: &Path) -> Result<Scene, SceneError> {
             format!("not readable as glTF 2.0: {}", one_line(e)),
         )
     })?;
-    let buffers = load_buffers(path, &gltf)?;
     let doc = &gltf.document;
+    let version = &doc.as_json().asset.version;
+    if !version.starts_with("2.") {
+        return Err(err(
+            "asset".into(),
+            format!("version `{version}`: only glTF 2.x is read"),
+        ));
+    }
+    let buffers = load_buffers(path, &gltf)?;
 
     let mut load = Load {
         path,
@@ -69,10 +84,94 @@ pub(super) fn load_gltf(path: &Path) -> Result<Scene, SceneError> {
         Some(s) => s.nodes().collect(),
         None => Vec::new(),
     };
-    for node in roots {
-        load.node(&node, DMat4::IDENTITY, 0)?;
+    let under = instances(doc).map_err(|(node, child)| {
+        err(
+            format!("node {node}"),
+            format!(
+                "has node {child} among its descendants and as a child: the hierarchy has a cycle"
+            ),
+        )
+    })?;
+    let total = roots
+        .iter()
+        .fold(0u64, |t, r| t.saturating_add(under[r.index()]));
+    if total > MAX_NODE_INSTANCES {
+        let shared = shared_node(doc).map_or(String::new(), |(c, a, b)| {
+            format!(" (node {c} is a child of nodes {a} and {b}; glTF hierarchies are trees)")
+        });
+        return Err(err(
+            "nodes".into(),
+            format!(
+                "the scene's hierarchy expands to {total} node instances, more than the {MAX_NODE_INSTANCES} read{shared}"
+            ),
+        ));
+    }
+    for node in &roots {
+        load.node(node, DMat4::IDENTITY)?;
     }
     load.out.finish()
+}
+
+/// For each node, the instances a walk from it makes (itself and every descendant,
+/// once per path; saturating), found in one pass (each node counted once, from its
+/// children's counts), without recursion so that a deep legal chain costs no stack.
+///
+/// # Errors
+/// `(node, child)` when following `child` from `node` closes a cycle (the child is on
+/// the path being walked: an on-stack set, so a node reached twice by two paths is no
+/// cycle).
+fn instances(doc: &::gltf::Document) -> Result<Vec<u64>, (usize, usize)> {
+    let children: Vec<Vec<usize>> = doc
+        .nodes()
+        .map(|n| n.children().map(|c| c.index()).collect())
+        .collect();
+    const NEW: u8 = 0;
+    const ON_PATH: u8 = 1;
+    const DONE: u8 = 2;
+    let mut state = vec![NEW; children.len()];
+    let mut count = vec![0u64; children.len()];
+    for start in 0..children.len() {
+        if state[start] != NEW {
+            continue;
+        }
+        state[start] = ON_PATH;
+        let mut path = vec![(start, 0usize)];
+        while let Some((v, next)) = path.last_mut() {
+            let v = *v;
+            if let Some(&c) = children[v].get(*next) {
+                *next += 1;
+                match state[c] {
+                    NEW => {
+                        state[c] = ON_PATH;
+                        path.push((c, 0));
+                    }
+                    ON_PATH => return Err((v, c)),
+                    _ => {}
+                }
+            } else {
+                count[v] = children[v]
+                    .iter()
+                    .fold(1u64, |t, &c| t.saturating_add(count[c]));
+                state[v] = DONE;
+                path.pop();
+            }
+        }
+    }
+    Ok(count)
+}
+
+/// A node with two parents, as (node, parent, other parent), for the message.
+fn shared_node(doc: &::gltf::Document) -> Option<(usize, usize, usize)> {
+    let mut parent: HashMap<usize, usize> = HashMap::new();
+    for n in doc.nodes() {
+        for c in n.children() {
+            if let Some(&p) = parent.get(&c.index()) {
+                return Some((c.index(), p, n.index()));
+            }
+            parent.insert(c.index(), n.index());
+        }
+    }
+    None
 }
 
 /// The data of every buffer: the GLB's binary chunk, or a file the URI names relative
@@ -98,7 +197,7 @@ fn load_buffers(path: &Path, gltf: &::gltf::Gltf) -> Result<Vec<Vec<u8>>, SceneE
                 Some(_) => data_uri(&uri[5..]).map_err(err)?,
                 None => {
                     let file = dir.join(percent_decoded(uri));
-                    std::fs::read(&file)
+                    crate::input::read(&file)
                         .map_err(|e| err(format!("cannot read {}: {e}", file.display())))?
                 }
             },
@@ -195,32 +294,26 @@ impl Load<'_> {
         }
     }
 
-    fn node(
-        &mut self,
-        node: &::gltf::Node<'_>,
-        parent: DMat4,
-        depth: usize,
-    ) -> Result<(), SceneError> {
-        if depth > MAX_DEPTH {
-            return Err(self.err(
-                format!("node {}", node.index()),
-                format!("nodes nested deeper than {MAX_DEPTH} (a cycle?)"),
-            ));
-        }
-        let m = node.transform().matrix().map(|c| c.map(f64::from));
-        let world = parent * DMat4::from_cols_array_2d(&m);
-        if let Some(mesh) = node.mesh() {
-            let group = node
-                .name()
-                .or(mesh.name())
-                .map(str::to_owned)
-                .unwrap_or_else(|| format!("node{}", node.index()));
-            for prim in mesh.primitives() {
-                self.primitive(&prim, &group, world, mesh.index())?;
+    /// Walk `root` and its descendants in pre-order (a node, then its children in
+    /// order), each with its world transform, without recursion: [`instances`] has
+    /// checked that the walk ends and how long it is.
+    fn node(&mut self, root: &::gltf::Node<'_>, parent: DMat4) -> Result<(), SceneError> {
+        let mut todo = vec![(root.clone(), parent)];
+        while let Some((node, parent)) = todo.pop() {
+            let m = node.transform().matrix().map(|c| c.map(f64::from));
+            let world = parent * DMat4::from_cols_array_2d(&m);
+            if let Some(mesh) = node.mesh() {
+                let group = node
+                    .name()
+                    .or(mesh.name())
+                    .map(str::to_owned)
+                    .unwrap_or_else(|| format!("node{}", node.index()));
+                for prim in mesh.primitives() {
+                    self.primitive(&prim, &group, world, mesh.index())?;
+                }
             }
-        }
-        for child in node.children() {
-            self.node(&child, world, depth + 1)?;
+            let children: Vec<_> = node.children().collect();
+            todo.extend(children.into_iter().rev().map(|c| (c, world)));
         }
         Ok(())
     }
@@ -382,8 +475,14 @@ impl Load<'_> {
                 .name()
                 .map(str::to_owned)
                 .unwrap_or_else(|| format!("material{k}"));
+            let here = format!("material {k} (`{name}`)");
             let base = m.pbr_metallic_roughness().base_color_factor();
-            let mut rho = [base[0], base[1], base[2]].map(|x| x.max(0.0));
+            let mut rho = [base[0], base[1], base[2]];
+            // Refused as the MTL loader refuses a negative Kd or Ke: a sign error in
+            // the file, not a colour (they were clamped to 0 without a word).
+            if let Some(x) = rho.iter().find(|&&x| !(x.is_finite() && x >= 0.0)) {
+                return Err(self.err(here, format!("baseColorFactor {x} must be finite and >= 0")));
+            }
             if rho.iter().any(|&x| x > MAX_KD) {
                 self.out.warn(format!(
                     "{}: material `{name}`: baseColorFactor above {MAX_KD} read as {MAX_KD} (a reflectance of 1 keeps all light)",
@@ -392,10 +491,20 @@ impl Load<'_> {
                 rho = rho.map(|x| x.min(MAX_KD));
             }
             let strength = m.emissive_strength().unwrap_or(1.0);
-            let emission = m.emissive_factor().map(|e| (e * strength).max(0.0));
+            if !(strength.is_finite() && strength >= 0.0) {
+                return Err(self.err(
+                    here,
+                    format!("emissive strength {strength} must be finite and >= 0"),
+                ));
+            }
+            let factor = m.emissive_factor();
+            if let Some(e) = factor.iter().find(|&&e| !(e.is_finite() && e >= 0.0)) {
+                return Err(self.err(here, format!("emissiveFactor {e} must be finite and >= 0")));
+            }
+            let emission = factor.map(|e| e * strength);
             if emission.iter().any(|e| !e.is_finite()) {
                 return Err(self.err(
-                    format!("material {k}"),
+                    here,
                     format!("emissiveFactor × emissive strength {strength} is not finite"),
                 ));
             }

@@ -16,7 +16,7 @@ use std::path::{Path, PathBuf};
 use glam::DVec3;
 
 use super::mesh::{finish, Tally, MAX_COORDINATE};
-use super::polygon::repair;
+use super::polygon::{repair, MAX_FACE_CORNERS};
 use super::{Face, Material, Scene, SceneError};
 
 /// One face element (`f`, or `l` which `tobj` also returns as a face) in file order.
@@ -108,9 +108,9 @@ fn read_text(path: &Path, warnings: &mut Vec<String>) -> Result<String, SceneErr
         path: path.to_owned(),
         cause,
     };
-    let bytes = std::fs::read(path).map_err(read_error)?;
+    let bytes = crate::input::read(path).map_err(read_error)?;
     let bytes = match String::from_utf8(bytes) {
-        Ok(text) => return Ok(text),
+        Ok(text) => return Ok(plain(text)),
         Err(e) => e.into_bytes(),
     };
     let mut text = String::with_capacity(bytes.len());
@@ -142,7 +142,38 @@ fn read_text(path: &Path, warnings: &mut Vec<String>) -> Result<String, SceneErr
             path.display()
         ));
     }
-    Ok(text)
+    Ok(plain(text))
+}
+
+/// The text as both parsers (ours and tobj's) read it: without a UTF-8 byte-order mark
+/// (which made the first statement, `mtllib` or `newmtl`, an unknown keyword), and with
+/// the white space after a line's keyword a single space (tobj takes the argument of
+/// `mtllib`, `usemtl` and `newmtl` after the first space, so `mtllib<TAB>a.mtl` named
+/// no file). Line numbers are unchanged.
+fn plain(text: String) -> String {
+    let text = match text.strip_prefix('\u{feff}') {
+        Some(t) => t.to_owned(),
+        None => text,
+    };
+    if !text.contains('\t') {
+        return text;
+    }
+    let mut out = String::with_capacity(text.len());
+    for line in text.split_inclusive('\n') {
+        let body = line.trim_start();
+        let lead = &line[..line.len() - body.len()];
+        match body.find(char::is_whitespace) {
+            Some(k) if body[k..].starts_with('\t') => {
+                let rest = body[k..].trim_start_matches([' ', '\t']);
+                out.push_str(lead);
+                out.push_str(&body[..k]);
+                out.push(' ');
+                out.push_str(rest);
+            }
+            _ => out.push_str(line),
+        }
+    }
+    out
 }
 
 fn load_materials(
@@ -463,6 +494,11 @@ fn check_element<'a>(
         }
     }
     let (least, what) = if kw == "f" { (3, "face") } else { (2, "line") };
+    if kw == "f" && count > MAX_FACE_CORNERS {
+        return Err(malformed(format!(
+            "a face of {count} corners, more than the {MAX_FACE_CORNERS} a face may have: split it"
+        )));
+    }
     if count < least {
         return Err(malformed(format!(
             "a {what} needs at least {least} vertices, found {count}"

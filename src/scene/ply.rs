@@ -9,10 +9,13 @@
 
 use std::path::Path;
 
-use ply_rs_bw::parser::Parser;
-use ply_rs_bw::ply::{DefaultElement, Property};
+use std::io::BufRead;
+
+use ply_rs_bw::parser::{Parser, Reader};
+use ply_rs_bw::ply::{DefaultElement, Encoding, Header, Payload, Property};
 
 use super::mesh::{check_point, one_line, Assembler};
+use super::polygon::MAX_FACE_CORNERS;
 use super::{Scene, SceneError};
 
 const UNIT: &str = "face";
@@ -26,7 +29,7 @@ const UNIT: &str = "face";
 /// finite (naming the vertex's first face); as [`Assembler::new`] for a bad materials
 /// file; [`SceneError::Empty`] when no face is usable.
 pub(super) fn load_ply(path: &Path) -> Result<Scene, SceneError> {
-    let file = std::fs::File::open(path).map_err(|cause| SceneError::Read {
+    let file = crate::input::open(path).map_err(|cause| SceneError::Read {
         path: path.to_owned(),
         cause,
     })?;
@@ -35,12 +38,25 @@ pub(super) fn load_ply(path: &Path) -> Result<Scene, SceneError> {
         element: element.to_owned(),
         reason,
     };
-    let mut reader = std::io::BufReader::new(file);
-    let ply = Parser::<DefaultElement>::new()
-        .read_ply(&mut reader)
-        .map_err(|e| err("file", format!("not readable as PLY: {}", one_line(e))))?;
-    let vertices = ply.payload.get("vertex").map(Vec::as_slice).unwrap_or(&[]);
-    let faces = ply.payload.get("face").ok_or_else(|| {
+    let unreadable = |e| err("file", format!("not readable as PLY: {}", one_line(e)));
+    let parser = Parser::<DefaultElement>::new();
+    let mut reader = Reader::new(std::io::BufReader::new(file));
+    let header = parser.read_header(&mut reader).map_err(unreadable)?;
+    let payload = match header.encoding {
+        Encoding::Ascii => {
+            let first = reader.line();
+            ascii_payload(path, &parser, reader.get_mut(), &header, first)?
+        }
+        _ => {
+            let payload = parser
+                .read_payload(&mut reader, &header)
+                .map_err(unreadable)?;
+            nothing_after(path, reader.get_mut(), &header, None)?;
+            payload
+        }
+    };
+    let vertices = payload.get("vertex").map(Vec::as_slice).unwrap_or(&[]);
+    let faces = payload.get("face").ok_or_else(|| {
         err(
             "header",
             "no `face` element: a PLY point cloud has no surfaces".into(),
@@ -75,6 +91,15 @@ pub(super) fn load_ply(path: &Path) -> Result<Scene, SceneError> {
             .or_else(|| f.get("vertex_index"))
             .and_then(indices)
             .ok_or_else(|| err(&here, "no integer `vertex_indices` list".into()))?;
+        if list.len() > MAX_FACE_CORNERS {
+            return Err(err(
+                &here,
+                format!(
+                    "a face of {} corners, more than the {MAX_FACE_CORNERS} a face may have: split it",
+                    list.len()
+                ),
+            ));
+        }
         if list.len() < 3 {
             return Err(err(
                 &here,
@@ -100,6 +125,129 @@ pub(super) fn load_ply(path: &Path) -> Result<Scene, SceneError> {
         out.polygon(&group, material, at, &corners);
     }
     out.finish()
+}
+
+/// The elements of an ASCII body, one line each from line `first` on, as the header
+/// declares them; then nothing but white space. Read here rather than by the parser's
+/// own loop, which ignored values beyond a line's properties and anything after the
+/// declared counts (a face count one short lost the last face without a word).
+///
+/// # Errors
+/// [`SceneError::Element`] naming the line: a line the parser refuses, one with more
+/// values than its element's properties, the file ending early, data after the last
+/// element.
+fn ascii_payload(
+    path: &Path,
+    parser: &Parser<DefaultElement>,
+    reader: &mut impl BufRead,
+    header: &Header,
+    first: usize,
+) -> Result<Payload<DefaultElement>, SceneError> {
+    let at = |line: usize, reason: String| SceneError::Element {
+        path: path.to_owned(),
+        element: format!("line {line}"),
+        reason,
+    };
+    let mut payload = Payload::new();
+    let mut line = first;
+    let mut text = String::new();
+    for (name, def) in &header.elements {
+        let mut elements = Vec::with_capacity(def.count.min(1 << 20));
+        for k in 0..def.count {
+            text.clear();
+            let read = reader
+                .read_line(&mut text)
+                .map_err(|e| at(line, format!("cannot read: {e}")))?;
+            if read == 0 {
+                return Err(at(
+                    line,
+                    format!(
+                        "the file ends after {k} of the header's {} `{name}` elements",
+                        def.count
+                    ),
+                ));
+            }
+            let e = parser
+                .read_ascii_element(&text, def)
+                .map_err(|e| at(line, format!("`{name}` element: {}", one_line(e))))?;
+            let want: usize = def
+                .properties
+                .keys()
+                .map(|p| e.get(p).map_or(1, values))
+                .sum();
+            let found = text.split_whitespace().count();
+            if found != want {
+                return Err(at(
+                    line,
+                    format!(
+                        "{found} values, but a `{name}` element here has {want} (its properties as the header declares them)"
+                    ),
+                ));
+            }
+            elements.push(e);
+            line += 1;
+        }
+        payload.insert(name.clone(), elements);
+    }
+    nothing_after(path, reader, header, Some(line))?;
+    Ok(payload)
+}
+
+/// Refuse anything but white space after the declared elements: a header whose counts
+/// are short (ASCII: naming the `line`; binary: the bytes left).
+fn nothing_after(
+    path: &Path,
+    reader: &mut impl BufRead,
+    header: &Header,
+    line: Option<usize>,
+) -> Result<(), SceneError> {
+    let mut rest = Vec::new();
+    std::io::Read::read_to_end(reader, &mut rest).map_err(|cause| SceneError::Read {
+        path: path.to_owned(),
+        cause,
+    })?;
+    let Some(start) = rest.iter().position(|b| !b.is_ascii_whitespace()) else {
+        return Ok(());
+    };
+    let counts: Vec<String> = header
+        .elements
+        .iter()
+        .map(|(n, d)| format!("{} `{n}`", d.count))
+        .collect();
+    let (element, what) = match line {
+        Some(l) => (
+            format!(
+                "line {}",
+                l + rest[..start].iter().filter(|&&b| b == b'\n').count()
+            ),
+            "data".to_string(),
+        ),
+        None => ("file".to_string(), format!("{} bytes", rest.len())),
+    };
+    Err(SceneError::Element {
+        path: path.to_owned(),
+        element,
+        reason: format!(
+            "{what} after the last element the header declares ({}): its counts are short",
+            counts.join(", ")
+        ),
+    })
+}
+
+/// How many values a parsed property took on its line: 1 for a scalar, the count and
+/// the items for a list.
+fn values(p: &Property) -> usize {
+    match p {
+        Property::ListChar(v) => 1 + v.len(),
+        Property::ListUChar(v) => 1 + v.len(),
+        Property::ListShort(v) => 1 + v.len(),
+        Property::ListUShort(v) => 1 + v.len(),
+        Property::ListInt(v) => 1 + v.len(),
+        Property::ListUInt(v) => 1 + v.len(),
+        Property::ListFloat(v) => 1 + v.len(),
+        Property::ListDouble(v) => 1 + v.len(),
+        _ => 1,
+    }
 }
 
 /// A numeric scalar property as f64.

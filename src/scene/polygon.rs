@@ -17,6 +17,13 @@ const COLLINEAR_SIN: f64 = 1e-10;
 /// mean plane is non-planar.
 const PLANAR_REL: f64 = 1e-6;
 
+/// Most corners a face may have. Repairing a polygon costs time growing as the square
+/// of its corners (the collinear-corner pass and the ear clipping each rescan it):
+/// one face of 400,000 corners took 26 s to load (issue 48). Ten thousand is a circle
+/// at 0.036° steps, far beyond the faces of CAD or scanning exports; the loaders refuse
+/// more, naming the face.
+pub(crate) const MAX_FACE_CORNERS: usize = 10_000;
+
 /// Vector area ½ Σ (p_k − p_0) × (p_{k+1} − p_0): a fan around the first corner, so
 /// rounding does not depend on the distance to the origin. Its length is the area and
 /// its direction the front normal, for any planar polygon.

@@ -9,8 +9,10 @@
 //!
 //! Which kind a file is: binary when its size is exactly 84 + 50 × (the facet count in
 //! bytes 80..84), whatever its header says (some exporters start binary headers with
-//! `solid`); else ASCII when it starts with `solid`; else binary, and then the size is
-//! checked against the count before anything is parsed.
+//! `solid`); else ASCII when it starts with `solid` in any case, after an optional
+//! UTF-8 byte-order mark (keywords are read in any case); else an error for UTF-16
+//! text; else binary, and then the size is checked against the count before anything
+//! is parsed.
 
 use std::io::Cursor;
 use std::path::Path;
@@ -28,7 +30,7 @@ const UNIT: &str = "facet";
 /// size, or a coordinate that is not finite; as [`Assembler::new`] for a bad
 /// materials file; [`SceneError::Empty`] when no facet is usable.
 pub(super) fn load_stl(path: &Path) -> Result<Scene, SceneError> {
-    let mut bytes = std::fs::read(path).map_err(|cause| SceneError::Read {
+    let mut bytes = crate::input::read(path).map_err(|cause| SceneError::Read {
         path: path.to_owned(),
         cause,
     })?;
@@ -37,12 +39,22 @@ pub(super) fn load_stl(path: &Path) -> Result<Scene, SceneError> {
     let declared = (bytes.len() >= 84)
         .then(|| u32::from_le_bytes([bytes[80], bytes[81], bytes[82], bytes[83]]) as u64);
     let binary_size = declared.map(|n| 84 + 50 * n);
-    let ascii =
-        binary_size != Some(bytes.len() as u64) && bytes.trim_ascii_start().starts_with(b"solid");
+    let sized_as_binary = binary_size == Some(bytes.len() as u64);
+    if !sized_as_binary && utf16(&bytes) {
+        return Err(element(
+            path,
+            "file",
+            "UTF-16 text: an ASCII STL is read as ASCII (UTF-8); save it as UTF-8 or as a binary STL".into(),
+        ));
+    }
+    let ascii = !sized_as_binary && starts_with_solid(&bytes);
     if ascii {
-        let text = String::from_utf8_lossy(&bytes).into_owned();
+        let text = String::from_utf8_lossy(&bytes);
+        let text = text.trim_start_matches('\u{feff}');
         let mut first = 1u32;
-        for (name, block, line) in solids(&text) {
+        let blocks =
+            solids(text).map_err(|(line, what)| element(path, &format!("line {line}"), what))?;
+        for (name, block, line) in blocks {
             let name = if name.is_empty() { stem.clone() } else { name };
             first = read_block(path, &mut out, &name, &block, first, line)?;
         }
@@ -85,6 +97,26 @@ pub(super) fn load_stl(path: &Path) -> Result<Scene, SceneError> {
     out.finish()
 }
 
+/// True when `bytes` begin, after an optional UTF-8 byte-order mark and white space,
+/// with `solid` in any case (`SOLID` is written by some CAD exporters): an ASCII STL,
+/// unless the size says binary (decided first, by the caller).
+fn starts_with_solid(bytes: &[u8]) -> bool {
+    let b = bytes.strip_prefix(b"\xef\xbb\xbf").unwrap_or(bytes);
+    b.trim_ascii_start()
+        .get(..5)
+        .is_some_and(|w| w.eq_ignore_ascii_case(b"solid"))
+}
+
+/// True when `bytes` look like UTF-16 text: a byte-order mark, or `s` / `S` next to a
+/// zero byte at the start.
+fn utf16(bytes: &[u8]) -> bool {
+    match bytes {
+        [0xff, 0xfe, ..] | [0xfe, 0xff, ..] => true,
+        [a, 0, ..] | [0, a, ..] => a.eq_ignore_ascii_case(&b's'),
+        _ => false,
+    }
+}
+
 /// The file name without its extension: the group of a binary STL or an unnamed solid.
 fn file_stem(path: &Path) -> String {
     path.file_stem()
@@ -100,38 +132,73 @@ fn element(path: &Path, element: &str, reason: String) -> SceneError {
     }
 }
 
-/// The `solid NAME ... endsolid` blocks of an ASCII STL: (name, the block as stl_io
-/// reads it, 1-based line of its `solid`).
-fn solids(text: &str) -> Vec<(String, String, u32)> {
+/// One `solid NAME ... endsolid` block: (name, the block as stl_io reads it, 1-based
+/// line of its `solid`).
+type Solid = (String, String, u32);
+
+/// The `solid NAME ... endsolid` blocks of an ASCII STL.
+///
+/// # Errors
+/// The line and what is wrong when anything but white space lies outside every
+/// block: facets after the last `endsolid` were dropped without a word.
+fn solids(text: &str) -> Result<Vec<Solid>, (u32, String)> {
     let mut out = Vec::new();
-    let mut current: Option<(String, String, u32)> = None;
+    let mut current: Option<Solid> = None;
+    let mut closed = None;
     for (i, raw) in text.lines().enumerate() {
         let t = raw.trim();
-        if let Some(rest) = t.strip_prefix("endsolid") {
+        // Keywords in any case (`SOLID`, `FACET NORMAL`): stl_io reads lower case.
+        let lower = t.to_ascii_lowercase();
+        if let Some(rest) = lower.strip_prefix("endsolid") {
             if rest.is_empty() || rest.starts_with(char::is_whitespace) {
                 if let Some((name, mut block, line)) = current.take() {
                     block.push_str("endsolid\n");
                     out.push((name, block, line));
+                    closed = Some(i + 1);
                 }
                 continue;
             }
         }
-        if let Some(rest) = t.strip_prefix("solid") {
+        if let Some(rest) = lower.strip_prefix("solid") {
             if current.is_none() && (rest.is_empty() || rest.starts_with(char::is_whitespace)) {
-                let name = rest.trim().to_owned();
+                // The name as written (`solid` is five ASCII bytes in any case).
+                let name = t[5..].trim().to_owned();
                 // stl_io wants `solid ` with a space and a name.
                 current = Some((name, "solid s\n".to_owned(), (i + 1) as u32));
                 continue;
             }
         }
-        if let Some((_, block, _)) = current.as_mut() {
-            block.push_str(t);
-            block.push('\n');
+        match current.as_mut() {
+            Some((_, block, _)) => {
+                block.push_str(&lower);
+                block.push('\n');
+            }
+            None if t.is_empty() => {}
+            None => {
+                let after = closed.map_or(String::new(), |l| {
+                    format!(" (the last one ended at line {l})")
+                });
+                return Err((
+                    (i + 1) as u32,
+                    format!(
+                        "`{}` outside any `solid ... endsolid` block{after}",
+                        cut(t, 60)
+                    ),
+                ));
+            }
         }
     }
     // A last solid without `endsolid` is read as far as it goes.
     out.extend(current);
-    out
+    Ok(out)
+}
+
+/// The first `max` characters of `s`, with `...` when it was longer.
+fn cut(s: &str, max: usize) -> String {
+    match s.char_indices().nth(max) {
+        Some((at, _)) => format!("{}...", &s[..at]),
+        None => s.to_string(),
+    }
 }
 
 /// Read one ASCII solid into group `name`; its facets are numbered from `first`.

@@ -24,6 +24,7 @@ mod sky_view;
 mod solve;
 mod stress_cli;
 mod stress_corrupt;
+mod stress_daylight;
 mod stress_faults;
 mod stress_fuzz;
 mod stress_geom;

@@ -355,3 +355,36 @@ fn a_chunk_header_declaring_more_than_its_payload_can_hold_is_refused_before_all
     let e = ffstream(&["export", path_str(&p), "--matrix", "/dev/null"]);
     assert_one_error(&e, "export", &["forged.ffz", "chunk 0", "raw length"]);
 }
+
+/// An export that fails halfway (here at a bit-flipped chunk in the middle of the
+/// file) left a partial `--sparse` text that looked like a result, over any older
+/// file of that name. Text outputs are now written under a temporary name and renamed
+/// into place once complete: after the failure the older file is as it was and no
+/// temporary file remains.
+#[test]
+fn a_failed_export_leaves_no_partial_text_and_an_older_file_intact() {
+    let dir = tempfile::tempdir().unwrap();
+    let (p, bytes) = good(dir.path());
+    let offs = FfzReader::open(&p).unwrap().chunk_offsets().to_vec();
+    let mut b = bytes.clone();
+    b[offs[offs.len() / 2] as usize + 40 + 3] ^= 0x20;
+    let bad = dir.path().join("flipped.ffz");
+    std::fs::write(&bad, &b).unwrap();
+    let out = dir.path().join("out");
+    std::fs::create_dir(&out).unwrap();
+    let txt = out.join("F.txt");
+    std::fs::write(&txt, "older export\n").unwrap();
+    let e = ffstream(&["export", path_str(&bad), "--sparse", path_str(&txt)]);
+    assert_one_error(&e, "export --sparse", &["flipped.ffz", "chunk"]);
+    assert_eq!(std::fs::read_to_string(&txt).unwrap(), "older export\n");
+    let left: Vec<_> = std::fs::read_dir(&out)
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .collect();
+    assert_eq!(left, vec![std::ffi::OsString::from("F.txt")], "{left:?}");
+    // The intact file exports: the text replaces the older one.
+    ok(&["export", path_str(&p), "--sparse", path_str(&txt)]);
+    assert!(std::fs::read_to_string(&txt)
+        .unwrap()
+        .starts_with("# ffstream"));
+}

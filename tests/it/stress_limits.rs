@@ -53,3 +53,42 @@ fn durations_beyond_what_a_timer_holds_are_usage_errors() {
         );
     }
 }
+
+/// Inputs that are no files (issue 48): a FIFO as `mtllib` blocked the load forever in
+/// `open`, `/dev/zero` as `mtllib` or as a glTF buffer read until memory ran out. Each
+/// is refused before it is opened, naming it (one error line, exit 1), within seconds.
+#[test]
+fn devices_and_fifos_as_inputs_are_refused_at_once() {
+    use crate::common::Within;
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let fifo = d.join("fifo.mtl");
+    let c = std::ffi::CString::new(path_str(&fifo)).unwrap();
+    // SAFETY: a valid NUL-terminated path.
+    assert_eq!(unsafe { libc::mkfifo(c.as_ptr(), 0o600) }, 0);
+    let obj = |name: &str, lib: &str| {
+        let p = d.join(name);
+        std::fs::write(
+            &p,
+            format!("mtllib {lib}\nv 0 0 0\nv 1 0 0\nv 1 1 0\nusemtl white\nf 1 2 3\n"),
+        )
+        .unwrap();
+        p
+    };
+    let gltf = d.join("zero.gltf");
+    std::fs::write(
+        &gltf,
+        r#"{"asset": {"version": "2.0"}, "buffers": [{"byteLength": 36, "uri": "/dev/zero"}]}"#,
+    )
+    .unwrap();
+    for (scene, names) in [
+        (obj("fifo.obj", "fifo.mtl"), ["fifo.obj", "a FIFO"]),
+        (obj("zero.obj", "/dev/zero"), ["zero.obj", "a device"]),
+        (gltf, ["zero.gltf", "a device"]),
+    ] {
+        let o = std::process::Command::new(crate::common::exe())
+            .args(["compute", path_str(&scene), "-o", "/dev/null", "--quiet"])
+            .output_within(path_str(&scene));
+        crate::stress_cli::assert_one_error(&o, path_str(&scene), &names);
+    }
+}

@@ -245,3 +245,35 @@ fn under_mpirun_sigterm_to_every_rank_closes_the_file_and_resume_completes_it() 
     assert!(resumed.status.success(), "{}", text(&resumed));
     assert_resumed(&String::from_utf8_lossy(&resumed.stderr), &part, &full);
 }
+
+/// `annual` stopped by SIGTERM while it computes its form factors exited 1 (the stop
+/// went out as an error); it exits 143 as `compute` and `run` do, and computes no year.
+#[test]
+fn a_signal_stops_annual_with_the_signal_exit_code() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("annual");
+    let child = stopped_at_row_300(&[
+        "annual",
+        "builtin:office",
+        "--location",
+        "36,-80,-5",
+        "--grid",
+        "floor:1",
+        "--patches",
+        "1500",
+        "--threads",
+        "2",
+        "--quiet",
+        "-o",
+        path_str(&out),
+    ]);
+    send(&child, libc::SIGTERM);
+    send(&child, libc::SIGCONT);
+    let stopped = output_of_within(child, "annual stopped by SIGTERM");
+    assert_eq!(stopped.status.code(), Some(143), "{}", text(&stopped));
+    assert!(text(&stopped).contains("ffstream: stopped by SIGTERM:"));
+    assert!(
+        !out.join("illuminance.csv").exists(),
+        "the year ran after the stop"
+    );
+}

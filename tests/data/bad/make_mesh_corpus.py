@@ -44,6 +44,9 @@ write("stl_too_short.stl", b"\x01" * 40)
 write("stl_nan.stl", ascii_stl([["0 0 0", "1 0 0", "1 1 0"], ["0 0 0", "nan 1 0", "0 1 0"]]))
 # ASCII STL whose second facet has a vertex with two coordinates.
 write("stl_malformed.stl", ascii_stl([["0 0 0", "1 0 0", "1 1 0"], ["0 0 0", "1 1", "0 1 0"]]))
+# ASCII STL with a second facet after `endsolid` (line 10): it was dropped.
+write("stl_after_endsolid.stl", ascii_stl([["0 0 0", "1 0 0", "1 1 0"]])
+      + ascii_stl([["0 0 0", "1 1 0", "0 1 0"]]).split("\n", 1)[1].replace("endsolid box\n", ""))
 
 PLY_HEAD = ("ply\nformat {fmt} 1.0\nelement vertex {nv}\nproperty float x\nproperty float y\n"
             "property float z\nelement face {nf}\nproperty list uchar int vertex_indices\nend_header\n")
@@ -62,6 +65,16 @@ write("ply_index.ply", PLY_HEAD.format(fmt="ascii", nv=4, nf=2)
 write("ply_nan.ply", PLY_HEAD.format(fmt="binary_little_endian", nv=4, nf=1).encode()
       + struct.pack("<12f", 0, 0, 0, float("nan"), 0, 0, 1, 1, 0, 0, 1, 0)
       + struct.pack("<B3i", 3, 0, 1, 2))
+# ASCII PLY declaring 1 face and holding 2: the second was dropped without a word.
+write("ply_face_count_short.ply", PLY_HEAD.format(fmt="ascii", nv=4, nf=2 - 1)
+      + "0 0 0\n1 0 0\n1 1 0\n0 1 0\n3 0 1 2\n3 0 2 3\n")
+# ASCII PLY whose third vertex has a fourth value (line 12): it was ignored.
+write("ply_extra_value.ply", PLY_HEAD.format(fmt="ascii", nv=4, nf=2)
+      + "0 0 0\n1 0 0\n1 1 0 7\n0 1 0\n3 0 1 2\n3 0 2 3\n")
+# Binary PLY declaring 1 face and holding 2 (13 bytes each).
+write("ply_binary_extra.ply", PLY_HEAD.format(fmt="binary_little_endian", nv=4, nf=1).encode()
+      + struct.pack("<12f", 0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0)
+      + struct.pack("<B3i", 3, 0, 1, 2) + struct.pack("<B3i", 3, 0, 2, 3))
 # A point cloud: vertices and no face element.
 write("ply_points.ply", "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\n"
       "property float y\nproperty float z\nend_header\n0 0 0\n1 0 0\n")
