@@ -95,6 +95,8 @@ ROUTE_FIELDS = ("rows", "evaluated", "unoccludable", "exact", "fallback", "rays"
 FOOTER_MAGIC = b"FFZ-END\n"  # spec 7
 HEADER_LEN, PATCH_LEN, CHUNK_HEADER_LEN, DIR_LEN, FOOTER_LEN = 64, 168, 40, 24, 32
 SHUFFLED, SKIPPED, SPARSE = 1, 1, 2
+LINKS = 4  # spec 5.7: row directory flag, the row's links follow its entries
+HEADER_FLAG_CLUSTERS = 1  # spec 3.1, 4.3: the meta block holds a cluster order
 NO_CHUNK = 0xFFFFFFFF
 MISSING, PRESENT, SKIPPED_STATE = 0, 1, 2
 
@@ -342,6 +344,62 @@ def _sparse_words(u8, m, shuffled):
     return deltas, vals.view("<f4")
 
 
+def _words(b, shuffled) -> np.ndarray:
+    """One array of 4-byte words (spec 5.5: byte planes when shuffled)."""
+    m = len(b) // 4
+    if not shuffled:
+        return np.frombuffer(b, dtype="<u4", count=m).copy()
+    return np.frombuffer(b, dtype=np.uint8).reshape(4, m).T.copy().view("<u4").ravel()
+
+
+def _split_links(raw, d, n, shuffled):
+    """Spec 5.7: the links of a chunk's LINKS rows taken out of its payload. Returns the
+    payload and directory as they would be without links (offsets shifted, LINKS
+    cleared), and {row: (starts, lengths, values)}; ValueError on a bad link."""
+    rows = len(d)
+    d = d.copy()
+    base = DIR_LEN * rows
+    out = [bytes(raw[:base])]
+    links = {}
+    pos = base  # where the next row's data starts in the payload as stored
+    new = base
+    for j in range(rows):
+        row, fl, nnz = int(d[j, 0]), int(d[j, 1]), int(d[j, 2])
+        off = int(d[j, 4]) | (int(d[j, 5]) << 32)
+        if off != pos:
+            raise ValueError(f"row {row}: data offset {off}, expected {pos}")
+        size = 0 if fl & SKIPPED else 8 * nnz
+        if fl & LINKS and not (fl & SPARSE and not fl & SKIPPED):
+            raise ValueError(f"row {row}: links on a row that is not sparse")
+        out.append(bytes(raw[pos : pos + size]))
+        d[j, 4], d[j, 5] = new & 0xFFFFFFFF, new >> 32
+        pos += size
+        new += size
+        if fl & LINKS:
+            if pos + 4 > len(raw):
+                raise ValueError(f"row {row}: link count beyond the payload")
+            m = _u32(raw, pos)
+            if not 1 <= m <= n or pos + 4 + 12 * m > len(raw):
+                raise ValueError(f"row {row}: {m} links impossible here")
+            gaps = _words(raw[pos + 4 : pos + 4 + 4 * m], shuffled).astype(np.int64)
+            lens = _words(raw[pos + 4 + 4 * m : pos + 4 + 8 * m], shuffled).astype(np.int64)
+            vals = _words(raw[pos + 4 + 8 * m : pos + 4 + 12 * m], shuffled).view("<f4")
+            ends = np.cumsum(gaps + lens)
+            starts = ends - lens
+            if np.any(lens < 1) or int(ends[-1]) > n:
+                raise ValueError(f"row {row}: a link is empty or ends beyond n = {n}")
+            dropped = float(np.frombuffer(raw, dtype="<f4", count=1, offset=DIR_LEN * j + 12)[0])
+            total = float(vals.astype(np.float64).sum())
+            if abs(total - dropped) > 1e-6 * max(abs(total), abs(dropped)) + 1e-30:
+                raise ValueError(f"row {row}: dropped mass {dropped:e} is not the sum of its links {total:e}")
+            links[row] = (starts.astype(np.uint32), lens.astype(np.uint32), vals.copy())
+            pos += 4 + 12 * m
+            d[j, 1] = fl & ~LINKS
+    if pos != len(raw):
+        raise ValueError(f"row data ends at {pos}, payload is {len(raw)} bytes")
+    return b"".join(out), d, links
+
+
 def _check_directory(d, rlen, n, sparse, k):
     """The row directory rules of spec 5.3 over the (rows, 6) u32 words of a directory;
     ValueError naming the first bad entry. Returns (row, skipped, nnz, dropped)."""
@@ -545,7 +603,7 @@ class FfzReader:
         mlen, plen, clen, hcrc = struct.unpack_from("<IIII", h, 48)
         if not self._crc_ok(h[:60], hcrc):
             raise FfzError(f"{path}: header at byte 60: header checksum mismatch")
-        if flags != 0 or layout not in (0, 1) or (layout == 0) != (k == 0):
+        if flags & ~HEADER_FLAG_CLUSTERS or (flags and layout != 1) or layout not in (0, 1) or (layout == 0) != (k == 0):
             raise FfzError(f"{path}: header at byte 12: bad flags/layout/k")
         if meta_len > len(buf) or meta_len < HEADER_LEN + mlen + plen + clen + n * PATCH_LEN + 8:
             raise FfzError(f"{path}: header at byte 40: meta_len {meta_len} impossible (file has {len(buf)} bytes)")
@@ -568,6 +626,14 @@ class FfzReader:
             ln = _u32(meta, p)
             groups.append(meta[p + 4 : p + 4 + ln].decode())
             p += 4 + ln
+        clusters = None
+        if flags & HEADER_FLAG_CLUSTERS:  # spec 4.3: a permutation of the patches
+            if p + 4 * n > meta_len - 4:
+                raise FfzError(f"{path}: header at byte {p}: cluster order cut short")
+            clusters = np.frombuffer(meta, dtype="<u4", count=n, offset=p).copy()
+            if n and (int(clusters.max()) >= n or len(np.unique(clusters)) != n):
+                raise FfzError(f"{path}: header at byte {p}: the cluster order is not a permutation of the patches")
+            p += 4 * n
         if p != meta_len - 4:
             raise FfzError(f"{path}: header at byte {p}: meta block length mismatch")
         if n and (np.any((rec["n_corners"] != 3) & (rec["n_corners"] != 4)) or np.any(rec["group"] >= ngroups) or np.any(rec["reserved"] != 0)):
@@ -579,6 +645,10 @@ class FfzReader:
         self.groups = groups
         self._sparse = layout == 1
         self._meta_len = meta_len
+        # spec 4.3: position -> patch; links (5.7) name ranges of positions. None when
+        # the rows carry no links.
+        self.cluster_order = clusters
+        self._links = {}  # row -> (starts, lengths, values) of the rows read so far
 
     def _read_index(self):
         """Footer then index (spec 7, 6); raises ValueError with the offset."""
@@ -712,7 +782,7 @@ class FfzReader:
         with mv[pos + CHUNK_HEADER_LEN : pos + CHUNK_HEADER_LEN + clen] as payload:  # no copy
             if not self._crc_ok(payload, crc_c):
                 raise ValueError("compressed payload checksum mismatch")
-            if rlen < DIR_LEN * rows or rlen > rows * (DIR_LEN + 8 * n) or rows > n:
+            if rlen < DIR_LEN * rows or rlen > rows * (DIR_LEN + 4 + 20 * n) or rows > n:
                 raise ValueError(f"raw length {rlen} impossible for {rows} rows")
             try:
                 said = zstandard.frame_content_size(payload)
@@ -726,6 +796,13 @@ class FfzReader:
         if not self._crc_ok(raw, crc_r):
             raise ValueError("decompressed payload checksum mismatch")
         d = np.frombuffer(raw, dtype="<u4", count=6 * rows).reshape(rows, 6)
+        if self.cluster_order is not None:
+            raw, d, links = _split_links(raw, d, n, bool(flags & SHUFFLED))
+            rlen = len(raw)
+            self._links.update(links)
+        elif np.any(d[:, 1] & LINKS):
+            j = int(np.flatnonzero(d[:, 1] & LINKS)[0])
+            raise ValueError(f"row {int(d[j, 0])}: links in a file without a cluster order")
         return CHUNK_HEADER_LEN + clen, bool(flags & SHUFFLED), raw, _check_directory(d, rlen, self.n, self._sparse, self.k)
 
     def _decode(self, c) -> Chunk:
@@ -840,6 +917,44 @@ class FfzReader:
         if state == SKIPPED_STATE:
             return RowData(np.zeros(0, np.uint32), np.zeros(0, np.float32), 0.0)
         return self._chunk(int(self._row_chunk[i])).row(i)
+
+    def links(self, i):
+        """Row i's links to clusters (spec 5.7) as (starts, lengths, values) arrays over
+        positions of `cluster_order`; empty arrays for a row without links (or a file
+        without a cluster order). Reads row i's chunk if it was not read yet."""
+        i = int(i)
+        if self.cluster_order is not None and i not in self._links and self.presence[i] == PRESENT:
+            self._decode(int(self._row_chunk[i]))
+        empty = (np.zeros(0, np.uint32), np.zeros(0, np.uint32), np.zeros(0, np.float32))
+        return self._links.get(i, empty)
+
+    def link_matrix(self) -> scipy.sparse.csr_matrix:
+        """The links expanded into patch entries (spec 5.7: F_ij = F_iL A_j / A_L over
+        each link's patches, those in its range that are not a kept column of row i and
+        not i), n x n float64; add to_csr() for the whole matrix. Empty without links."""
+        n = self.n
+        kept = self.to_csr()
+        area = self.patches["area"].astype(np.float64)
+        order = self.cluster_order
+        rows, cols, vals = [], [], []
+        if order is not None:
+            for i in range(n):
+                starts, lens, values = self.links(i)
+                if not len(starts):
+                    continue
+                own = set(kept.indices[kept.indptr[i] : kept.indptr[i + 1]].tolist()) | {i}
+                for a, ln, v in zip(starts.tolist(), lens.tolist(), values.tolist()):
+                    js = order[a : a + ln]
+                    js = js[~np.isin(js, list(own))]
+                    w = area[js].sum()
+                    if w > 0:
+                        rows.append(np.full(len(js), i))
+                        cols.append(js.astype(np.int64))
+                        vals.append(v * area[js] / w)
+        if not rows:
+            return scipy.sparse.csr_matrix((n, n), dtype=np.float64)
+        r, c, v = np.concatenate(rows), np.concatenate(cols), np.concatenate(vals)
+        return scipy.sparse.csr_matrix((v, (r, c)), shape=(n, n))
 
     def chunk_of(self, i) -> Optional[int]:
         """Number of the chunk holding row i (present or skipped), or None (missing)."""

@@ -103,10 +103,10 @@ pub(crate) struct ComputeOptions {
     /// With --top-k or --min-ff and the tree search: the most links a row carries to
     /// clusters of patches for the mass it does not keep (spec §5.7), so that a solver
     /// puts that light where it goes; `off` stores it as one number per row, which the
-    /// solver can only pool (docs/numerics.md §8). Default: off for now (the Python
-    /// reader does not read links yet); 256 is a good count. Links need the cluster
-    /// order in the header, are left out with --symmetric on (half rows), and are
-    /// read by the gathering solvers (gauss-seidel, jacobi), not by shooting.
+    /// solver can only pool (docs/numerics.md §8). Default 256 (every preset). Links
+    /// need the cluster order in the header, are left out with --symmetric on (half
+    /// rows) and the exhaustive search, and are read by the gathering solvers
+    /// (gauss-seidel, jacobi), not by shooting.
     #[arg(long, value_name = "N|off", value_parser = links_arg)]
     pub links: Option<LinksArg>,
     /// With links: a cluster is split while the spread of the kernel over it exceeds

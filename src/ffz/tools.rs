@@ -142,7 +142,13 @@ fn sky_view_line(lo: f64, hi: f64, mean: f64) -> String {
 /// lists them all).
 fn sky_view_summary(r: &FfzReader) -> String {
     let (mut lo, mut hi, mut total, mut rows) = (f64::INFINITY, f64::NEG_INFINITY, 0.0, 0u64);
+    let (mut linked, mut links, mut most) = (0u64, 0u64, 0usize);
     let scanned = r.scan(|row| {
+        if !row.links.is_empty() {
+            linked += 1;
+            links += row.links.len() as u64;
+            most = most.max(row.links.len());
+        }
         if !matches!(row.values, crate::rows::RowValues::Skipped) {
             let sky = 1.0 - row.true_sum();
             lo = lo.min(sky);
@@ -154,7 +160,16 @@ fn sky_view_summary(r: &FfzReader) -> String {
     match scanned {
         Err(err) => format!("sky view:    not computed: {err}"),
         Ok(()) if rows == 0 => "sky view:    no rows".to_string(),
-        Ok(()) => sky_view_line(lo, hi, total / rows as f64),
+        Ok(()) => {
+            let sky = sky_view_line(lo, hi, total / rows as f64);
+            match r.meta().clusters {
+                None => sky,
+                Some(_) => format!(
+                    "links:         {linked} of {rows} rows link to clusters of the cluster order (spec §4.3, §5.7): {links} links, {:.1} a linked row, at most {most}\n{sky}",
+                    links as f64 / linked.max(1) as f64
+                ),
+            }
+        }
     }
 }
 
@@ -476,9 +491,13 @@ pub fn export(path: &Path, to: ExportTargets<'_>) -> Result<()> {
     );
     let kept = |x: f32| x != 0.0 && x >= to.min_ff;
     let gaps = format!(
-        "rows missing {} and skipped {} have no entries; top-k dropped mass not included; entries below {:e} left out",
+        "rows missing {} and skipped {} have no entries; top-k dropped mass not included{}; entries below {:e} left out",
         p.missing_count(),
         p.skipped_count(),
+        match m.clusters {
+            Some(_) => " (nor the links to clusters that place it, spec §5.7: formats/ffz.py's link_matrix() expands them)",
+            None => "",
+        },
         to.min_ff
     );
     // At most two passes over the chunks, whatever is asked: one for what the headers

@@ -150,8 +150,7 @@ pub struct FormFactorConfig {
     pub link_tol: f64,
 }
 
-/// Most links a sparse row carries when links are asked for without a count (the
-/// presets store no links yet: the Python reader does not read them).
+/// Most links a sparse row carries in every preset.
 pub const DEFAULT_LINKS: u32 = 256;
 /// Default link tolerance ([`FormFactorConfig::link_tol`]).
 pub const DEFAULT_LINK_TOL: f64 = 1e-3;
@@ -241,7 +240,7 @@ impl FormFactorConfig {
             quad_tol: 1e-6,
             visibility: Visibility::Rays,
             shadow_tol: 1e-2,
-            links: None,
+            links: Some(DEFAULT_LINKS),
             link_tol: DEFAULT_LINK_TOL,
         }
     }
@@ -266,7 +265,7 @@ impl FormFactorConfig {
             quad_tol: 1e-8,
             visibility: Visibility::Rays,
             shadow_tol: 1e-3,
-            links: None,
+            links: Some(DEFAULT_LINKS),
             link_tol: DEFAULT_LINK_TOL,
         }
     }
@@ -289,7 +288,7 @@ impl FormFactorConfig {
             quad_tol: 1e-13,
             visibility: Visibility::Exact,
             shadow_tol: 1e-6,
-            links: None,
+            links: Some(DEFAULT_LINKS),
             link_tol: DEFAULT_LINK_TOL,
         }
     }

@@ -73,7 +73,11 @@ fn solve(file: &Path) -> BTreeMap<String, [f64; 3]> {
 fn links_put_the_rooms_light_where_dense_rows_put_it_and_the_pool_does_not() {
     let dir = tempfile::tempdir().unwrap();
     let dense = solve(&compute(dir.path(), "dense", &[]));
-    let pool = solve(&compute(dir.path(), "pool", &["--top-k", "64"]));
+    let pool = solve(&compute(
+        dir.path(),
+        "pool",
+        &["--top-k", "64", "--links", "off"],
+    ));
     let links = solve(&compute(
         dir.path(),
         "links",
@@ -163,4 +167,60 @@ fn linked_rows_verify_and_are_the_same_for_any_thread_or_rank_count() {
         ok(&["verify", path_str(&mpi), "--against", path_str(&two)]);
         assert!(csv(&mpi) == csv(&two), "mpirun -n 3 solves differently");
     }
+}
+
+/// The Python reader (`formats/ffz.py`) reads a linked file as the Rust reader does:
+/// the same cluster order and, row by row, the same links to the bit; its expansion of
+/// the links (spec 5.7) keeps every row's true sum.
+#[test]
+fn the_python_reader_gives_the_links_and_cluster_order_of_the_rust_reader() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = compute(dir.path(), "py", &["--top-k", "16", "--links", "64"]);
+    let rust = ffstream::ffz::FfzReader::open(&file).unwrap();
+    let order = rust.meta().clusters.clone().expect("a cluster order");
+    let mut want = format!(
+        "order {}\n",
+        order
+            .iter()
+            .map(|x| x.to_string())
+            .collect::<Vec<_>>()
+            .join(" ")
+    );
+    let mut linked = 0;
+    for i in 0..order.len() as u32 {
+        let row = rust.row(i).unwrap().unwrap();
+        linked += usize::from(!row.links.is_empty());
+        for l in &row.links {
+            want += &format!("{i} {} {} {:08x}\n", l.start, l.len, l.value.to_bits());
+        }
+    }
+    assert!(linked > order.len() / 2, "only {linked} rows have links");
+    let script = r#"
+import sys, numpy as np
+sys.path.insert(0, sys.argv[1])
+import ffz
+r = ffz.open(sys.argv[2])
+out = ["order " + " ".join(str(int(x)) for x in r.cluster_order)]
+for i in range(r.n):
+    s, ln, v = r.links(i)
+    out += [f"{i} {int(a)} {int(b)} {int(c):08x}" for a, b, c in zip(s, ln, v.view("<u4"))]
+f = r.read()
+full = f.matrix.astype(np.float64) + r.link_matrix()
+err = np.abs(np.asarray(full.sum(axis=1)).ravel() - f.true_row_sums()).max()
+assert err < 1e-5, err
+print("\n".join(out))
+"#;
+    let out = std::process::Command::new("python3")
+        .arg("-c")
+        .arg(script)
+        .arg(std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("formats"))
+        .arg(&file)
+        .output()
+        .expect("python3");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert_eq!(String::from_utf8_lossy(&out.stdout), want);
 }

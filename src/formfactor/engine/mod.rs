@@ -314,9 +314,11 @@ impl RowEngine {
                     (crate::formfactor::TopKSearch::Tree, false) => "tree-walk",
                     (crate::formfactor::TopKSearch::Exhaustive, _) => "sampled",
                 };
+                // With links, `how` still says where the row's total comes from (the
+                // links' sampled parts are scaled to hemisphere totals, `links.rs`).
                 match (cfg.links, cfg.top_k_search) {
                     (Some(m), crate::formfactor::TopKSearch::Tree) => format!(
-                        " dropped_mass=links:{t} links={m} link_tol={:e}",
+                        " dropped_mass={how}:{t} links={m} link_tol={:e}",
                         cfg.link_tol
                     ),
                     _ => format!(" dropped_mass={how}:{t}"),
