@@ -40,7 +40,7 @@ def run(args, work, name, extra):
     subprocess.run([EXE, "compute", "builtin:room", "--patches", str(args.patches), "-q", "-o", out, *extra], check=True)
     wall = time.time() - t
     csv_path = os.path.join(work, name + ".csv")
-    subprocess.run([EXE, "solve", out, "-q", "-o", csv_path], check=True, stdout=subprocess.DEVNULL)
+    subprocess.run([EXE, "solve", out, "-q", "-o", csv_path], check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     return out, groups(csv_path), wall
 
 
