@@ -152,7 +152,22 @@ pub(crate) struct PatchTree {
 impl PatchTree {
     /// Builds the tree over the patches with `valid[j]`; `plane_tol`: the engine's
     /// facing tolerance, `slack`: the rounding allowance of plane distances.
+    #[cfg(test)]
     pub(crate) fn new(geom: &[PatchGeom], valid: &[bool], plane_tol: f64, slack: f64) -> Self {
+        Self::with_kinds(geom, valid, &[], plane_tol, slack)
+    }
+
+    /// [`PatchTree::new`] whose nodes first part patches of different `kinds` (one per
+    /// patch, or none): ffstream gives emitters one kind and the other patches another,
+    /// so that no cluster mixes a lamp with the ceiling around it (a link to such a
+    /// cluster would spread the lamp's radiosity over the ceiling's area).
+    pub(crate) fn with_kinds(
+        geom: &[PatchGeom],
+        valid: &[bool],
+        kinds: &[u8],
+        plane_tol: f64,
+        slack: f64,
+    ) -> Self {
         let mut order: Vec<u32> = (0..geom.len() as u32)
             .filter(|&j| valid[j as usize])
             .collect();
@@ -165,7 +180,7 @@ impl PatchTree {
         };
         if !order.is_empty() {
             let n = order.len();
-            tree.build(geom, &mut order, 0, n);
+            tree.build(geom, kinds, &mut order, 0, n);
         }
         tree.pos = vec![u32::MAX; geom.len()];
         for (k, &j) in order.iter().enumerate() {
@@ -258,7 +273,14 @@ impl PatchTree {
     }
 
     /// Builds the node of `order[start..end]` and its subtree; returns its id.
-    fn build(&mut self, geom: &[PatchGeom], order: &mut [u32], start: usize, end: usize) -> u32 {
+    fn build(
+        &mut self,
+        geom: &[PatchGeom],
+        kinds: &[u8],
+        order: &mut [u32],
+        start: usize,
+        end: usize,
+    ) -> u32 {
         let id = self.nodes.len() as u32;
         let patches = &mut order[start..end];
         let mut node = node_of(patches.iter().map(|&j| &geom[j as usize]));
@@ -268,10 +290,16 @@ impl PatchTree {
             patches.sort_unstable();
             return id;
         }
-        let key = SplitKey::of(geom, patches, &node);
-        let mid = key.partition(geom, patches);
-        let left = self.build(geom, order, start, start + mid);
-        let right = self.build(geom, order, start + mid, end);
+        let kind = |j: u32| kinds.get(j as usize).copied().unwrap_or(0);
+        let first = kind(patches[0]);
+        let mid = if patches.iter().any(|&j| kind(j) != first) {
+            patches.sort_unstable_by_key(|&j| (kind(j), j));
+            patches.partition_point(|&j| kind(j) == kind(patches[0]))
+        } else {
+            SplitKey::of(geom, patches, &node).partition(geom, patches)
+        };
+        let left = self.build(geom, kinds, order, start, start + mid);
+        let right = self.build(geom, kinds, order, start + mid, end);
         self.nodes[id as usize].kids = Kids::Inner(left, right);
         id
     }

@@ -55,6 +55,9 @@ use crate::rows::Link;
 /// links, `topk_tree.rs`).
 const EXACT_TAIL_FACTOR: usize = 2;
 
+/// A link of at most this many patches to evaluate is evaluated in full, not sampled.
+const FULL_LINK_PATCHES: usize = 4;
+
 /// What a row did not keep, located in the cluster order.
 struct Dropped {
     /// Columns with known values (position, value > 0), by position.
@@ -151,7 +154,7 @@ impl RowEngine {
             + d.columns.iter().map(|x| x.2).sum::<f64>()
             + d.nodes.iter().map(|x| x.3).sum::<f64>();
         let cut = self.link_cut(tree, root, row, &d, max, self.cfg.link_tol * total);
-        let (exact, sampled) = self.link_values(tree, i, row, t, &d, &cut, scratch);
+        let (exact, sampled, evaluated) = self.link_values(tree, i, row, t, &d, &cut, scratch);
         // In a closed scene the row's total is known better from hemisphere rays than
         // from the sum of the links' samples: the sampled parts are scaled to it (a
         // ratio estimate), which keeps the row sums as good as without links.
@@ -159,7 +162,7 @@ impl RowEngine {
         let drawn: f64 = sampled.iter().sum();
         if drawn > 0.0 {
             if let Some(total) = self.closure_total(tree, i, t, scratch) {
-                scale = (total - known).max(0.0) / drawn;
+                scale = (total - known - evaluated).max(0.0) / drawn;
             }
         }
         let mut links = Vec::with_capacity(cut.len());
@@ -241,7 +244,7 @@ impl RowEngine {
         d: &Dropped,
         cut: &[u32],
         scratch: &mut Scratch,
-    ) -> (Vec<f64>, Vec<f64>) {
+    ) -> (Vec<f64>, Vec<f64>, f64) {
         // Each cluster's exact mass and sampled items.
         let mut exact = Vec::with_capacity(cut.len());
         let mut items: Vec<Vec<(Item, f64)>> = Vec::with_capacity(cut.len());
@@ -280,13 +283,35 @@ impl RowEngine {
             })
             .sum();
         let evaluate_all = patches <= EXACT_TAIL_FACTOR * t;
-        let weight: f64 = items.iter().flatten().map(|x| x.1).sum();
+        let size = |of: &[(Item, f64)]| -> usize {
+            of.iter()
+                .map(|(x, _)| match *x {
+                    Item::Column(..) => 1,
+                    Item::Node(id, _) => tree.node(id).count() as usize,
+                })
+                .sum()
+        };
+        // Small links are evaluated in full: one sample point on a link of a few patches
+        // is as costly as they are, and a point on a hidden one would leave out the
+        // visible others (bench/LINKS.md).
+        let in_full: Vec<bool> = items
+            .iter()
+            .map(|of| evaluate_all || size(of) <= FULL_LINK_PATCHES)
+            .collect();
+        let weight: f64 = items
+            .iter()
+            .zip(&in_full)
+            .filter(|x| !*x.1)
+            .flat_map(|x| x.0)
+            .map(|x| x.1)
+            .sum();
         let mut rng = self.tail_rng(i);
         let mut sampled = vec![0.0; cut.len()];
+        let mut evaluated = 0.0;
         for (k, of) in items.iter().enumerate() {
-            if evaluate_all {
+            if in_full[k] {
                 for (x, _) in of {
-                    exact[k] += match *x {
+                    let v = match *x {
                         Item::Column(j, f0) => self.occluded_unlisted(i, j, f0, scratch),
                         Item::Node(n, _) => tree
                             .patches_under(n)
@@ -294,6 +319,8 @@ impl RowEngine {
                             .map(|&j| self.pair_value(i, j, scratch))
                             .sum(),
                     };
+                    exact[k] += v;
+                    evaluated += v;
                 }
             } else {
                 let w: f64 = of.iter().map(|x| x.1).sum();
@@ -317,6 +344,6 @@ impl RowEngine {
                 }
             }
         }
-        (exact, sampled)
+        (exact, sampled, evaluated)
     }
 }

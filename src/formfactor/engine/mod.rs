@@ -187,7 +187,7 @@ impl RowEngine {
         let bound_slack = 1e-12 * diag + 1e-14 * magnitude;
         let tree = cfg
             .searches_tree()
-            .then(|| PatchTree::new(&geom, &valid, tol, bound_slack));
+            .then(|| PatchTree::with_kinds(&geom, &valid, &kinds(patches), tol, bound_slack));
         let solids = if cfg_visibility == Visibility::Exact {
             let tris: Vec<[DVec3; 3]> = (0..occluders_len as u32)
                 .map(|k| occluders.world_triangle(k))
@@ -274,9 +274,10 @@ impl RowEngine {
         let geom: Vec<PatchGeom> = patches.patches.iter().map(PatchGeom::new).collect();
         let valid: Vec<bool> = geom.iter().map(PatchGeom::is_valid).collect();
         let (diag, magnitude) = extent(&geom);
-        let tree = PatchTree::new(
+        let tree = PatchTree::with_kinds(
             &geom,
             &valid,
+            &kinds(patches),
             PLANE_RELATIVE_TOLERANCE * diag,
             1e-12 * diag + 1e-14 * magnitude,
         );
@@ -749,6 +750,16 @@ mod links;
 mod tests;
 mod topk_bounded;
 mod topk_tree;
+
+/// The kinds the patch tree keeps apart (`PatchTree::with_kinds`): 1 for an emitter,
+/// 0 for the others.
+fn kinds(patches: &PatchSet) -> Vec<u8> {
+    patches
+        .patches
+        .iter()
+        .map(|p| u8::from(p.emission.iter().any(|&e| e > 0.0)))
+        .collect()
+}
 
 /// The diagonal of the patches' bounding box (1 without patches) and the largest
 /// magnitude of a coordinate (the rounding of plane distances grows with it).

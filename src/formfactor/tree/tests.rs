@@ -107,3 +107,39 @@ fn a_node_behind_the_row_patch_or_facing_away_is_bounded_by_zero() {
         }
     }
 }
+
+/// With kinds (emitters apart from the rest), a node that holds both kinds has one
+/// kind in each child: no node below the split mixes the room's lamp with its ceiling,
+/// and the cluster order still holds every patch once.
+#[test]
+fn kinds_are_parted_before_anything_else() {
+    let scene = builtin("room", None).unwrap();
+    let patches = subdivide(&scene, default_max_edge(&scene, 900));
+    let geom: Vec<PatchGeom> = patches.patches.iter().map(PatchGeom::new).collect();
+    let valid: Vec<bool> = geom.iter().map(PatchGeom::is_valid).collect();
+    let kinds: Vec<u8> = patches
+        .patches
+        .iter()
+        .map(|p| u8::from(p.emission.iter().any(|&e| e > 0.0)))
+        .collect();
+    assert!(kinds.contains(&1) && kinds.contains(&0));
+    let tree = PatchTree::with_kinds(&geom, &valid, &kinds, 1e-10, 1e-12);
+    let mixed = |id: u32| {
+        let under = tree.patches_under(id);
+        under
+            .iter()
+            .any(|&j| kinds[j as usize] != kinds[under[0] as usize])
+    };
+    for id in 0..tree.len() as u32 {
+        if let Kids::Inner(a, b) = tree.node(id).kids {
+            if mixed(id) {
+                assert!(!mixed(a) || !mixed(b), "node {id}: both children mix kinds");
+            }
+        } else {
+            assert!(!mixed(id), "leaf {id} mixes kinds");
+        }
+    }
+    let mut order = tree.cluster_order(geom.len());
+    order.sort_unstable();
+    assert!(order.iter().enumerate().all(|(k, &j)| k as u32 == j));
+}
