@@ -157,7 +157,7 @@ impl PatchTree {
         Self::with_kinds(geom, valid, &[], plane_tol, slack)
     }
 
-    /// [`PatchTree::new`] whose nodes first part patches of different `kinds` (one per
+    /// The tree of `PatchTree::new` (tests) whose nodes first part patches of different `kinds` (one per
     /// patch, or none): ffstream gives emitters one kind and the other patches another,
     /// so that no cluster mixes a lamp with the ceiling around it (a link to such a
     /// cluster would spread the lamp's radiosity over the ceiling's area).
