@@ -154,20 +154,22 @@ impl RowEngine {
             + d.columns.iter().map(|x| x.2).sum::<f64>()
             + d.nodes.iter().map(|x| x.3).sum::<f64>();
         let cut = self.link_cut(tree, root, row, &d, max, self.cfg.link_tol * total);
-        let (exact, sampled, evaluated) = self.link_values(tree, i, row, t, &d, &cut, scratch);
+        let (exact, evaluated, sampled, all) = self.link_values(tree, i, row, t, &d, &cut, scratch);
         // In a closed scene the row's total is known better from hemisphere rays than
-        // from the sum of the links' samples: the sampled parts are scaled to it (a
-        // ratio estimate), which keeps the row sums as good as without links.
+        // from the links' samples: what the link phase found (sampled or evaluated) is
+        // scaled to that total less the known mass (a ratio estimate), so the row's
+        // dropped mass is the one it has without links, bias and all. Not when the
+        // whole tail was evaluated: that is exact.
         let mut scale = 1.0;
-        let drawn: f64 = sampled.iter().sum();
-        if drawn > 0.0 {
+        let found: f64 = sampled.iter().chain(&evaluated).sum();
+        if !all && found > 0.0 {
             if let Some(total) = self.closure_total(tree, i, t, scratch) {
-                scale = (total - known - evaluated).max(0.0) / drawn;
+                scale = (total - known).max(0.0) / found;
             }
         }
         let mut links = Vec::with_capacity(cut.len());
-        for ((&id, e), s) in cut.iter().zip(exact).zip(sampled) {
-            let value = (e + scale * s) as f32;
+        for (((&id, e), v), s) in cut.iter().zip(exact).zip(evaluated).zip(sampled) {
+            let value = (e + scale * (v + s)) as f32;
             if value.is_finite() && value > 0.0 {
                 let (a, b) = tree.range(id);
                 links.push(Link {
@@ -232,8 +234,9 @@ impl RowEngine {
         cut
     }
 
-    /// Step 2 (module docs): per cluster of `cut`, its exact mass and the estimate of
-    /// the rest (0 when everything was evaluated).
+    /// Step 2 (module docs): per cluster of `cut`, the mass known before (columns not
+    /// kept), the mass evaluated now (small links, or every link when the whole tail
+    /// is small: the last value says so) and the sampled estimate of the rest.
     #[allow(clippy::too_many_arguments)]
     fn link_values(
         &self,
@@ -244,7 +247,7 @@ impl RowEngine {
         d: &Dropped,
         cut: &[u32],
         scratch: &mut Scratch,
-    ) -> (Vec<f64>, Vec<f64>, f64) {
+    ) -> (Vec<f64>, Vec<f64>, Vec<f64>, bool) {
         // Each cluster's exact mass and sampled items.
         let mut exact = Vec::with_capacity(cut.len());
         let mut items: Vec<Vec<(Item, f64)>> = Vec::with_capacity(cut.len());
@@ -307,7 +310,7 @@ impl RowEngine {
             .sum();
         let mut rng = self.tail_rng(i);
         let mut sampled = vec![0.0; cut.len()];
-        let mut evaluated = 0.0;
+        let mut evaluated = vec![0.0; cut.len()];
         for (k, of) in items.iter().enumerate() {
             if in_full[k] {
                 for (x, _) in of {
@@ -319,8 +322,7 @@ impl RowEngine {
                             .map(|&j| self.pair_value(i, j, scratch))
                             .sum(),
                     };
-                    exact[k] += v;
-                    evaluated += v;
+                    evaluated[k] += v;
                 }
             } else {
                 let w: f64 = of.iter().map(|x| x.1).sum();
@@ -344,6 +346,6 @@ impl RowEngine {
                 }
             }
         }
-        (exact, sampled, evaluated)
+        (exact, evaluated, sampled, evaluate_all)
     }
 }
