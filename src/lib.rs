@@ -29,3 +29,5 @@ pub mod scene;
 pub mod service;
 pub mod solve;
 mod table;
+
+pub use table::brief_number;
