@@ -30,4 +30,5 @@ pub mod service;
 pub mod solve;
 mod table;
 
+pub use input::refuse_special_file;
 pub use table::brief_number;
