@@ -34,7 +34,7 @@ fn regular(path: &Path) -> std::io::Result<()> {
     ))
 }
 
-/// Refuses `path` when it names a device, FIFO or socket, as [`read`] and [`open`] do:
+/// Refuses `path` when it names a device, FIFO or socket, as `read` and `open` do:
 /// for readers elsewhere (the command line's CSV inputs, `solve --emission` and
 /// `render --radiosity`, read by `src/solve/`), checked before they open the file.
 ///
