@@ -270,6 +270,17 @@ def _u64(b, o):
     return struct.unpack_from("<Q", b, o)[0]
 
 
+def _meta_text(path, meta, at, length, end, what) -> str:
+    """The UTF-8 string of `length` bytes at byte `at` of the meta block, which must
+    end by `end` (spec 3.2, 4.2); FfzError naming the byte otherwise."""
+    if at + length > end:
+        raise FfzError(f"{path}: header at byte {at}: {what} string of {length} bytes cut short (the meta block's strings end at byte {end})")
+    try:
+        return bytes(meta[at : at + length]).decode("utf-8")
+    except UnicodeDecodeError as e:
+        raise FfzError(f"{path}: header at byte {at + e.start}: {what} string is not UTF-8") from None
+
+
 def _excl_cumsum(a) -> np.ndarray:
     """[0, a0, a0 + a1, ...] without the total, int64."""
     out = np.zeros(len(a), dtype=np.int64)
@@ -610,21 +621,28 @@ class FfzReader:
         meta = buf[:meta_len]
         if not self._crc_ok(memoryview(meta)[HEADER_LEN:-4], _u32(meta, meta_len - 4)):
             raise FfzError(f"{path}: header at byte {meta_len - 4}: meta block checksum mismatch")
+        # Every length is checked against the body (which ends at the meta checksum)
+        # before it is used, and every string is decoded as UTF-8 with an FfzError,
+        # as the Rust reader does (issue 48, item 17: a group name's length running
+        # past the block raised struct.error, a string not UTF-8 UnicodeDecodeError).
+        end = meta_len - 4
         p = HEADER_LEN
-        method = meta[p : p + mlen].decode()
+        method = _meta_text(path, meta, p, mlen, end, "method")
         p += mlen
-        params = meta[p : p + plen].decode()
+        params = _meta_text(path, meta, p, plen, end, "params")
         p += plen
-        created = meta[p : p + clen].decode()
+        created = _meta_text(path, meta, p, clen, end, "created")
         p += clen
         rec = np.frombuffer(meta, dtype=PATCH_DTYPE, count=n, offset=p)
         p += n * PATCH_LEN
-        ngroups = _u32(meta, p)
+        ngroups = _u32(meta, p)  # inside the body: meta_len was checked above
         p += 4
         groups = []
-        for _ in range(ngroups):
+        for g in range(ngroups):
+            if p + 4 > end:
+                raise FfzError(f"{path}: header at byte {p}: group {g} name cut short ({ngroups} groups)")
             ln = _u32(meta, p)
-            groups.append(meta[p + 4 : p + 4 + ln].decode())
+            groups.append(_meta_text(path, meta, p + 4, ln, end, "group name"))
             p += 4 + ln
         clusters = None
         if flags & HEADER_FLAG_CLUSTERS:  # spec 4.3: a permutation of the patches

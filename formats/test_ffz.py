@@ -669,3 +669,75 @@ def test_value_faults_counts_rows_and_names_the_first():
         "entries that cannot be form factors in 1 row; first: row 3: value 1.6 at column 1 is above 1.5: not a form factor",
         "a dropped mass that is not a finite number in [0, 1.5] in 1 row; first: row 2: inf",
     ]
+
+
+def _with_checksums(b):
+    """`b` with its header checksum, and its meta block checksum where the header's
+    meta_len places one inside the file, recomputed (spec 3.1, 4): a mutation that
+    only a parser can catch."""
+    meta_len = struct.unpack_from("<Q", b, 40)[0]
+    if ffz.HEADER_LEN + 4 <= meta_len <= len(b):
+        struct.pack_into("<I", b, meta_len - 4, ffz.crc32c(bytes(b[ffz.HEADER_LEN : meta_len - 4])))
+    struct.pack_into("<I", b, 60, ffz.crc32c(bytes(b[:60])))
+    return b
+
+
+def _header_and_meta_mutants(good, count, seed):
+    """`count` checksum-valid mutants of the header and meta block of `good`: random
+    bytes, header fields and the meta block's own lengths (string lengths, group count,
+    a group name's length) set to edge values, and bytes that are not UTF-8 in its
+    strings."""
+    rng = np.random.default_rng(seed)
+    meta_len = struct.unpack_from("<Q", good, 40)[0]
+    mlen, plen, clen = struct.unpack_from("<III", good, 48)
+    n = struct.unpack_from("<I", good, 16)[0]
+    strings = ffz.HEADER_LEN + mlen + plen + clen
+    groups_at = strings + n * ffz.PATCH_LEN
+    edges = [0, 1, 2, 3, 4, 5, 7, 8, 63, 64, 65, 168, 255, 256, 0x7FFFFFFF, 0x80000000, 0xFFFFFFFE, 0xFFFFFFFF]
+    # (offset, width) of every length or count the parser trusts.
+    fields = [(12, 4), (16, 4), (20, 4), (24, 4), (28, 4), (40, 8), (48, 4), (52, 4), (56, 4), (groups_at, 4), (groups_at + 4, 4)]
+    for _ in range(count):
+        b = bytearray(good)
+        kind = rng.integers(0, 5)
+        if kind == 0:
+            pos = int(rng.integers(8, 60))
+            b[pos] = int(rng.integers(0, 256))
+        elif kind == 1:
+            pos = int(rng.integers(ffz.HEADER_LEN, meta_len - 4))
+            b[pos] = int(rng.integers(0, 256))
+        elif kind == 2:
+            at, width = fields[int(rng.integers(0, len(fields)))]
+            v = edges[int(rng.integers(0, len(edges)))]
+            if rng.integers(0, 2):
+                v = struct.unpack_from("<I", b, at)[0] + int(rng.integers(-3, 4))
+            b[at : at + width] = (v % (1 << (8 * width))).to_bytes(width, "little")
+        elif kind == 3:
+            # Not UTF-8: a lone continuation byte, a cut sequence, an overlong one.
+            pos = int(rng.integers(ffz.HEADER_LEN, strings)) if strings > ffz.HEADER_LEN else ffz.HEADER_LEN
+            bad = [b"\x80", b"\xff", b"\xc3", b"\xe2\x82", b"\xc0\xaf"][int(rng.integers(0, 5))]
+            b[pos : pos + len(bad)] = bad
+        else:
+            pos = int(rng.integers(groups_at + 8, meta_len - 4))
+            b[pos] = [0x80, 0xFF, 0xC3][int(rng.integers(0, 3))]
+        yield bytes(_with_checksums(b))
+
+
+@pytest.mark.parametrize("name", ["tiny-v1.ffz", "tiny-dense-v1.ffz"])
+def test_header_and_meta_mutations_with_valid_checksums_raise_only_ffz_error(tmp_path, name):
+    """Issue 48, item 17: 19 of 300 checksum-valid header and meta mutations raised
+    UnicodeDecodeError or struct.error. Each of these mutants opens (the parser found
+    nothing wrong, the file is read as the index or a scan says) or raises FfzError,
+    nothing else."""
+    good = (HERE / "golden" / name).read_bytes()
+    p = tmp_path / "mutant.ffz"
+    refused = 0
+    for k, mutant in enumerate(_header_and_meta_mutants(good, 400, 48)):
+        p.write_bytes(mutant)
+        try:
+            with ffz.open(p) as f:
+                assert isinstance(f.method, str) and all(isinstance(g, str) for g in f.groups)
+        except ffz.FfzError:
+            refused += 1
+        except Exception as e:  # noqa: BLE001 - the point of the test
+            pytest.fail(f"mutant {k}: {type(e).__name__}: {e}")
+    assert refused > 100, f"only {refused} of 400 mutants refused"

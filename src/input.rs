@@ -34,6 +34,16 @@ fn regular(path: &Path) -> std::io::Result<()> {
     ))
 }
 
+/// Refuses `path` when it names a device, FIFO or socket, as `read` and `open` do:
+/// for readers elsewhere (the command line's CSV inputs, `solve --emission` and
+/// `render --radiosity`, read by `src/solve/`), checked before they open the file.
+///
+/// # Errors
+/// `InvalidInput` naming what the path is.
+pub fn refuse_special_file(path: &Path) -> std::io::Result<()> {
+    regular(path)
+}
+
 /// The bytes of the regular file `path`.
 ///
 /// # Errors

@@ -29,3 +29,6 @@ pub mod scene;
 pub mod service;
 pub mod solve;
 mod table;
+
+pub use input::refuse_special_file;
+pub use table::brief_number;

@@ -85,6 +85,17 @@ fn into_io(e: csv::Error) -> std::io::Error {
     }
 }
 
+/// `x` for a message, a title or a column name: as Rust prints it from 1e-4 to 1e6
+/// (`0.5`, `300`), else in exponent form (`1e300`, `5e-324`), never hundreds of digits
+/// (a value at the end of a documented range, issue 48: `--max-edge 1.8e308` was
+/// printed as 309 digits, `--da-threshold 5e-324` as 324).
+pub fn brief_number(x: f64) -> String {
+    match x.abs() {
+        a if a == 0.0 || (1e-4..1e6).contains(&a) || !a.is_finite() => x.to_string(),
+        _ => format!("{x:e}"),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

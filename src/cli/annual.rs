@@ -8,6 +8,7 @@ use std::time::Instant;
 
 use anyhow::Context;
 use clap::Args;
+use ffstream::brief_number;
 use ffstream::daylight::{
     annual, clearsky,
     glazing::Glazing,
@@ -246,7 +247,7 @@ pub(super) fn run(mut a: AnnualArgs) -> anyhow::Result<ExitCode> {
         let groups: Vec<String> = a
             .glazing
             .iter()
-            .map(|(g, t)| format!("{g} τ {t}"))
+            .map(|(g, t)| format!("{g} τ {}", brief_number(*t)))
             .collect();
         step(&format!(
             "glazing: {} faces ({})",
@@ -371,7 +372,12 @@ fn da_map(
             let da: Vec<f64> = table.iter().map(|m| m.da).collect();
             let title = format!(
                 "DA{} over {}: share of hours {}-{} h with >= {} lux, {}",
-                a.da_threshold, g.group, a.occupied.start, a.occupied.end, a.da_threshold, weather
+                brief_number(a.da_threshold),
+                g.group,
+                a.occupied.start,
+                a.occupied.end,
+                brief_number(a.da_threshold),
+                weather
             );
             heatmap::write_grid_map(&da_map, &title, &at, &da, g.spacing, 100.0, "%")
                 .with_context(|| format!("cannot write {}", da_map.display()))?;
@@ -411,7 +417,7 @@ fn print_table(a: &AnnualArgs, sensors: &[Sensor], table: &[Metrics]) {
     println!(
         "{:<16} {:>8} {:>7} {:>9} {:>9} {:>10} {:>10}",
         "sensor",
-        format!("DA{}", a.da_threshold),
+        format!("DA{}", brief_number(a.da_threshold)),
         "UDI<100",
         "UDI100-2k",
         "UDI>2k",

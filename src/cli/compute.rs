@@ -391,8 +391,13 @@ fn subdivided(
         } else {
             "chosen for about --patches"
         };
+        // Six decimals as always, but never the 309 digits of 1.8e308.
+        let edge = match max_edge {
+            e if (1e-4..1e6).contains(&e) => format!("{e:.6}"),
+            e => ffstream::brief_number(e),
+        };
         super::say(&format!(
-            "ffstream: {} faces -> {} patches (max edge {max_edge:.6} scene units, {how})",
+            "ffstream: {} faces -> {} patches (max edge {edge} scene units, {how})",
             scene.faces.len(),
             patches.len()
         ));

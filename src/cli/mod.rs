@@ -203,6 +203,14 @@ pub(crate) fn dispatch(cli: Cli) -> anyhow::Result<ExitCode> {
     }
 }
 
+/// Refuses an input file named on the command line that is a device, FIFO or socket
+/// (`src/input.rs`): `/dev/zero` as `--emission` or `--radiosity` was read until memory
+/// ran out, a FIFO blocked (issue 48, item 16). An error (exit 1) naming the option.
+pub(crate) fn regular_input(option: &str, path: &std::path::Path) -> anyhow::Result<()> {
+    use anyhow::Context;
+    ffstream::refuse_special_file(path).with_context(|| format!("{option} {}", path.display()))
+}
+
 /// Default output directory of `run`.
 pub(crate) fn default_run_dir(scene: &str) -> PathBuf {
     let stem = scene

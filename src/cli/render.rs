@@ -147,6 +147,8 @@ pub(super) fn run(a: RenderArgs) -> anyhow::Result<ExitCode> {
         &[("FILE", &a.file), ("--radiosity", &a.radiosity)],
         &[("-o", &a.output)],
     )?;
+    super::regular_input("FILE", &a.file)?;
+    super::regular_input("--radiosity", &a.radiosity)?;
     let reader = FfzReader::open(&a.file)?;
     let patches = reader.meta().patches.clone();
     let radiosity = ffstream::solve::read_radiosity_csv(&a.radiosity, patches.len())?;

@@ -137,6 +137,9 @@ pub(super) fn solve_file(
     method: SolveMethod,
     o: &SolveOptions,
 ) -> anyhow::Result<(Solution, PatchSet)> {
+    for (option, path) in solve_inputs(file, o) {
+        super::regular_input(option, path)?;
+    }
     let reader = FfzReader::open(file)?;
     for w in reader.warnings() {
         eprintln!("ffstream: warning: {w}");

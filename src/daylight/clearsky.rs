@@ -119,7 +119,7 @@ pub fn clear_year(site: &Site, year: i32, linke: f64) -> Result<Weather, SunErro
     }
     Ok(Weather {
         site: site.clone(),
-        name: format!("clear sky (Linke turbidity {linke})"),
+        name: format!("clear sky (Linke turbidity {})", crate::brief_number(linke)),
         hours,
     })
 }

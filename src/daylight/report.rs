@@ -107,7 +107,7 @@ pub fn metrics_header(threshold: f64) -> [String; 8] {
     [
         "sensor".into(),
         "occupied_hours".into(),
-        format!("da{threshold}_percent"),
+        format!("da{}_percent", crate::brief_number(threshold)),
         "udi_below_100_percent".into(),
         "udi_100_2000_percent".into(),
         "udi_above_2000_percent".into(),

@@ -220,7 +220,8 @@ pub fn grid_sensors(
     }
     if out.is_empty() {
         return Err(format!(
-            "no grid point falls on group `{group}` at spacing {spacing}"
+            "no grid point falls on group `{group}` at spacing {}",
+            crate::brief_number(spacing)
         ));
     }
     Ok(out)

@@ -257,6 +257,42 @@ impl StoredRoutes {
     }
 }
 
+/// Drops a route record a resume kept that counts more rows than the file holds
+/// (`present`), returning a note for the run's warnings. Such a record cannot be added
+/// to: with the rows of the resume it would pass n and every reader would refuse the
+/// index. Runs before issue 48, item 4 wrote them (a half-row run that lost a worker
+/// counted the half rows of blocks never merged); the rows they miscounted are in the
+/// file, uncounted, as after any run that did not finish.
+pub(crate) fn drop_overcount(
+    kept: &mut Option<StoredRoutes>,
+    present: &super::RowPresence,
+) -> Option<String> {
+    let have = present.present_count();
+    let r = kept.take_if(|r| r.rows > have)?;
+    Some(format!(
+        "the file's pair-count record counted {} rows of the {have} present (a run that lost some of its half rows wrote it): dropped; the rows this run computes are counted afresh",
+        r.rows
+    ))
+}
+
+/// The route record the index gets: none when it would count more rows than the file
+/// holds (`present`). Runs count only rows they wrote (a caller bug otherwise, hence
+/// the assertion), but an index that every reader refuses is the worse outcome for a
+/// file of sound rows, so a release build leaves the record out instead.
+pub(crate) fn to_write<'a>(
+    r: Option<&'a StoredRoutes>,
+    present: &super::RowPresence,
+) -> Option<&'a StoredRoutes> {
+    let have = present.present_count();
+    let r = r?;
+    debug_assert!(
+        r.rows <= have,
+        "route record of {} rows, {have} present",
+        r.rows
+    );
+    (r.rows <= have).then_some(r)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -328,5 +364,24 @@ mod tests {
             StoredRoutes::decode(&mut Le::new(&bytes[..72]), 10, spec::INDEX_FLAG_ROUTES),
             Ok(nine)
         );
+    }
+
+    /// A kept record that counts more rows than the file holds (what a half-row run
+    /// that lost a worker wrote before issue 48, item 4: 2,831 of 748) is dropped with
+    /// a note; one within the rows present is kept; `to_write` leaves out one above.
+    #[test]
+    fn a_record_counting_more_rows_than_present_is_dropped_not_added_to() {
+        let mut present = crate::ffz::RowPresence::new(10);
+        for i in 0..7 {
+            present.set(i, crate::ffz::RowState::Present);
+        }
+        let mut kept = Some(sample());
+        assert_eq!(drop_overcount(&mut kept, &present), None);
+        assert_eq!(kept, Some(sample()));
+        assert_eq!(to_write(kept.as_ref(), &present), Some(&sample()));
+        present.set(6, crate::ffz::RowState::Missing);
+        let note = drop_overcount(&mut kept, &present).expect("a note");
+        assert!(note.contains("counted 7 rows of the 6 present"), "{note}");
+        assert_eq!(kept, None);
     }
 }

@@ -17,7 +17,7 @@ use super::meta::{self, FileMeta, Layout};
 use super::presence::{RowPresence, RowState};
 use super::reader::map_and_meta;
 use super::recover;
-use super::routes::StoredRoutes;
+use super::routes::{self, StoredRoutes};
 use super::spec;
 use crate::rows::Row;
 
@@ -304,6 +304,8 @@ impl FfzWriter {
         w.raw_bytes = kept.raw_bytes;
         w.warnings = kept.warnings;
         w.routes = kept.routes;
+        w.warnings
+            .extend(routes::drop_overcount(&mut w.routes, &w.presence));
         let presence = w.presence.clone();
         Ok((w, presence))
     }
@@ -493,7 +495,7 @@ impl FfzWriter {
             &self.chunk_offsets,
             &self.row_chunk,
             &self.presence,
-            self.routes.as_ref(),
+            routes::to_write(self.routes.as_ref(), &self.presence),
             &mut sink,
         )
         .and_then(|len| {

@@ -215,6 +215,11 @@ impl Camera {
             return bad("vertical field of view must be strictly between 0 and 180 degrees");
         }
         let view = self.target - self.eye;
+        if !view.is_finite() {
+            return bad(
+                "eye and target are too far apart (their distance overflows a 64-bit float)",
+            );
+        }
         let scale = self
             .eye
             .abs()
@@ -223,12 +228,15 @@ impl Camera {
         if view.length() <= 1e-12 * scale.max(1e-300) || view.length() == 0.0 {
             return bad("eye and target coincide");
         }
-        let forward = view.normalize();
-        let up_len = self.up.length();
-        if up_len == 0.0 {
+        // Each vector is divided by its largest component before it is normalised: a
+        // length above about 1e154 would overflow in the sum of squares, turning a
+        // sound camera into a zero direction ("parallel" to anything).
+        let unit = |v: DVec3| (v / v.abs().max_element()).normalize();
+        let forward = unit(view);
+        if self.up.abs().max_element() == 0.0 {
             return bad("up vector is zero");
         }
-        let side = forward.cross(self.up / up_len);
+        let side = forward.cross(unit(self.up));
         if side.length() < 1e-9 {
             return bad("up vector is parallel to the view direction");
         }
@@ -360,6 +368,24 @@ impl View {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Issue 48 (the ranges' property test): an eye 1.8e308 from its target, or an up
+    /// vector of 1e-320, is a sound camera, but the sum of squares of a normalisation
+    /// overflowed (or underflowed) and it was refused as "up vector is parallel to the
+    /// view direction" ("up vector is zero"). Only a distance that overflows itself
+    /// is refused, saying so.
+    #[test]
+    fn a_camera_far_from_its_target_or_with_a_tiny_up_vector_is_sound() {
+        let far: Camera = "1.7976931348623157e308,0,0,0,0,0,0,0,1,90".parse().unwrap();
+        assert!(far.validate().is_ok());
+        let tiny_up: Camera = "0,0,-5,0,0,0,0,1e-320,0,45".parse().unwrap();
+        assert!(tiny_up.validate().is_ok());
+        let apart = "1.7976931348623157e308,0,0,-1.7976931348623157e308,0,0,0,0,1,90"
+            .parse::<Camera>()
+            .unwrap_err()
+            .to_string();
+        assert!(apart.contains("too far apart"), "{apart}");
+    }
 
     #[test]
     fn cornell_fov_is_39_3_degrees() {

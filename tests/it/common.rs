@@ -232,6 +232,34 @@ fn output_at_most(mut child: Child, what: &str, limit: Duration, pipe_limit: Dur
     }
 }
 
+/// The output of `child` if it ends within `limit`; past it, None, once it and every
+/// process under it are killed. For tests that report a hang among other faults they
+/// collect instead of failing at the first (`stress_ranges.rs`).
+pub(crate) fn output_before(mut child: Child, limit: Duration) -> Option<Output> {
+    let out = drain(child.stdout.take());
+    let err = drain(child.stderr.take());
+    let t0 = Instant::now();
+    let status = loop {
+        if let Some(status) = child.try_wait().expect("wait for a child") {
+            break status;
+        }
+        if t0.elapsed() > limit {
+            kill_tree_and_wait(child.id());
+            let _ = child.wait();
+            return None;
+        }
+        std::thread::sleep(Duration::from_millis(10));
+    };
+    let rest = |pipe: &crossbeam::channel::Receiver<Vec<u8>>| {
+        pipe.recv_timeout(PIPE_LIMIT).unwrap_or_default()
+    };
+    Some(Output {
+        status,
+        stdout: rest(&out),
+        stderr: rest(&err),
+    })
+}
+
 /// How long the pipes of an ended mpirun job may stay open (see [`output_of_within`]).
 const PIPE_LIMIT: Duration = Duration::from_secs(60);
 

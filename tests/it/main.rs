@@ -31,6 +31,7 @@ mod stress_geom;
 mod stress_limits;
 mod stress_numeric;
 mod stress_props;
+mod stress_ranges;
 mod stress_resume;
 mod stress_same_file;
 mod stress_signals;

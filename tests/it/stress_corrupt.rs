@@ -388,3 +388,49 @@ fn a_failed_export_leaves_no_partial_text_and_an_older_file_intact() {
         .unwrap()
         .starts_with("# ffstream"));
 }
+
+/// Issue 48, item 18: an export of a partial file (a run that did not finish) exited 0
+/// without a word; `--npz` has no header to name the missing rows, so nothing said
+/// the matrix lacked them. Every export of such a file still succeeds (it is what the
+/// run has so far) but warns, naming the count of missing rows.
+#[test]
+fn an_export_of_a_partial_file_warns_of_the_rows_missing() {
+    let dir = tempfile::tempdir().unwrap();
+    let full = dir.path().join("full.ffz");
+    ok(&[
+        "compute",
+        "builtin:cornell",
+        "--patches",
+        "300",
+        "--quiet",
+        "--chunk-kib",
+        "16",
+        "-o",
+        path_str(&full),
+    ]);
+    // Cut inside the chunks: the first ones stay, the index and footer are gone.
+    let bytes = std::fs::read(&full).unwrap();
+    let part = dir.path().join("part.ffz");
+    std::fs::write(&part, &bytes[..bytes.len() * 2 / 3]).unwrap();
+    for (option, out) in [("--npz", "p.npz"), ("--matrix", "p.mtx")] {
+        let out = dir.path().join(out);
+        let o = ffstream(&["export", path_str(&part), option, path_str(&out)]);
+        assert_no_panic(&o, option);
+        let stderr = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(0), "{option}: {stderr}");
+        assert!(
+            stderr.contains("ffstream: warning: ")
+                && stderr.contains("rows are missing")
+                && stderr.contains("--resume"),
+            "{option}: no warning of the missing rows: {stderr}"
+        );
+    }
+    // A complete file exports without one.
+    let o = ffstream(&[
+        "export",
+        path_str(&full),
+        "--npz",
+        path_str(&dir.path().join("f.npz")),
+    ]);
+    assert!(o.status.success() && !String::from_utf8_lossy(&o.stderr).contains("warning"));
+}

@@ -92,3 +92,53 @@ fn devices_and_fifos_as_inputs_are_refused_at_once() {
         crate::stress_cli::assert_one_error(&o, path_str(&scene), &names);
     }
 }
+
+/// Issue 48, item 16 for the CSV inputs: `solve --emission` and `render --radiosity`
+/// read their file whatever it was, so `/dev/zero` was read until memory ran out and
+/// a FIFO blocked the command in `open` for good. Both are refused at once (exit 1),
+/// naming the option, the path and what it is; so is a FIFO as the `.ffz` FILE.
+#[test]
+fn devices_and_fifos_as_csv_inputs_are_refused_at_once() {
+    use std::process::{Command, Stdio};
+    use std::time::Duration;
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let ffz = d.join("c.ffz");
+    let csv = d.join("b.csv");
+    crate::common::ok(&["compute", "builtin:cube", "-o", path_str(&ffz), "--quiet"]);
+    crate::common::ok(&["solve", path_str(&ffz), "-o", path_str(&csv), "--quiet"]);
+    let fifo = d.join("fifo.csv");
+    let c = std::ffi::CString::new(path_str(&fifo)).unwrap();
+    // SAFETY: a valid NUL-terminated path.
+    assert_eq!(unsafe { libc::mkfifo(c.as_ptr(), 0o600) }, 0);
+    let out_csv = d.join("o.csv");
+    let png = d.join("o.png");
+    let (f, o, p, r) = (
+        path_str(&ffz),
+        path_str(&out_csv),
+        path_str(&png),
+        path_str(&csv),
+    );
+    for (input, what) in [(path_str(&fifo), "a FIFO"), ("/dev/zero", "a device")] {
+        for (args, option) in [
+            (vec!["solve", f, "-o", o, "--emission", input], "--emission"),
+            (
+                vec!["render", f, "--radiosity", input, "-o", p],
+                "--radiosity",
+            ),
+            (vec!["render", input, "--radiosity", r, "-o", p], "FILE"),
+        ] {
+            let child = Command::new(crate::common::exe())
+                .args(&args)
+                .stdin(Stdio::null())
+                .stdout(Stdio::piped())
+                .stderr(Stdio::piped())
+                .spawn()
+                .unwrap();
+            let said = args.join(" ");
+            let out = crate::common::output_before(child, Duration::from_secs(30))
+                .unwrap_or_else(|| panic!("{said}: still reading after 30 s (killed)"));
+            crate::stress_cli::assert_one_error(&out, &said, &[option, input, what]);
+        }
+    }
+}
