@@ -190,14 +190,19 @@ impl Row {
                 &mut f,
                 format!("dropped mass {d:e} is not a finite number in [0, {MAX_FORM_FACTOR}]"),
             );
-        } else if d > 0.0
-            && self.links.is_empty()
-            && matches!(self.values, RowValues::Sparse { .. })
-            && self.stored_sum() == 0.0
-        {
+        } else if self.faults_lost_mass() {
             f.lost_mass = true;
         }
         f
+    }
+
+    /// Whether the row stores no mass but has dropped mass and no links to place it
+    /// ([`RowFaults::lost_mass`] without the other checks).
+    pub fn faults_lost_mass(&self) -> bool {
+        self.dropped > 0.0
+            && self.links.is_empty()
+            && matches!(self.values, RowValues::Sparse { .. })
+            && self.stored_sum() == 0.0
     }
 
     /// The sum of the links' values, accumulated in f64.

@@ -357,11 +357,19 @@ pub fn solve(
         ));
     }
     if let Some((count, first, total)) = sys.lost_mass() {
-        warnings.push(format!(
-            "{count} top-k row(s) store nothing but have dropped mass (first: row {first}; \
-             total {total:.3e}): that light cannot be redistributed and is lost (absorbed); \
-             a larger --top-k keeps it"
-        ));
+        warnings.push(match sys.pool {
+            Some(_) => format!(
+                "{count} top-k row(s) store nothing but have dropped mass (first: row \
+                 {first}; total {total:.3e}): their light reaches the other patches only \
+                 through the pool, shared by a global rule; a larger --top-k, or links \
+                 (--links in compute), place it"
+            ),
+            None => format!(
+                "{count} top-k row(s) store nothing but have dropped mass (first: row \
+                 {first}; total {total:.3e}): that light cannot be redistributed and is \
+                 lost (absorbed); a larger --top-k keeps it"
+            ),
+        });
     }
     let energy = energy::energy_reports(&sys, &it.b, &it.h);
     if let Some((case, fraction)) = energy::created_light(&energy) {

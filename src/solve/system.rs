@@ -354,9 +354,12 @@ impl System {
             }
         }
         if let Some(v) = &view {
-            if v.lost > 0.0 {
+            // A row that stores nothing but has dropped mass and no links (spec §5.6):
+            // rescaling loses its light, the pool carries it; either way it is noted.
+            let empty = v.lost > 0.0 || (row.faults_lost_mass() && self.pool.is_some());
+            if empty {
                 if let Some(slot) = self.lost_mass.get(row.index as usize) {
-                    slot.store(v.lost.to_bits(), std::sync::atomic::Ordering::Relaxed);
+                    slot.store(row.dropped.to_bits(), std::sync::atomic::Ordering::Relaxed);
                 }
             }
         }
