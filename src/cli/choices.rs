@@ -191,7 +191,10 @@ pub(crate) mod number {
     pub(crate) fn positive(s: &str) -> Result<f64, String> {
         match real(s)? {
             x if x.is_finite() && x > 0.0 => Ok(x),
-            x => Err(format!("{x} is not a finite number > 0")),
+            x => Err(format!(
+                "{} is not a finite number > 0",
+                ffstream::brief_number(x)
+            )),
         }
     }
 
@@ -199,7 +202,10 @@ pub(crate) mod number {
     pub(crate) fn non_negative(s: &str) -> Result<f64, String> {
         match real(s)? {
             x if x.is_finite() && x >= 0.0 => Ok(x),
-            x => Err(format!("{x} is not a finite number ≥ 0")),
+            x => Err(format!(
+                "{} is not a finite number ≥ 0",
+                ffstream::brief_number(x)
+            )),
         }
     }
 
@@ -207,7 +213,10 @@ pub(crate) mod number {
     pub(crate) fn finite(s: &str) -> Result<f64, String> {
         match real(s)? {
             x if x.is_finite() => Ok(x),
-            x => Err(format!("{x} is not a finite number")),
+            x => Err(format!(
+                "{} is not a finite number",
+                ffstream::brief_number(x)
+            )),
         }
     }
 
@@ -220,7 +229,10 @@ pub(crate) mod number {
     pub(crate) fn seconds(s: &str) -> Result<f64, String> {
         match real(s)? {
             x if (0.0..=MAX_SECONDS).contains(&x) => Ok(x),
-            x => Err(format!("{x} is not a duration from 0 to {MAX_SECONDS:e} s")),
+            x => Err(format!(
+                "{} is not a duration from 0 to {MAX_SECONDS:e} s",
+                ffstream::brief_number(x)
+            )),
         }
     }
 
@@ -229,7 +241,8 @@ pub(crate) mod number {
         match real(s)? {
             x if x > 0.0 && x <= MAX_SECONDS => Ok(x),
             x => Err(format!(
-                "{x} is not a duration > 0 and at most {MAX_SECONDS:e} s"
+                "{} is not a duration > 0 and at most {MAX_SECONDS:e} s",
+                ffstream::brief_number(x)
             )),
         }
     }
@@ -238,7 +251,7 @@ pub(crate) mod number {
     pub(crate) fn tolerance(s: &str) -> Result<f64, String> {
         match real(s)? {
             x if x > 0.0 && x <= 0.1 => Ok(x),
-            x => Err(format!("{x} is outside (0, 0.1]")),
+            x => Err(format!("{} is outside (0, 0.1]", ffstream::brief_number(x))),
         }
     }
 
@@ -246,7 +259,7 @@ pub(crate) mod number {
     pub(crate) fn open_unit(s: &str) -> Result<f64, String> {
         match real(s)? {
             x if x > 0.0 && x < 1.0 => Ok(x),
-            x => Err(format!("{x} is outside (0, 1)")),
+            x => Err(format!("{} is outside (0, 1)", ffstream::brief_number(x))),
         }
     }
 }
