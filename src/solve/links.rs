@@ -96,42 +96,26 @@ impl LinkSpace {
         acc: &mut [f64],
     ) -> f64 {
         let m = acc.len();
-        // Per link: the area and the A·b of its excluded patches (few: at most the
-        // kept columns and the row patch).
-        let mut out: Vec<(usize, f64, [f64; 3])> = Vec::new();
-        let mut wide: Vec<(usize, f64, Vec<f64>)> = Vec::new();
-        for (k, j) in self.excluded(links, i, cols) {
-            let a = area[j as usize];
-            let bj = &b[j as usize * m..(j as usize + 1) * m];
-            if m == 3 {
-                out.push((k, a, [a * bj[0], a * bj[1], a * bj[2]]));
-            } else {
-                wide.push((k, a, bj.iter().map(|x| a * x).collect()));
-            }
-        }
+        // The patches in the links' ranges that are not theirs (few: at most the kept
+        // columns and the row patch), by link.
+        let out: Vec<(usize, usize)> = self
+            .excluded(links, i, cols)
+            .map(|(k, j)| (k, j as usize))
+            .collect();
         let mut sum = 0.0;
         for (k, l) in links.iter().enumerate() {
             let f = f64::from(l.value);
             sum += f;
             let (s, e) = (l.start as usize, l.end() as usize);
-            let mut w = self.area[e] - self.area[s];
-            for x in out.iter().filter(|x| x.0 == k) {
-                w -= x.1;
-            }
-            for x in wide.iter().filter(|x| x.0 == k) {
-                w -= x.1;
-            }
+            let mine = || out.iter().filter(move |x| x.0 == k).map(|x| x.1);
+            let w = self.area[e] - self.area[s] - mine().map(|j| area[j]).sum::<f64>();
             if w.is_nan() || w <= 0.0 {
                 continue;
             }
             for c in 0..m {
-                let mut ab = prefix[e * m + c] - prefix[s * m + c];
-                for x in out.iter().filter(|x| x.0 == k) {
-                    ab -= x.2[c];
-                }
-                for x in wide.iter().filter(|x| x.0 == k) {
-                    ab -= x.2[c];
-                }
+                let ab = prefix[e * m + c]
+                    - prefix[s * m + c]
+                    - mine().map(|j| area[j] * b[j * m + c]).sum::<f64>();
                 acc[c] += f * ab / w;
             }
         }

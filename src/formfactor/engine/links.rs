@@ -277,15 +277,6 @@ impl RowEngine {
             }
             items.push(of);
         }
-        let patches: usize = items
-            .iter()
-            .flatten()
-            .map(|(x, _)| match *x {
-                Item::Column(..) => 1,
-                Item::Node(id, _) => tree.node(id).count() as usize,
-            })
-            .sum();
-        let evaluate_all = patches <= EXACT_TAIL_FACTOR * t;
         let size = |of: &[(Item, f64)]| -> usize {
             of.iter()
                 .map(|(x, _)| match *x {
@@ -294,6 +285,7 @@ impl RowEngine {
                 })
                 .sum()
         };
+        let evaluate_all = items.iter().map(|of| size(of)).sum::<usize>() <= EXACT_TAIL_FACTOR * t;
         // Small links are evaluated in full: one sample point on a link of a few patches
         // is as costly as they are, and a point on a hidden one would leave out the
         // visible others (bench/LINKS.md).
