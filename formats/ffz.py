@@ -96,6 +96,7 @@ FOOTER_MAGIC = b"FFZ-END\n"  # spec 7
 HEADER_LEN, PATCH_LEN, CHUNK_HEADER_LEN, DIR_LEN, FOOTER_LEN = 64, 168, 40, 24, 32
 SHUFFLED, SKIPPED, SPARSE = 1, 1, 2
 LINKS = 4  # spec 5.7: row directory flag, the row's links follow its entries
+SLOPES = 8  # spec 5.7: row directory flag, each link also has a slope (only with LINKS)
 HEADER_FLAG_CLUSTERS = 1  # spec 3.1, 4.3: the meta block holds a cluster order
 NO_CHUNK = 0xFFFFFFFF
 MISSING, PRESENT, SKIPPED_STATE = 0, 1, 2
@@ -366,7 +367,8 @@ def _words(b, shuffled) -> np.ndarray:
 def _split_links(raw, d, n, shuffled):
     """Spec 5.7: the links of a chunk's LINKS rows taken out of its payload. Returns the
     payload and directory as they would be without links (offsets shifted, LINKS
-    cleared), and {row: (starts, lengths, values)}; ValueError on a bad link."""
+    cleared), and {row: (starts, lengths, values, slopes)} (slopes an (m, 3) float32
+    array, zeros for a row without SLOPES); ValueError on a bad link."""
     rows = len(d)
     d = d.copy()
     base = DIR_LEN * rows
@@ -382,6 +384,8 @@ def _split_links(raw, d, n, shuffled):
         size = 0 if fl & SKIPPED else 8 * nnz
         if fl & LINKS and not (fl & SPARSE and not fl & SKIPPED):
             raise ValueError(f"row {row}: links on a row that is not sparse")
+        if fl & SLOPES and not fl & LINKS:
+            raise ValueError(f"row {row}: slopes on a row without links")
         out.append(bytes(raw[pos : pos + size]))
         d[j, 4], d[j, 5] = new & 0xFFFFFFFF, new >> 32
         pos += size
@@ -390,7 +394,8 @@ def _split_links(raw, d, n, shuffled):
             if pos + 4 > len(raw):
                 raise ValueError(f"row {row}: link count beyond the payload")
             m = _u32(raw, pos)
-            if not 1 <= m <= n or pos + 4 + 12 * m > len(raw):
+            per = 24 if fl & SLOPES else 12
+            if not 1 <= m <= n or pos + 4 + per * m > len(raw):
                 raise ValueError(f"row {row}: {m} links impossible here")
             gaps = _words(raw[pos + 4 : pos + 4 + 4 * m], shuffled).astype(np.int64)
             lens = _words(raw[pos + 4 + 4 * m : pos + 4 + 8 * m], shuffled).astype(np.int64)
@@ -403,9 +408,16 @@ def _split_links(raw, d, n, shuffled):
             total = float(vals.astype(np.float64).sum())
             if abs(total - dropped) > 1e-6 * max(abs(total), abs(dropped)) + 1e-30:
                 raise ValueError(f"row {row}: dropped mass {dropped:e} is not the sum of its links {total:e}")
-            links[row] = (starts.astype(np.uint32), lens.astype(np.uint32), vals.copy())
-            pos += 4 + 12 * m
-            d[j, 1] = fl & ~LINKS
+            if fl & SLOPES:
+                at = pos + 4 + 12 * m
+                slopes = np.stack([_words(raw[at + 4 * m * c : at + 4 * m * (c + 1)], shuffled).view("<f4") for c in range(3)], axis=1)
+                if not np.all(np.isfinite(slopes)):
+                    raise ValueError(f"row {row}: a link's slope is not finite")
+            else:
+                slopes = np.zeros((m, 3), np.float32)
+            links[row] = (starts.astype(np.uint32), lens.astype(np.uint32), vals.copy(), slopes)
+            pos += 4 + per * m
+            d[j, 1] = fl & ~(LINKS | SLOPES)
     if pos != len(raw):
         raise ValueError(f"row data ends at {pos}, payload is {len(raw)} bytes")
     return b"".join(out), d, links
@@ -666,7 +678,7 @@ class FfzReader:
         # spec 4.3: position -> patch; links (5.7) name ranges of positions. None when
         # the rows carry no links.
         self.cluster_order = clusters
-        self._links = {}  # row -> (starts, lengths, values) of the rows read so far
+        self._links = {}  # row -> (starts, lengths, values, slopes) of the rows read so far
 
     def _read_index(self):
         """Footer then index (spec 7, 6); raises ValueError with the offset."""
@@ -800,7 +812,7 @@ class FfzReader:
         with mv[pos + CHUNK_HEADER_LEN : pos + CHUNK_HEADER_LEN + clen] as payload:  # no copy
             if not self._crc_ok(payload, crc_c):
                 raise ValueError("compressed payload checksum mismatch")
-            if rlen < DIR_LEN * rows or rlen > rows * (DIR_LEN + 4 + 20 * n) or rows > n:
+            if rlen < DIR_LEN * rows or rlen > rows * (DIR_LEN + 4 + 32 * n) or rows > n:
                 raise ValueError(f"raw length {rlen} impossible for {rows} rows")
             try:
                 said = zstandard.frame_content_size(payload)
@@ -937,38 +949,59 @@ class FfzReader:
         return self._chunk(int(self._row_chunk[i])).row(i)
 
     def links(self, i):
-        """Row i's links to clusters (spec 5.7) as (starts, lengths, values) arrays over
-        positions of `cluster_order`; empty arrays for a row without links (or a file
-        without a cluster order). Reads row i's chunk if it was not read yet."""
+        """Row i's links to clusters (spec 5.7) as (starts, lengths, values, slopes):
+        starts and lengths over positions of `cluster_order`, slopes an (m, 3) array
+        (zeros for a row written without SLOPES); empty arrays for a row without links
+        (or a file without a cluster order). Reads row i's chunk if it was not read yet."""
         i = int(i)
         if self.cluster_order is not None and i not in self._links and self.presence[i] == PRESENT:
             self._decode(int(self._row_chunk[i]))
-        empty = (np.zeros(0, np.uint32), np.zeros(0, np.uint32), np.zeros(0, np.float32))
+        empty = (np.zeros(0, np.uint32), np.zeros(0, np.uint32), np.zeros(0, np.float32), np.zeros((0, 3), np.float32))
         return self._links.get(i, empty)
 
+    def centroids(self) -> np.ndarray:
+        """Patch centroids x_j as spec 5.7 defines them, (n, 3) float64: a triangle's
+        corner mean; a quadrilateral's area-weighted mean of the centroids of its
+        triangles 0-1-2 and 0-2-3."""
+        c = self.patches["corners"].astype(np.float64)
+        g1 = (c[:, 0] + c[:, 1] + c[:, 2]) / 3.0
+        g2 = (c[:, 0] + c[:, 2] + c[:, 3]) / 3.0
+        a1 = np.linalg.norm(np.cross(c[:, 1] - c[:, 0], c[:, 2] - c[:, 0]), axis=1)
+        a2 = np.linalg.norm(np.cross(c[:, 2] - c[:, 0], c[:, 3] - c[:, 0]), axis=1)
+        tot = a1 + a2
+        with np.errstate(invalid="ignore", divide="ignore"):
+            quad = np.where((tot > 0)[:, None], (g1 * a1[:, None] + g2 * a2[:, None]) / tot[:, None], 0.5 * (g1 + g2))
+        return np.where((self.patches["n_corners"] == 3)[:, None], g1, quad)
+
     def link_matrix(self) -> scipy.sparse.csr_matrix:
-        """The links expanded into patch entries (spec 5.7: F_ij = F_iL A_j / A_L over
-        each link's patches, those in its range that are not a kept column of row i and
-        not i), n x n float64; add to_csr() for the whole matrix. Empty without links."""
+        """The links expanded into patch entries, n x n float64; add to_csr() for the
+        whole matrix. Empty without links. Spec 5.7: over each link's patches j (those
+        in its range that are not a kept column of row i and not i),
+        F_ij = F_iL w_j / sum(w), w_j = A_j (1 + q_L . (x_j - mean_L)), mean_L the
+        area-weighted mean centroid of the whole range, q_L the link's slope."""
         n = self.n
         kept = self.to_csr()
         area = self.patches["area"].astype(np.float64)
         order = self.cluster_order
         rows, cols, vals = [], [], []
         if order is not None:
+            x = self.centroids()
             for i in range(n):
-                starts, lens, values = self.links(i)
+                starts, lens, values, slopes = self.links(i)
                 if not len(starts):
                     continue
                 own = set(kept.indices[kept.indptr[i] : kept.indptr[i + 1]].tolist()) | {i}
-                for a, ln, v in zip(starts.tolist(), lens.tolist(), values.tolist()):
-                    js = order[a : a + ln]
+                for a, ln, v, q in zip(starts.tolist(), lens.tolist(), values.tolist(), slopes.astype(np.float64)):
+                    js = order[a : a + ln].astype(np.int64)
+                    mean = area[js] @ x[js] / area[js].sum()
                     js = js[~np.isin(js, list(own))]
-                    w = area[js].sum()
-                    if w > 0:
+                    w = area[js] * (1.0 + (x[js] - mean) @ q)
+                    if not w.sum() > 0:  # kept columns hold all the weight: by area
+                        w = area[js]
+                    if w.sum() > 0:
                         rows.append(np.full(len(js), i))
-                        cols.append(js.astype(np.int64))
-                        vals.append(v * area[js] / w)
+                        cols.append(js)
+                        vals.append(v * w / w.sum())
         if not rows:
             return scipy.sparse.csr_matrix((n, n), dtype=np.float64)
         r, c, v = np.concatenate(rows), np.concatenate(cols), np.concatenate(vals)

@@ -61,6 +61,10 @@ pub struct Link {
     pub len: u32,
     /// F from the row patch to the link's patches, together.
     pub value: f32,
+    /// How the link's mass leans inside its cluster (spec §5.7): patch j of the link
+    /// weighs A_j (1 + slope · (x_j − x̄)), x̄ the area-weighted mean centroid of the
+    /// whole range. Zero: by area alone.
+    pub slope: [f32; 3],
 }
 
 impl Link {
@@ -173,6 +177,13 @@ impl Row {
                 note(
                     &mut f,
                     format!("link {m}'s value {x:e} is above {MAX_FORM_FACTOR}: not a form factor"),
+                );
+            }
+            if let Some(c) = l.slope.iter().find(|c| !c.is_finite()) {
+                f.non_finite += 1;
+                note(
+                    &mut f,
+                    format!("link {m}'s slope component {c} is not finite"),
                 );
             }
         }

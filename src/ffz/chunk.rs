@@ -71,7 +71,19 @@ pub fn encode_chunk_with(
     enc: ChunkEncoding,
 ) -> Result<EncodedChunk> {
     let raw = encode_raw(rows, layout, n, enc.shuffle)?;
-    let payload = zstd::bulk::compress(&raw.bytes, enc.zstd_level).map_err(FfzError::Compress)?;
+    let bytes = record(&raw.bytes, rows.len() as u32, enc)?;
+    Ok(EncodedChunk {
+        row_ids: raw.row_ids,
+        skipped: raw.skipped,
+        bytes,
+        raw_len: raw.bytes.len() as u64,
+    })
+}
+
+/// The chunk record (header and compressed payload, spec §5.1) of a raw payload of
+/// `row_count` rows.
+fn record(raw: &[u8], row_count: u32, enc: ChunkEncoding) -> Result<Vec<u8>> {
+    let payload = zstd::bulk::compress(raw, enc.zstd_level).map_err(FfzError::Compress)?;
     let header = ChunkHeaderV1 {
         flags: if enc.shuffle {
             spec::CHUNK_FLAG_SHUFFLED
@@ -79,20 +91,15 @@ pub fn encode_chunk_with(
             0
         },
         compressed_len: payload.len() as u64,
-        raw_len: raw.bytes.len() as u64,
-        row_count: rows.len() as u32,
+        raw_len: raw.len() as u64,
+        row_count,
         crc_compressed: spec::crc(&payload),
-        crc_raw: spec::crc(&raw.bytes),
+        crc_raw: spec::crc(raw),
     };
     let mut bytes = Vec::with_capacity(spec::CHUNK_HEADER_LEN + payload.len());
     bytes.extend_from_slice(&header.encode());
     bytes.extend_from_slice(&payload);
-    Ok(EncodedChunk {
-        row_ids: raw.row_ids,
-        skipped: raw.skipped,
-        bytes,
-        raw_len: header.raw_len,
-    })
+    Ok(bytes)
 }
 
 /// The decompressed payload of a chunk and the rows it names.
@@ -113,11 +120,12 @@ pub fn raw_row_len(row: &Row) -> usize {
 }
 
 /// Bytes a row's links take after its patch entries (spec §5.7): none without links,
-/// else the count and 12 bytes a link.
+/// else the count and 24 bytes a link (12 without slopes, which ffstream no longer
+/// writes).
 fn links_len(row: &Row) -> usize {
     match row.links.len() {
         0 => 0,
-        m => 4 + 12 * m,
+        m => 4 + 24 * m,
     }
 }
 
@@ -279,7 +287,7 @@ pub(crate) fn encode_raw(
                 (spec::ROW_FLAG_SPARSE, cols.len() as u32)
             }
             RowValues::Sparse { cols, .. } => (
-                spec::ROW_FLAG_SPARSE | spec::ROW_FLAG_LINKS,
+                spec::ROW_FLAG_SPARSE | spec::ROW_FLAG_LINKS | spec::ROW_FLAG_SLOPES,
                 cols.len() as u32,
             ),
             RowValues::Skipped => {
@@ -326,7 +334,8 @@ pub(crate) fn encode_raw(
 }
 
 /// A row's links (spec §5.7): their count, then the starts as gaps (the first start,
-/// then each start less the previous link's end), the lengths and the values.
+/// then each start less the previous link's end), the lengths, the values and the
+/// slopes' x, y and z components.
 fn put_links(out: &mut Vec<u8>, links: &[Link], shuffle: bool) {
     out.extend_from_slice(&(links.len() as u32).to_le_bytes());
     let gaps = links.iter().scan(0u32, |end, l| {
@@ -337,15 +346,27 @@ fn put_links(out: &mut Vec<u8>, links: &[Link], shuffle: bool) {
     put_words(out, ExactLen(gaps, links.len()), shuffle);
     put_words(out, links.iter().map(|l| l.len), shuffle);
     put_words(out, links.iter().map(|l| l.value.to_bits()), shuffle);
+    for c in 0..3 {
+        put_words(out, links.iter().map(|l| l.slope[c].to_bits()), shuffle);
+    }
 }
 
-/// Inverse of [`put_links`] on the `12 m` bytes after the count `m`; checks the links
-/// against n (spec §5.7).
-fn get_links(src: &[u8], n: u32, shuffle: bool) -> std::result::Result<Vec<Link>, String> {
-    let m = src.len() / 12;
-    let gaps = get_words(&src[..4 * m], shuffle);
-    let lens = get_words(&src[4 * m..8 * m], shuffle);
-    let vals = get_words(&src[8 * m..], shuffle);
+/// Inverse of [`put_links`] on the `12 m` bytes after the count `m`, or `24 m` with
+/// slopes; checks the links against n (spec §5.7).
+fn get_links(
+    src: &[u8],
+    n: u32,
+    shuffle: bool,
+    slopes: bool,
+) -> std::result::Result<Vec<Link>, String> {
+    let words = if slopes { 6 } else { 3 };
+    let m = src.len() / (4 * words);
+    let array = |k: usize| get_words(&src[4 * k * m..4 * (k + 1) * m], shuffle);
+    let (gaps, lens, vals) = (array(0), array(1), array(2));
+    let slope: Vec<Vec<u32>> = match slopes {
+        true => (3..6).map(array).collect(),
+        false => vec![vec![0; m]; 3],
+    };
     let mut links = Vec::with_capacity(m);
     let mut end = 0u64;
     for k in 0..m {
@@ -354,6 +375,7 @@ fn get_links(src: &[u8], n: u32, shuffle: bool) -> std::result::Result<Vec<Link>
             start: u32::try_from(start).map_err(|_| format!("link {k} starts beyond n = {n}"))?,
             len: lens[k],
             value: f32::from_bits(vals[k]),
+            slope: std::array::from_fn(|c| f32::from_bits(slope[c][k])),
         };
         end = l.end();
         links.push(l);
@@ -456,7 +478,9 @@ impl DecodedChunk {
             0 => Vec::new(),
             4 => return Err(format!("row {}: the links flag with no link", e.row)),
             _ => {
-                get_links(&link_data[4..], n, shuffle).map_err(|w| format!("row {}: {w}", e.row))?
+                let slopes = e.flags & spec::ROW_FLAG_SLOPES != 0;
+                get_links(&link_data[4..], n, shuffle, slopes)
+                    .map_err(|w| format!("row {}: {w}", e.row))?
             }
         };
         let values = if e.flags & spec::ROW_FLAG_SKIPPED != 0 {
@@ -572,7 +596,7 @@ pub fn decode_record(
     let dir_len = h.row_count as u64 * spec::ROW_DIR_ENTRY_LEN as u64;
     // Bound the allocation by what the header can honestly claim (spec §5.2).
     let max_raw =
-        (h.row_count as u64).saturating_mul(spec::ROW_DIR_ENTRY_LEN as u64 + 4 + 20 * n as u64);
+        (h.row_count as u64).saturating_mul(spec::ROW_DIR_ENTRY_LEN as u64 + 4 + 32 * n as u64);
     if h.raw_len < dir_len || h.raw_len > max_raw || h.row_count > n {
         return Err((
             16,
@@ -616,7 +640,14 @@ pub fn decode_record(
         if e.flags & spec::ROW_FLAG_LINKS != 0 && e.flags & spec::ROW_FLAG_SPARSE == 0 {
             return Err(bad("links on a row that is not sparse"));
         }
-        if e.flags & !(spec::ROW_FLAG_SKIPPED | spec::ROW_FLAG_SPARSE | spec::ROW_FLAG_LINKS) != 0 {
+        if e.flags & spec::ROW_FLAG_SLOPES != 0 && e.flags & spec::ROW_FLAG_LINKS == 0 {
+            return Err(bad("link slopes on a row without links"));
+        }
+        let known = spec::ROW_FLAG_SKIPPED
+            | spec::ROW_FLAG_SPARSE
+            | spec::ROW_FLAG_LINKS
+            | spec::ROW_FLAG_SLOPES;
+        if e.flags & !known != 0 {
             return Err(bad(&format!("unknown row flags {:#x}", e.flags)));
         }
         if skipped
@@ -767,5 +798,65 @@ mod tests {
             encode_chunk(&twice, dense, 4, 1),
             Err(FfzError::InvalidRow { row: 1, .. })
         ));
+    }
+
+    /// Rows with links round-trip with their slopes, shuffled or not; a row written
+    /// before slopes (no SLOPES flag, 12 bytes a link, spec §5.7) reads with slopes of
+    /// zero; SLOPES without LINKS is refused.
+    #[test]
+    fn linked_rows_round_trip_with_slopes_and_read_without_them() {
+        let (n, layout) = (8, Layout::TopK { k: 1 });
+        let link = |start, len, value, slope| Link {
+            start,
+            len,
+            value,
+            slope,
+        };
+        let row = Row {
+            index: 2,
+            values: RowValues::Sparse {
+                cols: vec![5],
+                vals: vec![0.5],
+            },
+            dropped: 0.375,
+            links: vec![
+                link(0, 3, 0.25, [0.5, -0.25, 0.0]),
+                link(4, 4, 0.125, [0.0, 0.0, 1.5]),
+            ],
+        };
+        let decode = |bytes: &[u8]| {
+            let (h, _) = check_record(bytes).unwrap();
+            let d = decode_record(h, bytes, n, layout).map_err(|e| e.1)?;
+            d.row(&d.entries()[0], n)
+        };
+        for shuffle in [false, true] {
+            let enc = ChunkEncoding {
+                zstd_level: 1,
+                shuffle,
+            };
+            let c = encode_chunk_with(std::slice::from_ref(&row), layout, n, enc).unwrap();
+            assert_eq!(decode(&c.bytes).unwrap(), row);
+        }
+        let enc = ChunkEncoding {
+            zstd_level: 1,
+            shuffle: false,
+        };
+        let raw = encode_raw(std::slice::from_ref(&row), layout, n, false)
+            .unwrap()
+            .bytes;
+        let flags = u32::from_le_bytes(raw[4..8].try_into().unwrap());
+        assert_eq!(flags & spec::ROW_FLAG_SLOPES, spec::ROW_FLAG_SLOPES);
+        let mut old = raw.clone();
+        old.truncate(raw.len() - 3 * 4 * row.links.len());
+        old[4..8].copy_from_slice(&(flags & !spec::ROW_FLAG_SLOPES).to_le_bytes());
+        let mut want = row.clone();
+        for l in &mut want.links {
+            l.slope = [0.0; 3];
+        }
+        assert_eq!(decode(&record(&old, 1, enc).unwrap()).unwrap(), want);
+        let mut bad = old;
+        bad[4..8].copy_from_slice(&(spec::ROW_FLAG_SPARSE | spec::ROW_FLAG_SLOPES).to_le_bytes());
+        let e = decode(&record(&bad, 1, enc).unwrap()).unwrap_err();
+        assert!(e.contains("slopes"), "{e}");
     }
 }

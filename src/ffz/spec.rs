@@ -53,6 +53,8 @@ pub const ROW_FLAG_SKIPPED: u32 = 1;
 pub const ROW_FLAG_SPARSE: u32 = 2;
 /// Row directory flag (§5.7): the sparse row's data goes on with links to clusters.
 pub const ROW_FLAG_LINKS: u32 = 4;
+/// Row directory flag (§5.7, only with `ROW_FLAG_LINKS`): each link carries a slope.
+pub const ROW_FLAG_SLOPES: u32 = 8;
 /// Header flag (§3.1, §4.3): the meta block holds a cluster order and rows may link to
 /// clusters of it (§5.7). Only with the top-k layout.
 pub const HEADER_FLAG_CLUSTERS: u32 = 1;
@@ -386,7 +388,8 @@ impl ChunkHeaderV1 {
 pub struct RowDirEntryV1 {
     /// 0: row u32, the row index i.
     pub row: u32,
-    /// 4: flags u32 (`ROW_FLAG_SKIPPED`, `ROW_FLAG_SPARSE`, `ROW_FLAG_LINKS`).
+    /// 4: flags u32 (`ROW_FLAG_SKIPPED`, `ROW_FLAG_SPARSE`, `ROW_FLAG_LINKS`,
+    /// `ROW_FLAG_SLOPES`).
     pub flags: u32,
     /// 8: nnz u32, values stored (n for dense, 0 for skipped).
     pub nnz: u32,
@@ -437,7 +440,15 @@ impl RowDirEntryV1 {
         }
         let at = usize::try_from(self.offset.checked_add(entries)?).ok()?;
         let m = u32::from_le_bytes(raw.get(at..at.checked_add(4)?)?.try_into().ok()?);
-        (m <= n).then(|| entries + 4 + 12 * u64::from(m))
+        (m <= n).then(|| entries + 4 + self.link_len() * u64::from(m))
+    }
+
+    /// Bytes of one link (§5.7): 12, or 24 with slopes.
+    pub(crate) fn link_len(&self) -> u64 {
+        match self.flags & ROW_FLAG_SLOPES {
+            0 => 12,
+            _ => 24,
+        }
     }
 
     /// Bytes of row data of the entry's patch entries (spec §5.4); a row with links has

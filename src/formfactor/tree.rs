@@ -72,6 +72,11 @@ pub(crate) struct Node {
     area_max: f64,
     /// Area-weighted centroid of the patches.
     mean: DVec3,
+    /// Σ A_j (x_j − mean)(x_j − mean)ᵀ over the patches' centroids x_j, as xx, yy, zz,
+    /// xy, xz, yz (tree nodes only: zero in the node of a single patch's bound).
+    second: [f64; 6],
+    /// Box of the patches' centroids (tree nodes only, like `second`).
+    spots: (DVec3, DVec3),
     count: u32,
     /// The node's patches: `PatchTree::order[range.0..range.1]`.
     range: (u32, u32),
@@ -99,6 +104,17 @@ impl Node {
     /// Number of patches under the node.
     pub(crate) fn count(&self) -> u32 {
         self.count
+    }
+
+    /// The box of the node's patches' centroids.
+    pub(crate) fn centroid_bounds(&self) -> (DVec3, DVec3) {
+        self.spots
+    }
+
+    /// Total area, area-weighted mean centroid and second moments about it (see
+    /// `second`) of the node's patches.
+    pub(crate) fn moments(&self) -> (f64, DVec3, [f64; 6]) {
+        (self.area_sum, self.mean, self.second)
     }
 
     /// Whether the node's sphere is `ratio` times the two radii away from row patch i.
@@ -285,6 +301,23 @@ impl PatchTree {
         let patches = &mut order[start..end];
         let mut node = node_of(patches.iter().map(|&j| &geom[j as usize]));
         node.range = (start as u32, end as u32);
+        node.spots = (DVec3::INFINITY, DVec3::NEG_INFINITY);
+        for &j in patches.iter() {
+            let g = &geom[j as usize];
+            node.spots = (node.spots.0.min(g.centroid), node.spots.1.max(g.centroid));
+            let r = g.centroid - node.mean;
+            let products = [
+                r.x * r.x,
+                r.y * r.y,
+                r.z * r.z,
+                r.x * r.y,
+                r.x * r.z,
+                r.y * r.z,
+            ];
+            for (m, p) in node.second.iter_mut().zip(products) {
+                *m += g.area * p;
+            }
+        }
         self.nodes.push(node);
         if patches.len() <= LEAF_PATCHES {
             patches.sort_unstable();
@@ -350,6 +383,8 @@ fn node_of<'a>(patches: impl Iterator<Item = &'a PatchGeom> + Clone) -> Node {
         area_sum,
         area_max,
         mean: mean / area_sum,
+        second: [0.0; 6],
+        spots: (DVec3::ZERO, DVec3::ZERO),
         count,
         range: (0, 0),
         kids: Kids::Leaf,

@@ -1,20 +1,25 @@
 //! Gathering and shooting through the links of sparse rows (spec §5.7).
 //!
-//! A link of row i carries the form factor F_iL from patch i to the patches of a range
+//! A link L of row i carries the form factor F_iL from patch i to the patches of a range
 //! [a, b) of the file's cluster order, less the row's kept columns and i itself (the
-//! link's *patches*). The solver treats it as the patch entries
+//! link's *patches*), and a slope q_L. The solver treats it as the patch entries
 //!
-//!   F_ij = F_iL · A_j / A_L   for each of the link's patches j,   A_L = Σ A_j over them,
+//!   F_ij = F_iL · w_j / Σ w_j',   w_j = A_j (1 + q_L · (x_j − x̄_L)),
 //!
-//! which keep the link's mass and reciprocity's form (A_i F_ij ∝ A_j). Gathering
-//! through a link therefore needs the area-weighted mean radiosity of its patches,
-//! read in O(1) from prefix sums over the cluster order (made once per sweep, O(n m)),
-//! less the few kept columns and the row patch that lie inside its range (found by
-//! binary search over the row's links). Shooting and every other reader that visits
-//! entries one by one expands the link into its patches instead (O(b − a)).
+//! x_j the patch centroids and x̄_L their area-weighted mean over the whole range: the
+//! link's mass lies on its cluster by area, tilted toward the part the row sees most
+//! (with q_L = 0, by area alone, which keeps reciprocity's form A_i F_ij ∝ A_j).
+//! Gathering through a link needs Σ w_j b_j over its range, which is
+//! Σ A_j b_j + q_L · (Σ A_j x_j b_j − x̄_L Σ A_j b_j): read in O(1) from prefix sums over
+//! the cluster order (made once per sweep, O(n m)), less the few kept columns and the
+//! row patch that lie inside its range (found by binary search over the row's links).
+//! Shooting and every other reader that visits entries one by one expands the link
+//! into its patches instead (O(b − a)).
 //!
 //! Gauss–Seidel reads the prefix sums made at the start of its sweep, so the links
 //! part of its update is a Jacobi step (the kept entries still see the newest values).
+
+use glam::DVec3;
 
 use crate::rows::Link;
 
@@ -25,37 +30,59 @@ pub(crate) struct LinkSpace {
     order: Vec<u32>,
     /// Position of each patch.
     pos: Vec<u32>,
-    /// Σ A over positions < p, for p in 0..=n.
+    /// Area and centroid of each patch.
     area: Vec<f64>,
+    centroid: Vec<DVec3>,
+    /// Σ A and Σ A x over positions < p, for p in 0..=n.
+    prefix_area: Vec<f64>,
+    prefix_moment: Vec<DVec3>,
 }
 
 impl LinkSpace {
     /// The space of cluster order `order` (a permutation of the n patches, checked by
-    /// the reader) for patch areas `area`.
-    pub(crate) fn new(order: &[u32], area: &[f64]) -> Self {
+    /// the reader) for patch areas `area` and centroids `centroid` (spec §5.7).
+    pub(crate) fn new(order: &[u32], area: &[f64], centroid: &[DVec3]) -> Self {
         let mut pos = vec![0u32; order.len()];
-        let mut prefix = Vec::with_capacity(order.len() + 1);
-        let mut sum = 0.0;
-        prefix.push(0.0);
+        let mut prefix_area = Vec::with_capacity(order.len() + 1);
+        let mut prefix_moment = Vec::with_capacity(order.len() + 1);
+        let (mut a, mut x) = (0.0, DVec3::ZERO);
+        prefix_area.push(a);
+        prefix_moment.push(x);
         for (p, &j) in order.iter().enumerate() {
-            pos[j as usize] = p as u32;
-            sum += area[j as usize];
-            prefix.push(sum);
+            let j = j as usize;
+            pos[j] = p as u32;
+            a += area[j];
+            x += area[j] * centroid[j];
+            prefix_area.push(a);
+            prefix_moment.push(x);
         }
         LinkSpace {
             order: order.to_vec(),
             pos,
-            area: prefix,
+            area: area.to_vec(),
+            centroid: centroid.to_vec(),
+            prefix_area,
+            prefix_moment,
         }
     }
 
-    /// Σ A_j b_j per column over positions < p, for p in 0..=n (`m` columns a patch).
-    pub(crate) fn prefix(&self, b: &[f64], area: &[f64], m: usize) -> Vec<f64> {
-        let mut out = vec![0.0; (self.order.len() + 1) * m];
+    /// Per position p in 0..=n and column c of the `m` columns a patch: Σ A_j b_j over
+    /// positions < p, then the three components of Σ A_j x_j b_j (4 m numbers a
+    /// position).
+    pub(crate) fn prefix(&self, b: &[f64], m: usize) -> Vec<f64> {
+        let stride = 4 * m;
+        let mut out = vec![0.0; (self.order.len() + 1) * stride];
         for (p, &j) in self.order.iter().enumerate() {
             let j = j as usize;
+            let (a, x) = (self.area[j], self.centroid[j]);
+            let (done, next) = out.split_at_mut((p + 1) * stride);
+            let (last, next) = (&done[p * stride..], &mut next[..stride]);
             for c in 0..m {
-                out[(p + 1) * m + c] = out[p * m + c] + area[j] * b[j * m + c];
+                let ab = a * b[j * m + c];
+                next[c] = last[c] + ab;
+                for k in 0..3 {
+                    next[m + 3 * c + k] = last[m + 3 * c + k] + ab * x[k];
+                }
             }
         }
         out
@@ -82,20 +109,52 @@ impl LinkSpace {
             .filter_map(move |j| self.link_of(links, j).map(|k| (k, j)))
     }
 
-    /// `acc[c] += Σ_L F_iL · (mean of b over L's patches)` for row i with kept columns
-    /// `cols`; `prefix` from [`LinkSpace::prefix`] of b. Returns Σ F_iL.
-    #[allow(clippy::too_many_arguments)]
+    /// Area-weighted mean centroid x̄_L of the positions [s, e) and the link's slope.
+    fn lean(&self, l: &Link) -> (DVec3, DVec3) {
+        let (s, e) = (l.start as usize, l.end() as usize);
+        let a = self.prefix_area[e] - self.prefix_area[s];
+        let mean = (self.prefix_moment[e] - self.prefix_moment[s]) / a;
+        let q = DVec3::new(
+            f64::from(l.slope[0]),
+            f64::from(l.slope[1]),
+            f64::from(l.slope[2]),
+        );
+        if q == DVec3::ZERO || !mean.is_finite() {
+            return (DVec3::ZERO, DVec3::ZERO);
+        }
+        (mean, q)
+    }
+
+    /// The link's mean and slope (as [`LinkSpace::lean`]) and the sum of its patches'
+    /// weights, `sum_w` of them; when that sum is not positive (kept columns holding
+    /// all the weight), no slope and the sum of the areas instead (spec §5.7).
+    fn tilt(&self, l: &Link, sum_w: impl Fn((DVec3, DVec3)) -> f64) -> (DVec3, DVec3, f64) {
+        let (mean, q) = self.lean(l);
+        let w = sum_w((mean, q));
+        if (w.is_nan() || w <= 0.0) && q != DVec3::ZERO {
+            return (DVec3::ZERO, DVec3::ZERO, sum_w((DVec3::ZERO, DVec3::ZERO)));
+        }
+        (mean, q, w)
+    }
+
+    /// Weight w_j of patch j in a link with mean `mean` and slope `q` (module docs).
+    fn weight(&self, j: usize, mean: DVec3, q: DVec3) -> f64 {
+        self.area[j] * (1.0 + q.dot(self.centroid[j] - mean))
+    }
+
+    /// `acc[c] += Σ_L F_iL · (Σ w_j b_j / Σ w_j over L's patches)` for row i with kept
+    /// columns `cols`; `prefix` from [`LinkSpace::prefix`] of b. Returns Σ F_iL.
     pub(crate) fn gather(
         &self,
         links: &[Link],
         i: u32,
         cols: &[u32],
         b: &[f64],
-        area: &[f64],
         prefix: &[f64],
         acc: &mut [f64],
     ) -> f64 {
         let m = acc.len();
+        let stride = 4 * m;
         // The patches in the links' ranges that are not theirs (few: at most the kept
         // columns and the row patch), by link.
         let out: Vec<(usize, usize)> = self
@@ -108,15 +167,26 @@ impl LinkSpace {
             sum += f;
             let (s, e) = (l.start as usize, l.end() as usize);
             let mine = || out.iter().filter(move |x| x.0 == k).map(|x| x.1);
-            let w = self.area[e] - self.area[s] - mine().map(|j| area[j]).sum::<f64>();
+            // Σ w over the range is its area (the slope's part sums to zero).
+            let sum_w = |(mean, q)| {
+                self.prefix_area[e]
+                    - self.prefix_area[s]
+                    - mine().map(|j| self.weight(j, mean, q)).sum::<f64>()
+            };
+            let (mean, q, w) = self.tilt(l, sum_w);
             if w.is_nan() || w <= 0.0 {
                 continue;
             }
             for c in 0..m {
-                let ab = prefix[e * m + c]
-                    - prefix[s * m + c]
-                    - mine().map(|j| area[j] * b[j * m + c]).sum::<f64>();
-                acc[c] += f * ab / w;
+                let ab = prefix[e * stride + c] - prefix[s * stride + c];
+                let axb = DVec3::from_array(std::array::from_fn(|d| {
+                    prefix[e * stride + m + 3 * c + d] - prefix[s * stride + m + 3 * c + d]
+                }));
+                let wb = ab + q.dot(axb - mean * ab)
+                    - mine()
+                        .map(|j| self.weight(j, mean, q) * b[j * m + c])
+                        .sum::<f64>();
+                acc[c] += f * wb / w;
             }
         }
         sum
@@ -129,23 +199,25 @@ impl LinkSpace {
         links: &[Link],
         i: u32,
         cols: &[u32],
-        area: &[f64],
         mut f: impl FnMut(usize, f64),
     ) {
         let mine = |j: u32| j != i && cols.binary_search(&j).is_err();
         for l in links {
             let range = &self.order[l.start as usize..l.end() as usize];
-            let w: f64 = range
-                .iter()
-                .filter(|&&j| mine(j))
-                .map(|&j| area[j as usize])
-                .sum();
+            let sum_w = |(mean, q)| -> f64 {
+                range
+                    .iter()
+                    .filter(|&&j| mine(j))
+                    .map(|&j| self.weight(j as usize, mean, q))
+                    .sum()
+            };
+            let (mean, q, w) = self.tilt(l, sum_w);
             if w.is_nan() || w <= 0.0 {
                 continue;
             }
-            let per_area = f64::from(l.value) / w;
+            let per_weight = f64::from(l.value) / w;
             for &j in range.iter().filter(|&&j| mine(j)) {
-                f(j as usize, per_area * area[j as usize]);
+                f(j as usize, per_weight * self.weight(j as usize, mean, q));
             }
         }
     }
@@ -155,23 +227,38 @@ impl LinkSpace {
 mod tests {
     use super::*;
 
-    /// Four patches of areas 1, 2, 3, 4 in the order 3, 1, 0, 2; row 0 keeps column 1
-    /// and links positions [0, 3) (patches 3, 1, 0: its own patches are 3 alone).
-    #[test]
-    fn gather_and_expand_agree_and_leave_out_kept_columns_and_the_row_patch() {
-        let area = [1.0, 2.0, 3.0, 4.0];
-        let space = LinkSpace::new(&[3, 1, 0, 2], &area);
-        let links = [Link {
+    /// Four patches of areas 1, 2, 3, 4 on the x axis at x = 0, 1, 2, 3, in the order
+    /// 3, 1, 0, 2.
+    fn space() -> LinkSpace {
+        let centroid: Vec<DVec3> = (0..4).map(|j| DVec3::new(j as f64, 0.0, 0.0)).collect();
+        LinkSpace::new(&[3, 1, 0, 2], &[1.0, 2.0, 3.0, 4.0], &centroid)
+    }
+
+    /// Three columns a patch: b_j = (j, 10 j, 1).
+    fn radiosity() -> Vec<f64> {
+        (0..4)
+            .flat_map(|j| [j as f64, 10.0 * j as f64, 1.0])
+            .collect()
+    }
+
+    fn link(slope: [f32; 3]) -> [Link; 1] {
+        [Link {
             start: 0,
             len: 3,
             value: 0.5,
-        }];
-        let b: Vec<f64> = (0..4)
-            .flat_map(|j| [j as f64, 10.0 * j as f64, 1.0])
-            .collect();
-        let prefix = space.prefix(&b, &area, 3);
+            slope,
+        }]
+    }
+
+    /// Row 0 keeps column 1 and links positions [0, 3) (patches 3, 1, 0: its own
+    /// patches are 3 alone).
+    #[test]
+    fn gather_and_expand_agree_and_leave_out_kept_columns_and_the_row_patch() {
+        let (space, b) = (space(), radiosity());
+        let links = link([0.0; 3]);
+        let prefix = space.prefix(&b, 3);
         let mut acc = [0.0; 3];
-        let sum = space.gather(&links, 0, &[1], &b, &area, &prefix, &mut acc);
+        let sum = space.gather(&links, 0, &[1], &b, &prefix, &mut acc);
         assert_eq!(sum, 0.5);
         // Only patch 3 is the link's: the gather is 0.5 · b_3.
         assert!(
@@ -179,15 +266,59 @@ mod tests {
             "{acc:?}"
         );
         let mut entries = Vec::new();
-        space.expand(&links, 0, &[1], &area, |j, f| entries.push((j, f)));
+        space.expand(&links, 0, &[1], |j, f| entries.push((j, f)));
         assert_eq!(entries, vec![(3, 0.5)]);
         // Without kept columns: patches 3 and 1 (areas 4 and 2), the row patch left out.
         let mut acc = [0.0; 3];
-        space.gather(&links, 0, &[], &b, &area, &prefix, &mut acc);
+        space.gather(&links, 0, &[], &b, &prefix, &mut acc);
         let want = 0.5 * (4.0 * 3.0 + 2.0 * 1.0) / 6.0;
         assert!((acc[0] - want).abs() < 1e-12, "{acc:?} vs {want}");
         let mut entries = Vec::new();
-        space.expand(&links, 0, &[], &area, |j, f| entries.push((j, f)));
+        space.expand(&links, 0, &[], |j, f| entries.push((j, f)));
         assert_eq!(entries, vec![(3, 0.5 * 4.0 / 6.0), (1, 0.5 * 2.0 / 6.0)]);
+    }
+
+    /// With a slope the weights are w_j = A_j (1 + q · (x_j − x̄)), x̄ the area mean of
+    /// the whole range (patches 3, 1, 0: (4·3 + 2·1 + 1·0) / 7 = 2), worked by hand.
+    #[test]
+    fn a_slope_tilts_the_link_by_the_spec_rule_in_gather_and_expand_alike() {
+        let (space, b) = (space(), radiosity());
+        let links = link([0.25, 0.0, 0.0]);
+        let prefix = space.prefix(&b, 3);
+        // Row 2 (not in the range) keeps nothing: all three patches are the link's.
+        let w = |a: f64, x: f64| a * (1.0 + 0.25 * (x - 2.0));
+        let (w3, w1, w0) = (w(4.0, 3.0), w(2.0, 1.0), w(1.0, 0.0));
+        let total = w3 + w1 + w0;
+        let mut entries = Vec::new();
+        space.expand(&links, 2, &[], |j, f| entries.push((j, f)));
+        let want = [
+            (3, 0.5 * w3 / total),
+            (1, 0.5 * w1 / total),
+            (0, 0.5 * w0 / total),
+        ];
+        assert_eq!(entries.len(), 3);
+        for ((j, f), (wj, wf)) in entries.iter().zip(want) {
+            assert_eq!(*j, wj);
+            assert!((f - wf).abs() < 1e-15, "{entries:?} vs {want:?}");
+        }
+        assert!((entries.iter().map(|e| e.1).sum::<f64>() - 0.5).abs() < 1e-15);
+        // The gather through prefix sums equals Σ F_ij b_j of the expansion, with and
+        // without kept columns inside the range.
+        for (row, cols) in [(2u32, vec![]), (2, vec![1u32]), (0, vec![]), (1, vec![3])] {
+            let mut acc = [0.0; 3];
+            space.gather(&links, row, &cols, &b, &prefix, &mut acc);
+            let mut want = [0.0; 3];
+            space.expand(&links, row, &cols, |j, f| {
+                for c in 0..3 {
+                    want[c] += f * b[j * 3 + c];
+                }
+            });
+            for c in 0..3 {
+                assert!(
+                    (acc[c] - want[c]).abs() < 1e-12,
+                    "row {row} {cols:?}: {acc:?} vs {want:?}"
+                );
+            }
+        }
     }
 }

@@ -28,9 +28,9 @@ pub(crate) struct RowView<'r> {
     pub(crate) index: u32,
     pub(crate) entries: Entries<'r>,
     /// The row's links to clusters (spec §5.7; empty for rows without), with the
-    /// cluster order and the patch areas that give them their patches.
+    /// cluster order (with areas and centroids) that gives them their patches.
     pub(crate) links: &'r [crate::rows::Link],
-    pub(crate) space: Option<(&'r super::links::LinkSpace, &'r [f64])>,
+    pub(crate) space: Option<&'r super::links::LinkSpace>,
     /// Factor applied to every stored entry (1 unless renormalising a top-k row).
     pub(crate) scale: f64,
     /// Dropped mass that the scale cannot put back (a row that stores nothing), when
@@ -216,10 +216,10 @@ impl<'r> RowView<'r> {
                 }
             }
         }
-        if let (false, Some((space, area)), Entries::Sparse(cols, _)) =
+        if let (false, Some(space), Entries::Sparse(cols, _)) =
             (self.links.is_empty(), self.space, self.entries)
         {
-            space.expand(self.links, self.index, cols, area, f);
+            space.expand(self.links, self.index, cols, f);
         }
         Ok(())
     }

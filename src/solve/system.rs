@@ -21,6 +21,8 @@ pub(crate) struct System {
     /// Columns: 3 × cases.
     pub(crate) m: usize,
     pub(crate) area: Vec<f64>,
+    /// Patch centroids (what links' slopes lean along, spec §5.7).
+    centroid: Vec<glam::DVec3>,
     /// Emission, `n × m`.
     pub(crate) e: Vec<f64>,
     /// Reflectance per patch and channel.
@@ -123,6 +125,7 @@ impl System {
             cases,
             m,
             area,
+            centroid: patches.patches.iter().map(|p| p.centroid()).collect(),
             e,
             rho: rho64,
             reflects,
@@ -350,7 +353,7 @@ impl System {
                     row: row.index,
                     message: "the row links to clusters but the source has no cluster order".into(),
                 })?;
-                v.space = Some((space, &self.area));
+                v.space = Some(space);
             }
         }
         if let Some(v) = &view {
@@ -384,7 +387,7 @@ impl System {
     pub(crate) fn prepare_links(&mut self, src: &dyn RowSource) {
         self.links = src
             .cluster_order()
-            .map(|order| super::links::LinkSpace::new(order, &self.area));
+            .map(|order| super::links::LinkSpace::new(order, &self.area, &self.centroid));
     }
 
     /// What every row's gather needs of radiosity `b` beyond its own entries: the
@@ -395,7 +398,7 @@ impl System {
                 Some(p) => p.beta(b, self.m),
                 None => vec![0.0; self.m],
             },
-            prefix: self.links.as_ref().map(|l| l.prefix(b, &self.area, self.m)),
+            prefix: self.links.as_ref().map(|l| l.prefix(b, self.m)),
         }
     }
 
@@ -416,15 +419,7 @@ impl System {
         if let (false, Some(space), Some(prefix)) =
             (view.links.is_empty(), &self.links, &beta.prefix)
         {
-            abs_sum += space.gather(
-                view.links,
-                view.index,
-                view.cols(),
-                b,
-                &self.area,
-                prefix,
-                acc,
-            );
+            abs_sum += space.gather(view.links, view.index, view.cols(), b, prefix, acc);
         } else if self.pool.is_some() && view.dropped > 0.0 {
             for (a, x) in acc.iter_mut().zip(&beta.pool) {
                 *a += view.dropped * x;

@@ -170,12 +170,16 @@ fn linked_rows_verify_and_are_the_same_for_any_thread_or_rank_count() {
 }
 
 /// The Python reader (`formats/ffz.py`) reads a linked file as the Rust reader does:
-/// the same cluster order and, row by row, the same links to the bit; its expansion of
-/// the links (spec 5.7) keeps every row's true sum.
+/// the same cluster order and, row by row, the same links and slopes to the bit; its
+/// expansion of the links (spec 5.7) keeps every row's true sum, and the radiosity
+/// solved from it directly (scipy) is `solve`'s, which gathers through prefix sums
+/// instead: the two readings of the slope rule agree.
 #[test]
 fn the_python_reader_gives_the_links_and_cluster_order_of_the_rust_reader() {
     let dir = tempfile::tempdir().unwrap();
     let file = compute(dir.path(), "py", &["--top-k", "16", "--links", "64"]);
+    let csv = file.with_extension("csv");
+    ok(&["solve", path_str(&file), "-q", "-o", path_str(&csv)]);
     let rust = ffstream::ffz::FfzReader::open(&file).unwrap();
     let order = rust.meta().clusters.clone().expect("a cluster order");
     let mut want = format!(
@@ -191,7 +195,15 @@ fn the_python_reader_gives_the_links_and_cluster_order_of_the_rust_reader() {
         let row = rust.row(i).unwrap().unwrap();
         linked += usize::from(!row.links.is_empty());
         for l in &row.links {
-            want += &format!("{i} {} {} {:08x}\n", l.start, l.len, l.value.to_bits());
+            want += &format!(
+                "{i} {} {} {:08x} {:08x} {:08x} {:08x}\n",
+                l.start,
+                l.len,
+                l.value.to_bits(),
+                l.slope[0].to_bits(),
+                l.slope[1].to_bits(),
+                l.slope[2].to_bits()
+            );
         }
     }
     assert!(linked > order.len() / 2, "only {linked} rows have links");
@@ -202,12 +214,21 @@ import ffz
 r = ffz.open(sys.argv[2])
 out = ["order " + " ".join(str(int(x)) for x in r.cluster_order)]
 for i in range(r.n):
-    s, ln, v = r.links(i)
-    out += [f"{i} {int(a)} {int(b)} {int(c):08x}" for a, b, c in zip(s, ln, v.view("<u4"))]
+    s, ln, v, q = r.links(i)
+    q = q.view("<u4")
+    out += [f"{i} {int(a)} {int(b)} {int(c):08x} " + " ".join(f"{int(x):08x}" for x in qs) for a, b, c, qs in zip(s, ln, v.view("<u4"), q)]
 f = r.read()
 full = f.matrix.astype(np.float64) + r.link_matrix()
 err = np.abs(np.asarray(full.sum(axis=1)).ravel() - f.true_row_sums()).max()
 assert err < 1e-5, err
+t = np.genfromtxt(sys.argv[3], delimiter=",", names=True, dtype=None, encoding=None)
+assert np.array_equal(t["patch"], np.arange(r.n))
+import scipy.sparse, scipy.sparse.linalg
+for ch in "rgb":
+    a = scipy.sparse.identity(r.n, format="csc") - scipy.sparse.diags(t["rho_" + ch]) @ full
+    b = scipy.sparse.linalg.spsolve(a.tocsc(), t["E_" + ch].astype(np.float64))
+    rel = np.abs(b - t["B_" + ch]).max() / np.abs(b).max()
+    assert rel < 1e-5, f"{ch}: solve differs from the expansion's by {rel:e}"
 print("\n".join(out))
 "#;
     let out = std::process::Command::new("python3")
@@ -215,6 +236,7 @@ print("\n".join(out))
         .arg(script)
         .arg(std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("formats"))
         .arg(&file)
+        .arg(&csv)
         .output()
         .expect("python3");
     assert!(
