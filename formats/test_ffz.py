@@ -61,7 +61,7 @@ def spec_hex(name):
     return bytes(out)
 
 
-@pytest.mark.parametrize("name", ["tiny-v1.ffz", "tiny-dense-v1.ffz"])
+@pytest.mark.parametrize("name", ["tiny-v1.ffz", "tiny-dense-v1.ffz", "tiny-links-v1.ffz"])
 def test_golden_file_decodes_to_spec_numbers(name):
     f = ffz.read(HERE / "golden" / name)
     assert f.indexed and not f.warnings
@@ -86,8 +86,29 @@ def test_golden_file_decodes_to_spec_numbers(name):
     assert "areas [" + ", ".join(repr(float(a)) for a in f.patches["area"]) + "]" in facts
 
 
+def test_golden_links_are_the_spec_links_and_expand_by_the_slope_rule():
+    """Spec 11.3: the links and slopes the values block lists, the cluster order, and
+    link_matrix()'s expansion (spec 5.7's weights) equal to the fractions worked out
+    by hand there."""
+    r = ffz.open(HERE / "golden" / "tiny-links-v1.ffz")
+    facts = "\n".join(block("text golden-facts:tiny-links-v1.ffz"))
+    assert "cluster order " + " ".join(str(int(x)) for x in r.cluster_order) in facts
+    for line in block("text golden-values:tiny-links-v1.ffz"):
+        i = int(line.split(":")[0].split()[1])
+        want = line.split(" links ")[1].split()
+        starts, lens, values, slopes = r.links(i)
+        got = [f"{a}+{b}:{v:g}:" + ",".join(f"{q:g}" for q in qs) for a, b, v, qs in zip(starts, lens, values, slopes)]
+        assert got == want, (i, got, want)
+    m = r.link_matrix().toarray()
+    want = np.zeros((3, 3))
+    want[0, 1], want[1, 0], want[1, 2], want[2, 1] = 0.125, 23 / 122, 19 / 61, 0.125
+    np.testing.assert_allclose(m, want, rtol=1e-12, atol=0)
+    full = r.read()
+    np.testing.assert_allclose(np.asarray(full.matrix.sum(axis=1)).ravel() + m.sum(axis=1), full.true_row_sums(), rtol=1e-6)
+
+
 def test_golden_bytes_are_the_spec_hex_dump():
-    for name in ["tiny-v1.ffz", "tiny-dense-v1.ffz"]:
+    for name in ["tiny-v1.ffz", "tiny-dense-v1.ffz", "tiny-links-v1.ffz"]:
         assert (HERE / "golden" / name).read_bytes() == spec_hex(name)
 
 
@@ -295,7 +316,7 @@ def test_matches_rust_export():
 
 # --- The lazy reader (ffz.open) --------------------------------------------------------
 
-GOLDEN = ["tiny-v1.ffz", "tiny-dense-v1.ffz"]
+GOLDEN = ["tiny-v1.ffz", "tiny-dense-v1.ffz", "tiny-links-v1.ffz"]
 NEEDS_FFZ_FILE = pytest.mark.skipif(not os.environ.get("FFZ_FILE"), reason="set FFZ_FILE to a Rust-written file")
 FILES = [pytest.param(HERE / "golden" / g, id=g) for g in GOLDEN] + [
     pytest.param(os.environ.get("FFZ_FILE", ""), id="FFZ_FILE", marks=NEEDS_FFZ_FILE)
@@ -648,7 +669,7 @@ def test_numbers_that_cannot_be_form_factors_are_named_never_silent(name, fault,
     assert len(re.findall(fault, said.out + said.err)) == 1, said
 
 
-@pytest.mark.parametrize("name", ["tiny-v1.ffz", "tiny-dense-v1.ffz"])
+@pytest.mark.parametrize("name", ["tiny-v1.ffz", "tiny-dense-v1.ffz", "tiny-links-v1.ffz"])
 def test_sound_files_have_no_value_faults(name):
     f = ffz.read(str(HERE / "golden" / name))
     assert f.warnings == [] and ffz.value_faults(f.matrix, f.dropped) == []
@@ -722,7 +743,7 @@ def _header_and_meta_mutants(good, count, seed):
         yield bytes(_with_checksums(b))
 
 
-@pytest.mark.parametrize("name", ["tiny-v1.ffz", "tiny-dense-v1.ffz"])
+@pytest.mark.parametrize("name", ["tiny-v1.ffz", "tiny-dense-v1.ffz", "tiny-links-v1.ffz"])
 def test_header_and_meta_mutations_with_valid_checksums_raise_only_ffz_error(tmp_path, name):
     """Issue 48, item 17: 19 of 300 checksum-valid header and meta mutations raised
     UnicodeDecodeError or struct.error. Each of these mutants opens (the parser found

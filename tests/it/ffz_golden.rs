@@ -1,5 +1,6 @@
 //! The worked example of `formats/ffz-v1.md` §11: the golden files
-//! `formats/golden/tiny-v1.ffz` (top-k) and `tiny-dense-v1.ffz` (dense) decode to the
+//! `formats/golden/tiny-v1.ffz` (top-k), `tiny-dense-v1.ffz` (dense) and
+//! `tiny-links-v1.ffz` (top-k with a cluster order and links with slopes) decode to the
 //! numbers the spec writes down, and their bytes are the spec's hex dumps.
 //!
 //! Regenerate deliberately (then paste the printed dumps into the spec):
@@ -8,7 +9,7 @@
 use ffstream::ffz::spec::{self, ChunkHeaderV1, HeaderV1, PatchRecordV1, RowDirEntryV1};
 use ffstream::ffz::{encode_chunk, FfzReader, FfzWriter, FileMeta, Layout, WriterOptions};
 use ffstream::patch::{Patch, PatchSet};
-use ffstream::rows::{Row, RowValues};
+use ffstream::rows::{Link, Row, RowValues};
 use glam::DVec3;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -53,7 +54,7 @@ fn hex_bytes(lines: &[String]) -> Vec<u8> {
 }
 
 /// Rows of a values block: `row I: skipped` | `row I: dense v v v` |
-/// `row I: cols c c vals v v dropped d`.
+/// `row I: cols c c vals v v dropped d [links START+LEN:VALUE:QX,QY,QZ ...]`.
 fn spec_rows(lines: &[String]) -> Vec<Row> {
     lines
         .iter()
@@ -68,6 +69,10 @@ fn spec_rows(lines: &[String]) -> Vec<Row> {
                 "cols" => {
                     let v = t.iter().position(|&x| x == "vals").unwrap();
                     let d = t.iter().position(|&x| x == "dropped").unwrap();
+                    let links = match t.iter().position(|&x| x == "links") {
+                        Some(k) => t[k + 1..].iter().map(|x| spec_link(x)).collect(),
+                        None => Vec::new(),
+                    };
                     Row {
                         index,
                         values: RowValues::Sparse {
@@ -75,13 +80,26 @@ fn spec_rows(lines: &[String]) -> Vec<Row> {
                             vals: t[v + 1..d].iter().map(|x| x.parse().unwrap()).collect(),
                         },
                         dropped: t[d + 1].parse().unwrap(),
-                        links: Vec::new(),
+                        links,
                     }
                 }
                 other => panic!("unknown row kind {other}"),
             }
         })
         .collect()
+}
+
+/// A link of a values block: `START+LEN:VALUE:QX,QY,QZ`.
+fn spec_link(x: &str) -> Link {
+    let parts: Vec<&str> = x.split(':').collect();
+    let (start, len) = parts[0].split_once('+').unwrap();
+    let q: Vec<f32> = parts[2].split(',').map(|c| c.parse().unwrap()).collect();
+    Link {
+        start: start.parse().unwrap(),
+        len: len.parse().unwrap(),
+        value: parts[1].parse().unwrap(),
+        slope: [q[0], q[1], q[2]],
+    }
 }
 
 fn quad(c: [[f64; 3]; 4], normal: [f64; 3], group: u32, rho: f32, e: f32) -> Patch {
@@ -97,8 +115,16 @@ fn quad(c: [[f64; 3]; 4], normal: [f64; 3], group: u32, rho: f32, e: f32) -> Pat
     }
 }
 
+/// Which golden file.
+#[derive(Clone, Copy, PartialEq)]
+enum Example {
+    TopK,
+    Dense,
+    Links,
+}
+
 /// The example scene: floor (ρ 0.5), an inert wall triangle (skipped row), a light.
-fn example(n3: bool) -> (FileMeta, Vec<Vec<Row>>) {
+fn example(kind: Example) -> (FileMeta, Vec<Vec<Row>>) {
     let floor = quad(
         [[0., 0., 0.], [1., 0., 0.], [1., 1., 0.], [0., 1., 0.]],
         [0., 0., 1.],
@@ -124,7 +150,34 @@ fn example(n3: bool) -> (FileMeta, Vec<Vec<Row>>) {
         emission: [0.0; 3],
     };
     let groups = vec!["floor".to_string(), "wall".to_string(), "light".to_string()];
-    if n3 {
+    if kind == Example::Links {
+        // Spec §11.3: cluster order 2, 0, 1; every row links what it does not keep.
+        let patches = PatchSet {
+            patches: vec![floor, wall, light],
+            groups,
+        };
+        let link = |start, len, value, slope| Link {
+            start,
+            len,
+            value,
+            slope,
+        };
+        let row = |i, cols: Vec<u32>, vals: Vec<f32>, links: Vec<Link>| Row {
+            index: i,
+            values: RowValues::Sparse { cols, vals },
+            dropped: links.iter().map(|l| l.value).sum(),
+            links,
+        };
+        let chunks = vec![vec![
+            row(0, vec![2], vec![0.5], vec![link(1, 2, 0.125, [0.0; 3])]),
+            row(1, vec![], vec![], vec![link(0, 3, 0.5, [0.0, 0.0, 0.5])]),
+            row(2, vec![0], vec![0.5], vec![link(1, 2, 0.125, [0.0; 3])]),
+        ]];
+        let mut m = meta(Layout::TopK { k: 1 }, patches);
+        m.clusters = Some(vec![2, 0, 1]);
+        return (m, chunks);
+    }
+    if kind == Example::TopK {
         let patches = PatchSet {
             patches: vec![floor, wall, light],
             groups,
@@ -171,7 +224,11 @@ fn golden(name: &str) -> PathBuf {
     root().join("formats/golden").join(name)
 }
 
-const FILES: [(&str, bool); 2] = [("tiny-v1.ffz", true), ("tiny-dense-v1.ffz", false)];
+const FILES: [(&str, Example); 3] = [
+    ("tiny-v1.ffz", Example::TopK),
+    ("tiny-dense-v1.ffz", Example::Dense),
+    ("tiny-links-v1.ffz", Example::Links),
+];
 
 #[test]
 fn golden_files_decode_to_the_spec_numbers() {
@@ -235,8 +292,8 @@ fn golden_files_are_the_spec_hex_dumps() {
 /// The example is what `example()` builds (so a regeneration writes the same file).
 #[test]
 fn golden_files_hold_the_example() {
-    for (name, n3) in FILES {
-        let (m, chunks) = example(n3);
+    for (name, kind) in FILES {
+        let (m, chunks) = example(kind);
         let rd = FfzReader::open(golden(name)).unwrap();
         assert_eq!(rd.meta(), &m, "{name}");
         for c in chunks.iter().flatten() {
@@ -245,8 +302,8 @@ fn golden_files_hold_the_example() {
     }
 }
 
-fn write_example(path: &Path, n3: bool) {
-    let (m, chunks) = example(n3);
+fn write_example(path: &Path, kind: Example) {
+    let (m, chunks) = example(kind);
     let opts = WriterOptions {
         zstd_level: 1,
         chunk_bytes: 1 << 20,
@@ -301,6 +358,7 @@ fn dump_payload(raw: &[u8], rows: u32, shuffled: bool) -> String {
             0 => "dense",
             1 => "SKIPPED",
             2 => "SPARSE",
+            14 => "SPARSE | LINKS | SLOPES",
             _ => "?",
         };
         d.field(&b[4..8], &format!("dir[{k}].flags = {} ({kind})", e.flags));
@@ -328,6 +386,26 @@ fn dump_payload(raw: &[u8], rows: u32, shuffled: bool) -> String {
                 &raw[at + 4 * m..at + 8 * m],
                 &format!("row {}: {m} values (f32{sh})", e.row),
             );
+            if e.flags & spec::ROW_FLAG_LINKS != 0 {
+                let at = at + 8 * m;
+                let l = le32(&raw[at..]) as usize;
+                d.field(&raw[at..at + 4], &format!("row {}: §5.7 {l} links", e.row));
+                let arrays = [
+                    "start gaps",
+                    "lengths",
+                    "values",
+                    "slopes x",
+                    "slopes y",
+                    "slopes z",
+                ];
+                for (k, what) in arrays.iter().enumerate() {
+                    let o = at + 4 + 4 * l * k;
+                    d.field(
+                        &raw[o..o + 4 * l],
+                        &format!("row {}: link {what}{sh}", e.row),
+                    );
+                }
+            }
         } else {
             d.field(
                 &raw[at..at + 4 * m],
@@ -346,7 +424,14 @@ fn dump_file(b: &[u8]) -> (String, Vec<String>) {
     let h = HeaderV1::decode(b[..64].try_into().unwrap()).unwrap();
     d.field(&b[0..8], "§3.1 magic \\x89 F F Z \\r \\n \\x1a \\n");
     d.field(&b[8..12], "version = 1");
-    d.field(&b[12..16], "flags = 0");
+    let flags = le32(&b[12..]);
+    d.field(
+        &b[12..16],
+        &format!(
+            "flags = {flags}{}",
+            if flags == 1 { " (CLUSTERS)" } else { "" }
+        ),
+    );
     d.field(&b[16..20], &format!("n = {}", h.n));
     d.field(
         &b[20..24],
@@ -422,6 +507,16 @@ fn dump_file(b: &[u8]) -> (String, Vec<String>) {
             ),
         );
         p += 4 + len;
+    }
+    if flags & spec::HEADER_FLAG_CLUSTERS != 0 {
+        for k in 0..h.n as usize {
+            let j = le32(&b[p..]);
+            d.field(
+                &b[p..p + 4],
+                &format!("§4.3 cluster order: position {k} = patch {j}"),
+            );
+            p += 4;
+        }
     }
     d.field(
         &b[p..p + 4],
@@ -523,9 +618,9 @@ fn dump_file(b: &[u8]) -> (String, Vec<String>) {
 #[test]
 #[ignore = "regenerates formats/golden/*.ffz; run deliberately, then update the spec"]
 fn regenerate() {
-    for (name, n3) in FILES {
+    for (name, kind) in FILES {
         let path = golden(name);
-        write_example(&path, n3);
+        write_example(&path, kind);
         let (dump, payloads) = dump_file(&std::fs::read(&path).unwrap());
         println!("```text golden-hex:{name}\n{dump}```\n");
         for (k, p) in payloads.iter().enumerate() {
