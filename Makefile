@@ -4,16 +4,17 @@
 #   make test   installs what is missing, runs the whole test suite
 #
 # Works on a fresh Debian/Ubuntu machine that has only Rust: the `deps` target installs
-# Open MPI (runtime + headers), libclang (rsmpi's bindgen) and the Python packages of the
-# .ffz reader's tests, each only if missing (python3-venv: `make test` installs the reader
+# Open MPI (runtime + headers), libclang (rsmpi's bindgen), gfortran (the uDALES reader
+# test, tests/fortran/) and the Python packages of the .ffz reader's tests and of the
+# .vtu check (meshio, tests/python/), each only if missing (python3-venv: `make test` installs the reader
 # with pip into a fresh virtual environment). Uses sudo when not root.
 
 SHELL := /bin/bash
 CARGO ?= cargo
 PYTHON ?= python3
 SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
-APT_PACKAGES := libopenmpi-dev openmpi-bin libclang-dev pkg-config python3-pip python3-venv time
-PY_PACKAGES := numpy scipy zstandard crc32c pytest matplotlib
+APT_PACKAGES := libopenmpi-dev openmpi-bin libclang-dev pkg-config python3-pip python3-venv time gfortran
+PY_PACKAGES := numpy scipy zstandard crc32c pytest matplotlib meshio
 # Open MPI refuses root without these; harmless otherwise. --oversubscribe is passed
 # by the tests and by demo-mpi (this may be a 2-core machine).
 export OMPI_ALLOW_RUN_AS_ROOT := 1
@@ -90,7 +91,7 @@ sys-deps:
 	fi
 
 py-deps:
-	@$(PYTHON) -c "import numpy, scipy, zstandard, crc32c, pytest, matplotlib" 2>/dev/null || { \
+	@$(PYTHON) -c "import numpy, scipy, zstandard, crc32c, pytest, matplotlib, meshio" 2>/dev/null || { \
 	  echo "==> installing Python packages: $(PY_PACKAGES)"; \
 	  $(PYTHON) -m pip install -q $(PY_PACKAGES) || $(PYTHON) -m pip install -q --break-system-packages $(PY_PACKAGES); }
 

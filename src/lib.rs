@@ -15,6 +15,7 @@
 //! | [`service`] | the I/O master and its transports (embedded threads, MPI) |
 //! | [`solve`] | out-of-core radiosity solvers |
 //! | [`render`] | software rasterizer for the lit scene |
+//! | [`vtu`] | the patches as a VTK unstructured grid with per-patch values (ParaView, meshio) |
 //! | [`daylight`] | the sun's position at a place and hour, EPW/TMY3 weather files, the Perez sky on sky patches (the start of `ffstream annual`) |
 
 pub mod daylight;
@@ -29,6 +30,7 @@ pub mod scene;
 pub mod service;
 pub mod solve;
 mod table;
+pub mod vtu;
 
 pub use input::refuse_special_file;
 pub use table::brief_number;

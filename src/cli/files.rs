@@ -52,10 +52,33 @@ pub(crate) struct ExportArgs {
     /// a device (removed afterwards). Not to a pipe: the archive is written with seeks.
     #[arg(long, value_name = "F.npz")]
     pub npz: Option<PathBuf>,
-    /// Leave entries below EPS out of --matrix, --sparse and --npz (uDALES keeps F ≥ 5e-7);
-    /// default 0: every non-zero entry. A finite number ≥ 0.
-    #[arg(long, value_name = "EPS", default_value_t = 0.0, value_parser = super::choices::number::non_negative)]
-    pub min_ff: f64,
+    /// Leave entries below EPS out of --matrix, --sparse, --npz and --udales; default 0
+    /// (every non-zero entry), and 5e-7 for --udales (the threshold uDALES keeps). A
+    /// finite number ≥ 0.
+    #[arg(long, value_name = "EPS", value_parser = super::choices::number::non_negative)]
+    pub min_ff: Option<f64>,
+    /// Write the files uDALES's energy balance reads into DIR (its experiment
+    /// directory): vfsparse.inp.NNN (`i j F` lines, 1-based facets in STL order, no
+    /// header, entries ≥ --min-ff, default 5e-7) and svf.inp.NNN (a header line, then
+    /// each facet's sky view factor max(0, 1 - row sum)); prints the nnz and nfcts lines
+    /// for namoptions.NNN. The file must be computed from an STL, one patch per facet
+    /// (--max-edge longer than every edge, e.g. 1e9): anything else is refused.
+    /// Light a row sends to clusters (links) or drops (top-k) has no place in
+    /// vfsparse: its share is printed. docs/consumers.md §1.
+    #[arg(long, value_name = "DIR")]
+    pub udales: Option<PathBuf>,
+    /// The experiment number NNN of the --udales files (three digits, as in namoptions.001).
+    #[arg(long, value_name = "NNN", default_value = "001", requires = "udales")]
+    pub expnr: String,
+    /// The STL the file was computed from, when it is not at the path the file's header
+    /// records (--udales checks every facet against the patch table).
+    #[arg(long, value_name = "SCENE.stl", requires = "udales")]
+    pub stl: Option<PathBuf>,
+    /// Write the patches as a VTK unstructured grid (ParaView, meshio): one cell per
+    /// patch with cell data patch, group, area, reflectance, emitted_exitance (RGB),
+    /// row_sum, sky_view and dropped_mass (NaN for a missing row).
+    #[arg(long, value_name = "patches.vtu")]
+    pub vtu: Option<PathBuf>,
     /// Write the patch table as CSV (patch,group,area,cx,cy,cz,nx,ny,nz,rho_*,e_*,row_sum,sky_view;
     /// row_sum is the stored entries plus any top-k dropped mass, sky_view is 1 - row_sum).
     /// (`--patches` is the old spelling, kept for one release.)
@@ -85,31 +108,101 @@ pub(super) fn verify(a: VerifyArgs) -> anyhow::Result<ExitCode> {
 }
 
 pub(super) fn export(a: ExportArgs) -> anyhow::Result<ExitCode> {
-    if a.matrix.is_none() && a.sparse.is_none() && a.npz.is_none() && a.patches_csv.is_none() {
+    let matrix_side = [&a.matrix, &a.sparse, &a.npz, &a.patches_csv, &a.vtu];
+    if matrix_side.iter().all(|p| p.is_none()) && a.udales.is_none() {
         anyhow::bail!(
-            "nothing to export: give --matrix F.mtx, --sparse F.txt, --npz F.npz and/or --patches-csv patches.csv"
+            "nothing to export: give --matrix F.mtx, --sparse F.txt, --npz F.npz, --patches-csv patches.csv, --vtu patches.vtu and/or --udales DIR"
         );
     }
-    let outputs: Vec<_> = [
+    let udales_files = a
+        .udales
+        .as_deref()
+        .map(|dir| ["vfsparse", "svf"].map(|f| dir.join(format!("{f}.inp.{}", a.expnr))));
+    let mut outputs: Vec<_> = [
         ("--matrix", &a.matrix),
         ("--sparse", &a.sparse),
         ("--npz", &a.npz),
         ("--patches-csv", &a.patches_csv),
+        ("--vtu", &a.vtu),
     ]
     .into_iter()
     .filter_map(|(o, p)| Some((o, p.as_deref()?)))
     .collect();
-    super::outputs::check(&[("FILE", &a.file)], &outputs)?;
+    if let Some(files) = &udales_files {
+        outputs.extend(files.iter().map(|f| ("--udales", f.as_path())));
+    }
+    let mut inputs = vec![("FILE", a.file.as_path())];
+    if let Some(stl) = &a.stl {
+        inputs.push(("--stl", stl));
+    }
+    super::outputs::check(&inputs, &outputs)?;
     warn_of_gaps(&a.file)?;
-    let targets = ffstream::ffz::tools::ExportTargets {
-        matrix: a.matrix.as_deref(),
-        sparse: a.sparse.as_deref(),
-        npz: a.npz.as_deref(),
-        min_ff: a.min_ff as f32,
-        patches_csv: a.patches_csv.as_deref(),
-    };
-    ffstream::ffz::tools::export(&a.file, targets)?;
+    if matrix_side.iter().any(|p| p.is_some()) {
+        let targets = ffstream::ffz::tools::ExportTargets {
+            matrix: a.matrix.as_deref(),
+            sparse: a.sparse.as_deref(),
+            npz: a.npz.as_deref(),
+            min_ff: a.min_ff.unwrap_or(0.0) as f32,
+            patches_csv: a.patches_csv.as_deref(),
+            vtu: a.vtu.as_deref(),
+        };
+        ffstream::ffz::tools::export(&a.file, targets)?;
+    }
+    if let Some(dir) = &a.udales {
+        let min_ff = a
+            .min_ff
+            .map_or(ffstream::ffz::udales::UDALES_MIN_FF, |x| x as f32);
+        udales(&a.file, dir, &a.expnr, min_ff, a.stl.as_deref())?;
+    }
     Ok(ExitCode::SUCCESS)
+}
+
+/// `export --udales`: write the files, say what they leave out, print namoptions' lines.
+fn udales(
+    file: &std::path::Path,
+    dir: &std::path::Path,
+    expnr: &str,
+    min_ff: f32,
+    stl: Option<&std::path::Path>,
+) -> anyhow::Result<()> {
+    let target = ffstream::ffz::udales::UdalesTarget {
+        dir,
+        expnr,
+        min_ff,
+        stl,
+    };
+    let rep = ffstream::ffz::udales::export_udales(file, target)?;
+    eprintln!(
+        "ffstream: wrote {} ({} entries ≥ {min_ff:e} of {} facets) and {}",
+        rep.vfsparse.display(),
+        rep.nnz,
+        rep.n,
+        rep.svf.display()
+    );
+    eprintln!(
+        "ffstream: entries below {min_ff:e} left out of vfsparse carry {:.3e} of the emitted energy (area-weighted); the sky view factors count them as surface, as uDALES's do",
+        rep.below_min_ff
+    );
+    if rep.dropped > 0.0 {
+        let (row, most) = rep.dropped_max;
+        let links = match rep.linked_rows {
+            0 => String::new(),
+            k => format!(", placed by links to clusters in {k} rows (spec §5.7)"),
+        };
+        eprintln!(
+            "ffstream: the rows' dropped mass (the entries compute's --min-ff or --top-k left out{links}) is {:.3e} of the emitted energy (area-weighted; at most {most:.3e} of facet {}'s): vfsparse has no entries for it, as for the entries below the threshold; svf does not count it as sky",
+            rep.dropped,
+            row + 1
+        );
+    }
+    if rep.svf_clamped > 0 {
+        eprintln!(
+            "ffstream: warning: {} facets' rows sum above 1: their sky view factor is written as 0",
+            rep.svf_clamped
+        );
+    }
+    println!("{}", rep.namoptions());
+    Ok(())
 }
 
 /// Says what an export of `file` will lack: the reader's warnings (an index unusable,

@@ -17,7 +17,7 @@ pub(crate) struct RunArgs {
     #[command(flatten)]
     pub input: SceneInput,
     /// Output directory (default: out/SCENE_NAME). It receives form_factors.ffz,
-    /// radiosity.csv, lit.ply, image.png and wireframe.png. (`-o`/`--output` are the
+    /// radiosity.csv, lit.ply, lit.vtu (ParaView), image.png and wireframe.png. (`-o`/`--output` are the
     /// old spellings, kept for one release: elsewhere -o names a file.)
     #[arg(long, short_alias = 'o', alias = "output", value_name = "DIR")]
     pub out_dir: Option<PathBuf>,
@@ -48,6 +48,9 @@ pub(super) fn run(mut a: RunArgs) -> anyhow::Result<ExitCode> {
     if a.solve.ply.is_none() {
         a.solve.ply = Some(dir.join("lit.ply"));
     }
+    if a.solve.vtu.is_none() {
+        a.solve.vtu = Some(dir.join("lit.vtu"));
+    }
     // No output of the run may be one of its inputs (a scene kept in its own
     // directory under an output's name) or another output (--ply image.png).
     let mut inputs = super::compute::compute_inputs(&a.input, &a.compute);
@@ -66,6 +69,9 @@ pub(super) fn run(mut a: RunArgs) -> anyhow::Result<ExitCode> {
     }
     if let Some(ply) = &a.solve.ply {
         outputs.push(("--ply", ply));
+    }
+    if let Some(vtu) = &a.solve.vtu {
+        outputs.push(("--vtu", vtu));
     }
     super::outputs::check(&inputs, &outputs)?;
     // `run` owns its directory: a rerun recomputes unless --resume is given.

@@ -54,6 +54,12 @@ pub(crate) struct SolveOptions {
     /// Also write the lit mesh as PLY with per-vertex colours (MeshLab, Blender).
     #[arg(long, value_name = "lit.ply")]
     pub ply: Option<PathBuf>,
+    /// Also write the patches as a VTK unstructured grid (ParaView, meshio): one cell
+    /// per patch with cell data radiosity, irradiance, emitted_exitance, reflectance
+    /// (RGB each), area, patch and group, the values of the radiosity CSV. With several
+    /// emission cases: one file per case, named NAME_case{k}.vtu.
+    #[arg(long, value_name = "lit.vtu")]
+    pub vtu: Option<PathBuf>,
     /// Top-k files: what to do with the light the rows left out (their dropped mass).
     /// `pool` shares it among the patches that dropped it and conserves power; `scale`
     /// multiplies each row's kept entries up to its true sum (solve's only way until
@@ -165,6 +171,13 @@ pub(super) fn solve_file(
     if let Some(ply) = &o.ply {
         outputs.push(("--ply", ply));
     }
+    let vtus: Vec<PathBuf> = match &o.vtu {
+        Some(vtu) => (0..cases.len())
+            .map(|k| solve::case_path(vtu, k, cases.len()))
+            .collect(),
+        None => Vec::new(),
+    };
+    outputs.extend(vtus.iter().map(|p| ("--vtu", p.as_path())));
     super::outputs::check(&solve_inputs(file, o), &outputs)?;
     let emits = |c: &Vec<[f32; 3]>| c.iter().any(|e| e.iter().any(|&x| x > 0.0));
     if !cases.iter().any(emits) {
@@ -207,6 +220,10 @@ pub(super) fn solve_file(
         );
         print!("{}", solve::format_group_table(&table));
         eprintln!("ffstream: wrote {}", path.display());
+        if let Some(vtu) = vtus.get(case) {
+            solve::write_vtu(vtu, &patches, &solution, case)?;
+            eprintln!("ffstream: wrote {}", vtu.display());
+        }
     }
     if let Some(ply) = &o.ply {
         ffstream::render::write_ply(ply, &patches, &solution.radiosity_f32(0))?;

@@ -71,6 +71,9 @@ pub enum FfzError {
     #[error("{path}: another process is writing this file (it holds the writer's lock); wait for it to end, or stop it, then rerun")]
     Locked { path: PathBuf },
 
+    #[error("{path}: cannot export for uDALES: {why}")]
+    NotUdales { path: PathBuf, why: String },
+
     #[error("{path}: cannot resume: {what}")]
     ResumeMismatch { path: PathBuf, what: String },
     /// A row index at or past n.

@@ -16,6 +16,7 @@
 //! | `unoccluded.rs` | `verify --unoccluded`: entries against their unoccluded form factor |
 //! | `npz.rs` | `export --npz`: the CSR arrays as `scipy.sparse.save_npz` writes them |
 //! | `tools.rs` | `info`, `verify`, `export` for the command line |
+//! | `udales.rs` | `export --udales`: `vfsparse.inp` and `svf.inp` as uDALES reads them |
 //! | `staged.rs` | `export`'s text outputs, renamed into place once complete |
 //! | `presence.rs` | [`RowPresence`]: which rows a file holds |
 //! | `routes.rs` | [`PairRoutes`]: how the pairs got their visibility, kept in the index |
@@ -33,6 +34,7 @@ pub mod size;
 pub mod spec;
 mod staged;
 pub mod tools;
+pub mod udales;
 mod unoccluded;
 mod verify;
 mod writer;

@@ -467,6 +467,10 @@ pub struct ExportTargets<'a> {
     pub min_ff: f32,
     /// The patch table as CSV (0-based patch ids).
     pub patches_csv: Option<&'a Path>,
+    /// The patches as a VTK unstructured grid ([`crate::vtu`]) with the patch table's
+    /// values as cell data (row sums, sky view factors and dropped mass NaN for a
+    /// missing or skipped row).
+    pub vtu: Option<&'a Path>,
 }
 
 /// Export the matrix as Matrix Market, sparse text (rows in file order) and/or `.npz`
@@ -504,9 +508,10 @@ pub fn export(path: &Path, to: ExportTargets<'_>) -> Result<()> {
     // need (Matrix Market's entry count, the patch table's row sums: n numbers, never
     // the rows), one writing the entries of both matrix outputs.
     let mut nnz = 0u64;
-    let mut sums: Vec<Option<f64>> = Vec::new();
-    if to.matrix.is_some() || to.patches_csv.is_some() {
-        if to.patches_csv.is_some() {
+    let mut sums: Vec<Option<(f64, f32)>> = Vec::new();
+    let tables = to.patches_csv.is_some() || to.vtu.is_some();
+    if to.matrix.is_some() || tables {
+        if tables {
             sums = vec![None; r.n() as usize];
         }
         r.scan(|row| {
@@ -515,7 +520,7 @@ pub fn export(path: &Path, to: ExportTargets<'_>) -> Result<()> {
             }
             if let Some(s) = sums.get_mut(row.index as usize) {
                 if !matches!(row.values, crate::rows::RowValues::Skipped) {
-                    *s = Some(row.true_sum());
+                    *s = Some((row.true_sum(), row.dropped));
                 }
             }
         })?;
@@ -564,12 +569,54 @@ pub fn export(path: &Path, to: ExportTargets<'_>) -> Result<()> {
             }
         }
     }
+    if let Some(vtu) = to.vtu {
+        patches_grid(&r, &sums, vtu)?;
+    }
     Ok(())
+}
+
+/// The grid of `export --vtu`: the patch table's values as cell data.
+fn patches_grid(r: &FfzReader, sums: &[Option<(f64, f32)>], vtu: &Path) -> Result<()> {
+    use crate::vtu::{patch_arrays, write_vtu, CellArray, CellValues};
+    let ps = &r.meta().patches;
+    let mut arrays = patch_arrays(ps);
+    arrays.push(CellArray::rgb_f32(
+        "reflectance",
+        ps.patches.iter().map(|p| p.rho),
+    ));
+    arrays.push(CellArray::rgb_f32(
+        "emitted_exitance",
+        ps.patches.iter().map(|p| p.emission),
+    ));
+    let sum = |f: fn(f64) -> f64| {
+        CellValues::F64(
+            sums.iter()
+                .map(|s| s.map_or(f64::NAN, |(x, _)| f(x)))
+                .collect(),
+        )
+    };
+    arrays.push(CellArray::scalar("row_sum", sum(|x| x)));
+    arrays.push(CellArray::scalar("sky_view", sum(|x| 1.0 - x)));
+    arrays.push(CellArray::scalar(
+        "dropped_mass",
+        CellValues::F32(
+            sums.iter()
+                .map(|s| s.map_or(f32::NAN, |(_, d)| d))
+                .collect(),
+        ),
+    ));
+    write_vtu(vtu, ps, arrays)
+        .map_err(|e| FfzError::io(vtu, "write", std::io::Error::other(e.cause)))
 }
 
 /// The patch table of `export --patches-csv` into `f` (the file for `csv`), with each
 /// row's sum from `sums`.
-fn patches_table(r: &FfzReader, sums: &[Option<f64>], csv: &Path, f: std::fs::File) -> Result<()> {
+fn patches_table(
+    r: &FfzReader,
+    sums: &[Option<(f64, f32)>],
+    csv: &Path,
+    f: std::fs::File,
+) -> Result<()> {
     let e = |err| FfzError::io(csv, "write", err);
     let mut w = TableWriter::new(BufWriter::new(f));
     w.record(PATCHES_CSV_HEADER.split(',')).map_err(e)?;
@@ -583,7 +630,7 @@ fn patches_table(r: &FfzReader, sums: &[Option<f64>], csv: &Path, f: std::fs::Fi
         );
         fields.extend(p.rho.iter().chain(&p.emission).map(|x| x.to_string()));
         match sums[i] {
-            Some(sum) => fields.extend([sum.to_string(), (1.0 - sum).to_string()]),
+            Some((sum, _)) => fields.extend([sum.to_string(), (1.0 - sum).to_string()]),
             None => fields.extend([String::new(), String::new()]),
         }
         w.record(&fields).map_err(e)?;

@@ -104,6 +104,7 @@ pub(super) fn finish(
 ) -> Result<Scene, SceneError> {
     let p = path.display().to_string();
     scene.element = unit;
+    scene.dropped = tally.degenerate.n;
     tally.warn(&mut scene.warnings, &p, unit);
     if scene.faces.is_empty() {
         let d = &tally.degenerate;

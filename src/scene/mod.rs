@@ -121,6 +121,10 @@ pub struct Scene {
     /// What [`Face::line`] counts: `line` (OBJ), `facet` (STL), `face` (PLY),
     /// `triangle` (glTF); empty for built-in scenes.
     pub element: &'static str,
+    /// Degenerate faces dropped while loading (zero area, collinear corners): the
+    /// faces after one have indices one less than their place in the file, which a
+    /// consumer that numbers faces as the file does must know (`export --udales`).
+    pub dropped: usize,
 }
 
 impl Scene {

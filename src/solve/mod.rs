@@ -65,7 +65,8 @@ pub use cases::{parse_emission_cases, read_emission_cases, EmissionCases, CASES_
 pub(crate) use energy::EnergyReport;
 pub use error::SolveError;
 pub use output::{
-    case_path, format_group_table, group_table, read_radiosity_csv, write_csv, GroupRow, CSV_HEADER,
+    case_path, format_group_table, group_table, read_radiosity_csv, write_csv, write_vtu, GroupRow,
+    CSV_HEADER,
 };
 pub use source::{MemoryRows, RowSource};
 

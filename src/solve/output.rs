@@ -70,6 +70,42 @@ pub fn write_csv(
     w.finish().map_err(io)
 }
 
+/// Write case `case` of `solution` as a VTK unstructured grid ([`crate::vtu`]) with the
+/// radiosity CSV's values as cell data: radiosity (B), irradiance (H),
+/// emitted_exitance (E), reflectance (RGB each), area, patch, group.
+///
+/// # Errors
+/// As [`write_csv`].
+pub fn write_vtu(
+    path: &Path,
+    patches: &PatchSet,
+    solution: &Solution,
+    case: usize,
+) -> Result<(), SolveError> {
+    use crate::vtu::{self, CellArray};
+    check_case(patches, solution, case)?;
+    let mut arrays = vtu::patch_arrays(patches);
+    arrays.push(CellArray::rgb_f64(
+        "radiosity",
+        solution.b[case].iter().copied(),
+    ));
+    arrays.push(CellArray::rgb_f64(
+        "irradiance",
+        solution.h[case].iter().copied(),
+    ));
+    // E came from f32 input, as in the CSV.
+    arrays.push(CellArray::rgb_f32(
+        "emitted_exitance",
+        solution.e[case].iter().map(|e| e.map(|x| x as f32)),
+    ));
+    arrays.push(CellArray::rgb_f32(
+        "reflectance",
+        solution.rho.iter().copied(),
+    ));
+    vtu::write_vtu(path, patches, arrays)
+        .map_err(|e| SolveError::io(path, std::io::Error::other(e.cause)))
+}
+
 fn check_case(patches: &PatchSet, solution: &Solution, case: usize) -> Result<(), SolveError> {
     if case >= solution.cases() {
         return Err(SolveError::InvalidInput(format!(

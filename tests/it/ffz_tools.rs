@@ -237,6 +237,7 @@ fn info_verify_export_outputs() {
         min_ff: 0.0,
         patches_csv: Some(&csv),
         npz: None,
+        vtu: None,
     };
     tools::export(&path, all).unwrap();
     let text = std::fs::read_to_string(&mtx).unwrap();

@@ -1,6 +1,7 @@
 //! All integration tests in one binary (faster to build and run than one binary per
 //! file). Each module holds the tests of one capability.
 mod common;
+mod consumers;
 mod daylight;
 mod daylight_scene;
 mod ffz_bad_values;

@@ -46,6 +46,7 @@ fn cornell_box_run_renders_a_recognisable_picture() {
         "form_factors.ffz",
         "radiosity.csv",
         "lit.ply",
+        "lit.vtu",
         "image.png",
         "wireframe.png",
     ] {
