@@ -67,8 +67,9 @@ pub(crate) struct ExportArgs {
     /// vfsparse: its share is printed. docs/consumers.md §1.
     #[arg(long, value_name = "DIR")]
     pub udales: Option<PathBuf>,
-    /// The experiment number NNN of the --udales files (three digits, as in namoptions.001).
-    #[arg(long, value_name = "NNN", default_value = "001", requires = "udales")]
+    /// The experiment number NNN of the --udales files (as in namoptions.001; 1 to 3
+    /// digits, written with three: 7 gives 007).
+    #[arg(long, value_name = "NNN", default_value = "001", requires = "udales", value_parser = expnr)]
     pub expnr: String,
     /// The STL the file was computed from, when it is not at the path the file's header
     /// records (--udales checks every facet against the patch table).
@@ -157,6 +158,18 @@ pub(super) fn export(a: ExportArgs) -> anyhow::Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
+/// An experiment number as uDALES writes it (`cexpnr`, three digits): 1 to 3 digits,
+/// zero-padded.
+fn expnr(s: &str) -> Result<String, String> {
+    if (1..=3).contains(&s.len()) && s.bytes().all(|b| b.is_ascii_digit()) {
+        Ok(format!("{s:0>3}"))
+    } else {
+        Err(format!(
+            "`{s}` is not an experiment number of 1 to 3 digits (uDALES's cexpnr)"
+        ))
+    }
+}
+
 /// `export --udales`: write the files, say what they leave out, print namoptions' lines.
 fn udales(
     file: &std::path::Path,
@@ -171,6 +184,12 @@ fn udales(
         min_ff,
         stl,
     };
+    std::fs::create_dir_all(dir).map_err(|e| {
+        anyhow::anyhow!(
+            "{}: cannot create the --udales directory: {e}",
+            dir.display()
+        )
+    })?;
     let rep = ffstream::ffz::udales::export_udales(file, target)?;
     eprintln!(
         "ffstream: wrote {} ({} entries ≥ {min_ff:e} of {} facets) and {}",

@@ -86,15 +86,15 @@ fn udales_reading_loop_reads_the_exported_city_with_its_count_and_values() {
     let stl = city_stl(dir.path(), 2);
     let ffz = dir.path().join("city.ffz");
     compute(path_str(&stl), &["--max-edge", "1e9"], &ffz);
+    // The directory is made, and the experiment number written with three digits.
     let exp = dir.path().join("exp");
-    std::fs::create_dir(&exp).unwrap();
     let out = ffstream(&[
         "export",
         path_str(&ffz),
         "--udales",
         path_str(&exp),
         "--expnr",
-        "042",
+        "42",
     ]);
     assert!(
         out.status.success(),
@@ -247,8 +247,8 @@ fn udales_export_refuses_what_is_not_the_stl_facets_one_patch_each() {
     let why = refused(&whole, &["--stl", path_str(&other_stl)]);
     assert!(why.contains("not the STL it was computed from"), "{why}");
     // A bad experiment number.
-    let why = refused(&whole, &["--expnr", "1"]);
-    assert!(why.contains("three digits"), "{why}");
+    let why = refused(&whole, &["--expnr", "1234"]);
+    assert!(why.contains("1 to 3 digits"), "{why}");
 }
 
 fn meshio_or_skip() -> bool {
