@@ -1,7 +1,7 @@
 //! The patches as a VTK unstructured grid (`.vtu`, VTK's XML format) with one value per
 //! patch as cell data: what ParaView, VisIt and Python's `meshio` open (uDALES users
 //! look at their results in ParaView). `export --vtu` writes the matrix side (row sums,
-//! sky view factors, dropped mass), `solve --vtu` the radiosity.
+//! sky view factors, dropped mass), `solve --vtu` the radiosity and the same matrix side.
 //!
 //! Cell k is patch k (a `VTK_TRIANGLE` or `VTK_QUAD`) with its own corners: points are
 //! not welded, so no value is shared or averaged between patches, and the points of

@@ -56,7 +56,8 @@ pub(crate) struct SolveOptions {
     pub ply: Option<PathBuf>,
     /// Also write the patches as a VTK unstructured grid (ParaView, meshio): one cell
     /// per patch with cell data radiosity, irradiance, emitted_exitance, reflectance
-    /// (RGB each), area, patch and group, the values of the radiosity CSV. With several
+    /// (RGB each), area, patch and group (the values of the radiosity CSV), and the
+    /// file's row_sum, sky_view and dropped_mass (as export --vtu). With several
     /// emission cases: one file per case, named NAME_case{k}.vtu.
     #[arg(long, value_name = "lit.vtu")]
     pub vtu: Option<PathBuf>,
@@ -205,6 +206,11 @@ pub(super) fn solve_file(
         .with_context(|| format!("solving {}", file.display()))?;
     eprint!("{}", solution.summary());
     let k = solution.cases();
+    // The matrix side of the grids (row sums, sky view, dropped mass): one more pass.
+    let sums = match vtus.is_empty() {
+        true => None,
+        false => Some(ffstream::ffz::tools::row_sum_arrays(&reader)?),
+    };
     for case in 0..k {
         let path = solve::case_path(output, case, k);
         solve::write_csv(&path, &patches, &solution, case)?;
@@ -221,7 +227,13 @@ pub(super) fn solve_file(
         print!("{}", solve::format_group_table(&table));
         eprintln!("ffstream: wrote {}", path.display());
         if let Some(vtu) = vtus.get(case) {
-            solve::write_vtu(vtu, &patches, &solution, case)?;
+            solve::write_vtu(
+                vtu,
+                &patches,
+                &solution,
+                case,
+                sums.as_ref().map_or(&[], |a| &a[..]),
+            )?;
             eprintln!("ffstream: wrote {}", vtu.display());
         }
     }

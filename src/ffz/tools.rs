@@ -577,7 +577,7 @@ pub fn export(path: &Path, to: ExportTargets<'_>) -> Result<()> {
 
 /// The grid of `export --vtu`: the patch table's values as cell data.
 fn patches_grid(r: &FfzReader, sums: &[Option<(f64, f32)>], vtu: &Path) -> Result<()> {
-    use crate::vtu::{patch_arrays, write_vtu, CellArray, CellValues};
+    use crate::vtu::{patch_arrays, write_vtu, CellArray};
     let ps = &r.meta().patches;
     let mut arrays = patch_arrays(ps);
     arrays.push(CellArray::rgb_f32(
@@ -588,6 +588,16 @@ fn patches_grid(r: &FfzReader, sums: &[Option<(f64, f32)>], vtu: &Path) -> Resul
         "emitted_exitance",
         ps.patches.iter().map(|p| p.emission),
     ));
+    arrays.extend(sum_arrays(sums));
+    write_vtu(vtu, ps, arrays)
+        .map_err(|e| FfzError::io(vtu, "write", std::io::Error::other(e.cause)))
+}
+
+/// Cell arrays `row_sum` (stored entries plus dropped mass), `sky_view` (1 − row_sum)
+/// and `dropped_mass` of `sums` (per row: true sum and dropped mass; NaN where the row
+/// is missing or skipped).
+fn sum_arrays(sums: &[Option<(f64, f32)>]) -> [crate::vtu::CellArray; 3] {
+    use crate::vtu::{CellArray, CellValues};
     let sum = |f: fn(f64) -> f64| {
         CellValues::F64(
             sums.iter()
@@ -595,18 +605,33 @@ fn patches_grid(r: &FfzReader, sums: &[Option<(f64, f32)>], vtu: &Path) -> Resul
                 .collect(),
         )
     };
-    arrays.push(CellArray::scalar("row_sum", sum(|x| x)));
-    arrays.push(CellArray::scalar("sky_view", sum(|x| 1.0 - x)));
-    arrays.push(CellArray::scalar(
-        "dropped_mass",
-        CellValues::F32(
-            sums.iter()
-                .map(|s| s.map_or(f32::NAN, |(_, d)| d))
-                .collect(),
+    [
+        CellArray::scalar("row_sum", sum(|x| x)),
+        CellArray::scalar("sky_view", sum(|x| 1.0 - x)),
+        CellArray::scalar(
+            "dropped_mass",
+            CellValues::F32(
+                sums.iter()
+                    .map(|s| s.map_or(f32::NAN, |(_, d)| d))
+                    .collect(),
+            ),
         ),
-    ));
-    write_vtu(vtu, ps, arrays)
-        .map_err(|e| FfzError::io(vtu, "write", std::io::Error::other(e.cause)))
+    ]
+}
+
+/// The matrix side of a `.vtu` grid for `solve --vtu`: each row's sum, sky view factor
+/// and dropped mass (as `export --vtu` writes them), from one pass over the rows.
+///
+/// # Errors
+/// As [`FfzReader::scan`].
+pub fn row_sum_arrays(r: &FfzReader) -> Result<[crate::vtu::CellArray; 3]> {
+    let mut sums: Vec<Option<(f64, f32)>> = vec![None; r.n() as usize];
+    r.scan(|row| {
+        if !matches!(row.values, crate::rows::RowValues::Skipped) {
+            sums[row.index as usize] = Some((row.true_sum(), row.dropped));
+        }
+    })?;
+    Ok(sum_arrays(&sums))
 }
 
 /// The patch table of `export --patches-csv` into `f` (the file for `csv`), with each

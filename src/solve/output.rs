@@ -72,7 +72,8 @@ pub fn write_csv(
 
 /// Write case `case` of `solution` as a VTK unstructured grid ([`crate::vtu`]) with the
 /// radiosity CSV's values as cell data: radiosity (B), irradiance (H),
-/// emitted_exitance (E), reflectance (RGB each), area, patch, group.
+/// emitted_exitance (E), reflectance (RGB each), area, patch, group; then `extra`
+/// (`solve --vtu` adds the rows' sums, sky view factors and dropped mass).
 ///
 /// # Errors
 /// As [`write_csv`].
@@ -81,6 +82,7 @@ pub fn write_vtu(
     patches: &PatchSet,
     solution: &Solution,
     case: usize,
+    extra: &[crate::vtu::CellArray],
 ) -> Result<(), SolveError> {
     use crate::vtu::{self, CellArray};
     check_case(patches, solution, case)?;
@@ -102,6 +104,7 @@ pub fn write_vtu(
         "reflectance",
         solution.rho.iter().copied(),
     ));
+    arrays.extend_from_slice(extra);
     vtu::write_vtu(path, patches, arrays)
         .map_err(|e| SolveError::io(path, std::io::Error::other(e.cause)))
 }

@@ -1,9 +1,10 @@
 """Check ffstream's .vtu grids with meshio, as a ParaView user's script would read them.
 
-Usage: vtu_meshio.py solve GRID.vtu radiosity.csv
+Usage: vtu_meshio.py solve GRID.vtu radiosity.csv patches.csv
        vtu_meshio.py export GRID.vtu patches.csv
 
-Every cell array must equal the table's columns (the CSV prints each value in the
+Every cell array must equal the table's columns (solve's grid: radiosity.csv's, and
+the row sums and sky view factors of the file's patch table, `export --patches-csv`) (the CSV prints each value in the
 shortest form that reads back to the same float, so f64 arrays match exactly and f32
 ones within f32 rounding); cell k must be patch k, with 3 or 4 points. Prints one line
 per array checked; exits 1 naming the first difference.
@@ -32,6 +33,16 @@ COLUMNS = {
         "row_sum": ["row_sum"],
         "sky_view": ["sky_view"],
     },
+    "sums": {
+        "patch": ["patch"],
+        "row_sum": ["row_sum"],
+        "sky_view": ["sky_view"],
+    },
+}
+# Arrays each grid holds: its columns above, group, and dropped mass (no table column).
+GRIDS = {
+    "solve": set(COLUMNS["solve"]) | set(COLUMNS["sums"]) | {"group", "dropped_mass"},
+    "export": set(COLUMNS["export"]) | {"group", "dropped_mass"},
 }
 
 
@@ -43,6 +54,14 @@ def fail(what):
 def main():
     kind, grid, table = sys.argv[1:4]
     mesh = meshio.read(grid)
+    if kind == "solve":
+        check(mesh, "solve", grid, table)
+        check(mesh, "sums", grid, sys.argv[4])
+    else:
+        check(mesh, "export", grid, table)
+
+
+def check(mesh, kind, grid, table):
     with open(table, newline="") as f:
         rows = list(csv.DictReader(f))
     n = len(rows)
@@ -52,7 +71,7 @@ def main():
     for block in mesh.cells:
         if block.type not in ("triangle", "quad"):
             fail(f"{grid}: cells of type {block.type}")
-    expected_arrays = set(COLUMNS[kind]) | {"group"} | ({"dropped_mass"} if kind == "export" else set())
+    expected_arrays = GRIDS["solve" if kind == "sums" else kind]
     got_arrays = set(mesh.cell_data)
     if got_arrays != expected_arrays:
         fail(f"{grid}: cell arrays {sorted(got_arrays)}, expected {sorted(expected_arrays)}")
