@@ -46,6 +46,12 @@ manager; close() releases the memory map):
   They are returned as stored, but each kind found adds a line to `warnings` (the count
   of rows and the first row and column) and raises a RuntimeWarning; `value_faults()`
   gives the same lines for any matrix and dropped mass, and the command line exits 3.
+- Files with links to clusters (spec 4.3, 5.7): `cluster_order`; `links(i)` gives row
+  i's (starts, lengths, values, slopes); `link_matrix()` expands every link into patch
+  entries (n x n sparse: for small files, as entries it grows as n^2);
+  `link_operator()` is the same as a scipy LinearOperator that sums through prefix
+  sums, O(links) a product: `to_csr() @ b + link_operator() @ b` is F b for a solver
+  (100k patches, 25.6M links: built in about 80 s, 7 s a product of three columns).
 - verify=False skips the CRC-32C checks (not the structural ones). `threads`: chunks
   decoded in parallel by to_csr(), chunks() and dropped (default: the CPUs, at most 8).
 
@@ -79,6 +85,7 @@ from typing import NamedTuple, Optional
 
 import numpy as np
 import scipy.sparse
+import scipy.sparse.linalg
 import zstandard
 
 __version__ = "0.2.0"
@@ -1006,6 +1013,68 @@ class FfzReader:
             return scipy.sparse.csr_matrix((n, n), dtype=np.float64)
         r, c, v = np.concatenate(rows), np.concatenate(cols), np.concatenate(vals)
         return scipy.sparse.csr_matrix((v, (r, c)), shape=(n, n))
+
+    def link_operator(self) -> scipy.sparse.linalg.LinearOperator:
+        """The links as an n x n scipy LinearOperator: `op @ b` (b of n values, or n x m)
+        is link_matrix() @ b without expanding the links, in O(links + n) a product
+        (spec 5.7's weights, summed through prefix sums over the cluster order, as
+        ffstream's solver gathers). Add to_csr() @ b for the whole matrix; so a solve
+        of a 10^5-patch linked file needs no n x n matrix. Zero without links."""
+        n = self.n
+        order = self.cluster_order
+        parts = [self.links(i) for i in range(n)] if order is not None else []
+        counts = np.array([len(p[0]) for p in parts], dtype=np.int64)
+        if not counts.sum():
+            return scipy.sparse.linalg.LinearOperator((n, n), matvec=lambda b: np.zeros(n), matmat=lambda b: np.zeros((n, b.shape[1])), dtype=np.float64)
+        row = np.repeat(np.arange(n, dtype=np.int64), counts)
+        start = np.concatenate([p[0] for p in parts]).astype(np.int64)
+        end = start + np.concatenate([p[1] for p in parts]).astype(np.int64)
+        value = np.concatenate([p[2] for p in parts]).astype(np.float64)
+        slope = np.concatenate([p[3] for p in parts]).astype(np.float64)
+        area = self.patches["area"].astype(np.float64)
+        x = self.centroids()
+        pos = np.empty(n, dtype=np.int64)
+        pos[order] = np.arange(n)
+        pa = np.concatenate([[0.0], np.cumsum(area[order])])
+        px = np.vstack([np.zeros(3), np.cumsum(area[order, None] * x[order], axis=0)])
+        a_range = pa[end] - pa[start]
+        mean = (px[end] - px[start]) / a_range[:, None]
+        # The patches in a link's range that are not its own: the row's kept columns
+        # and the row patch, found by their position in the row's ascending links.
+        kept = self.to_csr()
+        pairs = np.unique(np.concatenate([np.repeat(np.arange(n, dtype=np.int64), np.diff(kept.indptr)) * n + kept.indices, np.arange(n, dtype=np.int64) * (n + 1)]))
+        kr, kj = pairs // n, pairs % n
+        key = row * n + start
+        k = np.searchsorted(key, kr * n + pos[kj], side="right") - 1
+        inside = (k >= 0) & (row[np.maximum(k, 0)] == kr) & (pos[kj] < end[np.maximum(k, 0)])
+        out_link, out_patch = k[inside], kj[inside]
+
+        def weights(q):
+            w = a_range - np.bincount(out_link, weights=area[out_patch] * (1.0 + np.einsum("ij,ij->i", x[out_patch] - mean[out_link], q[out_link])), minlength=len(row))
+            return w
+
+        w = weights(slope)
+        flat = ~(w > 0) & np.any(slope != 0, axis=1)  # kept columns hold all the weight: by area
+        q = np.where(flat[:, None], 0.0, slope)
+        w = weights(q) if flat.any() else w
+        use = w > 0
+        scale = np.where(use, value / np.where(use, w, 1.0), 0.0)
+        out_w = area[out_patch] * (1.0 + np.einsum("ij,ij->i", x[out_patch] - mean[out_link], q[out_link]))
+
+        def matmat(b):
+            b = np.asarray(b, dtype=np.float64).reshape(n, -1)
+            ab = np.vstack([np.zeros((1, b.shape[1])), np.cumsum(area[order, None] * b[order], axis=0)])
+            axb = np.concatenate([np.zeros((1, 3, b.shape[1])), np.cumsum(area[order, None, None] * x[order, :, None] * b[order, None, :], axis=0)])
+            s_ab = ab[end] - ab[start]  # links x m
+            total = s_ab.copy()
+            for d in range(3):  # one coordinate at a time: no links x 3 x m temporary
+                total += q[:, d, None] * (axb[end, d] - axb[start, d] - mean[:, d, None] * s_ab)
+            m = b.shape[1]
+            less = np.stack([np.bincount(out_link, weights=out_w * b[out_patch, c], minlength=len(row)) for c in range(m)], axis=1)
+            gathered = scale[:, None] * (total - less)
+            return np.stack([np.bincount(row, weights=gathered[:, c], minlength=n) for c in range(m)], axis=1)
+
+        return scipy.sparse.linalg.LinearOperator((n, n), matvec=lambda b: matmat(b)[:, 0], matmat=matmat, dtype=np.float64)
 
     def chunk_of(self, i) -> Optional[int]:
         """Number of the chunk holding row i (present or skipped), or None (missing)."""

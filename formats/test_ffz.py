@@ -100,6 +100,8 @@ def test_golden_links_are_the_spec_links_and_expand_by_the_slope_rule():
         got = [f"{a}+{b}:{v:g}:" + ",".join(f"{q:g}" for q in qs) for a, b, v, qs in zip(starts, lens, values, slopes)]
         assert got == want, (i, got, want)
     m = r.link_matrix().toarray()
+    b = np.array([[1.0, 2.0], [-3.0, 0.5], [7.0, 1.0]])
+    np.testing.assert_allclose(r.link_operator() @ b, m @ b, rtol=1e-14, atol=1e-15)
     want = np.zeros((3, 3))
     want[0, 1], want[1, 0], want[1, 2], want[2, 1] = 0.125, 23 / 122, 19 / 61, 0.125
     np.testing.assert_allclose(m, want, rtol=1e-12, atol=0)
