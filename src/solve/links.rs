@@ -156,17 +156,24 @@ impl LinkSpace {
         let m = acc.len();
         let stride = 4 * m;
         // The patches in the links' ranges that are not theirs (few: at most the kept
-        // columns and the row patch), by link.
-        let out: Vec<(usize, usize)> = self
+        // columns and the row patch), in order of link, each link's a slice of them.
+        let mut out: Vec<(usize, usize)> = self
             .excluded(links, i, cols)
             .map(|(k, j)| (k, j as usize))
             .collect();
+        out.sort_unstable();
+        let mut next = 0;
         let mut sum = 0.0;
         for (k, l) in links.iter().enumerate() {
             let f = f64::from(l.value);
             sum += f;
             let (s, e) = (l.start as usize, l.end() as usize);
-            let mine = || out.iter().filter(move |x| x.0 == k).map(|x| x.1);
+            let first = next;
+            while out.get(next).is_some_and(|x| x.0 == k) {
+                next += 1;
+            }
+            let theirs = &out[first..next];
+            let mine = || theirs.iter().map(|x| x.1);
             // Σ w over the range is its area (the slope's part sums to zero).
             let sum_w = |(mean, q)| {
                 self.prefix_area[e]
