@@ -519,9 +519,7 @@ pub fn export(path: &Path, to: ExportTargets<'_>) -> Result<()> {
                 row.for_each_nonzero(|_, x| nnz += u64::from(kept(x)));
             }
             if let Some(s) = sums.get_mut(row.index as usize) {
-                if !matches!(row.values, crate::rows::RowValues::Skipped) {
-                    *s = Some((row.true_sum(), row.dropped));
-                }
+                *s = row_total(row);
             }
         })?;
     }
@@ -626,12 +624,17 @@ fn sum_arrays(sums: &[Option<(f64, f32)>]) -> [crate::vtu::CellArray; 3] {
 /// As [`FfzReader::scan`].
 pub fn row_sum_arrays(r: &FfzReader) -> Result<[crate::vtu::CellArray; 3]> {
     let mut sums: Vec<Option<(f64, f32)>> = vec![None; r.n() as usize];
-    r.scan(|row| {
-        if !matches!(row.values, crate::rows::RowValues::Skipped) {
-            sums[row.index as usize] = Some((row.true_sum(), row.dropped));
-        }
-    })?;
+    r.scan(|row| sums[row.index as usize] = row_total(row))?;
     Ok(sum_arrays(&sums))
+}
+
+/// A row's true sum (stored entries plus dropped mass) and dropped mass; None for a
+/// skipped row.
+fn row_total(row: &crate::rows::Row) -> Option<(f64, f32)> {
+    match row.values {
+        crate::rows::RowValues::Skipped => None,
+        _ => Some((row.true_sum(), row.dropped)),
+    }
 }
 
 /// The patch table of `export --patches-csv` into `f` (the file for `csv`), with each

@@ -75,7 +75,7 @@ pub(crate) struct Node {
     /// Σ A_j (x_j − mean)(x_j − mean)ᵀ over the patches' centroids x_j, as xx, yy, zz,
     /// xy, xz, yz (tree nodes only: zero in the node of a single patch's bound).
     second: [f64; 6],
-    /// Box of the patches' centroids (tree nodes only, like `second`).
+    /// Box of the patches' centroids.
     spots: (DVec3, DVec3),
     count: u32,
     /// The node's patches: `PatchTree::order[range.0..range.1]`.
@@ -301,10 +301,8 @@ impl PatchTree {
         let patches = &mut order[start..end];
         let mut node = node_of(patches.iter().map(|&j| &geom[j as usize]));
         node.range = (start as u32, end as u32);
-        node.spots = (DVec3::INFINITY, DVec3::NEG_INFINITY);
         for &j in patches.iter() {
             let g = &geom[j as usize];
-            node.spots = (node.spots.0.min(g.centroid), node.spots.1.max(g.centroid));
             let r = g.centroid - node.mean;
             let products = [
                 r.x * r.x,
@@ -355,8 +353,10 @@ fn node_of<'a>(patches: impl Iterator<Item = &'a PatchGeom> + Clone) -> Node {
     let (mut area_sum, mut area_max, mut count) = (0.0f64, 0.0f64, 0u32);
     let mut normals = DVec3::ZERO;
     let mut mean = DVec3::ZERO;
+    let mut spots = (DVec3::INFINITY, DVec3::NEG_INFINITY);
     for g in patches.clone() {
         mean += g.centroid * g.area;
+        spots = (spots.0.min(g.centroid), spots.1.max(g.centroid));
         for c in g.poly.verts() {
             lo = lo.min(*c);
             hi = hi.max(*c);
@@ -384,7 +384,7 @@ fn node_of<'a>(patches: impl Iterator<Item = &'a PatchGeom> + Clone) -> Node {
         area_max,
         mean: mean / area_sum,
         second: [0.0; 6],
-        spots: (DVec3::ZERO, DVec3::ZERO),
+        spots,
         count,
         range: (0, 0),
         kids: Kids::Leaf,

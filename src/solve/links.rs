@@ -114,11 +114,7 @@ impl LinkSpace {
         let (s, e) = (l.start as usize, l.end() as usize);
         let a = self.prefix_area[e] - self.prefix_area[s];
         let mean = (self.prefix_moment[e] - self.prefix_moment[s]) / a;
-        let q = DVec3::new(
-            f64::from(l.slope[0]),
-            f64::from(l.slope[1]),
-            f64::from(l.slope[2]),
-        );
+        let q = DVec3::from_array(l.slope.map(f64::from));
         if q == DVec3::ZERO || !mean.is_finite() {
             return (DVec3::ZERO, DVec3::ZERO);
         }

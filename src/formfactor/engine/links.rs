@@ -274,11 +274,12 @@ impl RowEngine {
         let mut exact = Vec::with_capacity(cut.len());
         let mut lean = Vec::with_capacity(cut.len());
         let mut items: Vec<Vec<(Item, f64)>> = Vec::with_capacity(cut.len());
+        // The whole cluster order: the known columns are given by position in it.
+        let order = tree.root().map_or(&[][..], |root| tree.patches_under(root));
         for &id in cut {
             let (a, b) = tree.range(id);
             let known = within(&d.exact, |x| x.0, a, b);
             exact.push(known.iter().map(|x| x.1).sum::<f64>());
-            let order = tree.patches_under(tree.root().expect("a cut has a root"));
             let moment = known
                 .iter()
                 .map(|&(p, v)| v * at(order[p as usize]))
