@@ -38,6 +38,11 @@ pub(crate) struct LinkSpace {
     prefix_moment: Vec<DVec3>,
 }
 
+/// A link whose weights sum to at most this fraction of its range's area is spread by
+/// area (spec §5.7): such a sum is what is left after prefix sums cancel, mostly
+/// rounding, and the link's mass would be divided by it.
+const FLAT_WEIGHT: f64 = 1e-6;
+
 impl LinkSpace {
     /// The space of cluster order `order` (a permutation of the n patches, checked by
     /// the reader) for patch areas `area` and centroids `centroid` (spec §5.7).
@@ -122,12 +127,15 @@ impl LinkSpace {
     }
 
     /// The link's mean and slope (as [`LinkSpace::lean`]) and the sum of its patches'
-    /// weights, `sum_w` of them; when that sum is not positive (kept columns holding
-    /// all the weight), no slope and the sum of the areas instead (spec §5.7).
+    /// weights, `sum_w` of them; when that sum is at most [`FLAT_WEIGHT`] times the
+    /// range's area (kept columns holding all, or all but a rounding error, of the
+    /// weight), no slope and the sum of the areas instead (spec §5.7).
     fn tilt(&self, l: &Link, sum_w: impl Fn((DVec3, DVec3)) -> f64) -> (DVec3, DVec3, f64) {
         let (mean, q) = self.lean(l);
         let w = sum_w((mean, q));
-        if (w.is_nan() || w <= 0.0) && q != DVec3::ZERO {
+        let whole = self.prefix_area[l.end() as usize] - self.prefix_area[l.start as usize];
+        let weighs = w > FLAT_WEIGHT * whole; // false for NaN too
+        if !weighs && q != DVec3::ZERO {
             return (DVec3::ZERO, DVec3::ZERO, sum_w((DVec3::ZERO, DVec3::ZERO)));
         }
         (mean, q, w)
@@ -139,13 +147,13 @@ impl LinkSpace {
     }
 
     /// `acc[c] += Σ_L F_iL · (Σ w_j b_j / Σ w_j over L's patches)` for row i with kept
-    /// columns `cols`; `prefix` from [`LinkSpace::prefix`] of b. Returns Σ F_iL.
+    /// columns `cols`, against the radiosity `prefix` was made of ([`LinkSpace::prefix`]).
+    /// Returns Σ F_iL.
     pub(crate) fn gather(
         &self,
         links: &[Link],
         i: u32,
         cols: &[u32],
-        b: &[f64],
         prefix: &[f64],
         acc: &mut [f64],
     ) -> f64 {
@@ -187,7 +195,14 @@ impl LinkSpace {
                 }));
                 let wb = ab + q.dot(axb - mean * ab)
                     - mine()
-                        .map(|j| self.weight(j, mean, q) * b[j * m + c])
+                        .map(|j| {
+                            // A_j b_j as the prefix sums hold it (b as it was when they
+                            // were made, not as a Gauss–Seidel sweep has since changed
+                            // it: the two parts of the sum must see the same b).
+                            let p = self.pos[j] as usize;
+                            let ab = prefix[(p + 1) * stride + c] - prefix[p * stride + c];
+                            (1.0 + q.dot(self.centroid[j] - mean)) * ab
+                        })
                         .sum::<f64>();
                 acc[c] += f * wb / w;
             }
@@ -261,7 +276,7 @@ mod tests {
         let links = link([0.0; 3]);
         let prefix = space.prefix(&b, 3);
         let mut acc = [0.0; 3];
-        let sum = space.gather(&links, 0, &[1], &b, &prefix, &mut acc);
+        let sum = space.gather(&links, 0, &[1], &prefix, &mut acc);
         assert_eq!(sum, 0.5);
         // Only patch 3 is the link's: the gather is 0.5 · b_3.
         assert!(
@@ -273,7 +288,7 @@ mod tests {
         assert_eq!(entries, vec![(3, 0.5)]);
         // Without kept columns: patches 3 and 1 (areas 4 and 2), the row patch left out.
         let mut acc = [0.0; 3];
-        space.gather(&links, 0, &[], &b, &prefix, &mut acc);
+        space.gather(&links, 0, &[], &prefix, &mut acc);
         let want = 0.5 * (4.0 * 3.0 + 2.0 * 1.0) / 6.0;
         assert!((acc[0] - want).abs() < 1e-12, "{acc:?} vs {want}");
         let mut entries = Vec::new();
@@ -309,7 +324,7 @@ mod tests {
         // without kept columns inside the range.
         for (row, cols) in [(2u32, vec![]), (2, vec![1u32]), (0, vec![]), (1, vec![3])] {
             let mut acc = [0.0; 3];
-            space.gather(&links, row, &cols, &b, &prefix, &mut acc);
+            space.gather(&links, row, &cols, &prefix, &mut acc);
             let mut want = [0.0; 3];
             space.expand(&links, row, &cols, |j, f| {
                 for c in 0..3 {
@@ -323,5 +338,25 @@ mod tests {
                 );
             }
         }
+    }
+
+    /// A slope that leaves the link's own patches (here patch 0 alone, the others kept)
+    /// with a weight of rounding size: the link goes by area (spec §5.7), so its whole
+    /// mass lands on patch 0, in gather and expand alike. (The gather once took the
+    /// kept columns' radiosity from the current b of a Gauss–Seidel sweep and the rest
+    /// from the prefix sums made at its start, and divided the difference by such a
+    /// weight: a 10k-patch room solved to NaN. It now reads both from the prefix sums.)
+    #[test]
+    fn a_link_whose_own_patches_weigh_next_to_nothing_goes_by_area() {
+        let (space, b) = (space(), radiosity());
+        // x̄ = 2 over patches 3, 1, 0 (module test above): 1 + q (0 − 2) is 6e-8 at patch 0.
+        let links = link([0.499_999_97, 0.0, 0.0]);
+        let prefix = space.prefix(&b, 3);
+        let mut acc = [0.0; 3];
+        space.gather(&links, 2, &[1, 3], &prefix, &mut acc);
+        assert_eq!(acc, [0.0, 0.0, 0.5]);
+        let mut entries = Vec::new();
+        space.expand(&links, 2, &[1, 3], |j, f| entries.push((j, f)));
+        assert_eq!(entries, vec![(0, 0.5)]);
     }
 }

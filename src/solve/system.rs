@@ -419,7 +419,7 @@ impl System {
         if let (false, Some(space), Some(prefix)) =
             (view.links.is_empty(), &self.links, &beta.prefix)
         {
-            abs_sum += space.gather(view.links, view.index, view.cols(), b, prefix, acc);
+            abs_sum += space.gather(view.links, view.index, view.cols(), prefix, acc);
         } else if self.pool.is_some() && view.dropped > 0.0 {
             for (a, x) in acc.iter_mut().zip(&beta.pool) {
                 *a += view.dropped * x;
