@@ -106,6 +106,7 @@ fn top_k(i: u32, v: &[f32], k: usize) -> Row {
         },
         dropped: dropped as f32,
         links: Vec::new(),
+        link_error: None,
     }
 }
 

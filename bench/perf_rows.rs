@@ -182,6 +182,7 @@ fn sparse(i: u32, entries: &[(u32, f64)]) -> Row {
         },
         dropped: 0.0,
         links: Vec::new(),
+        link_error: None,
     }
 }
 

@@ -104,6 +104,8 @@ HEADER_LEN, PATCH_LEN, CHUNK_HEADER_LEN, DIR_LEN, FOOTER_LEN = 64, 168, 40, 24, 
 SHUFFLED, SKIPPED, SPARSE = 1, 1, 2
 LINKS = 4  # spec 5.7: row directory flag, the row's links follow its entries
 SLOPES = 8  # spec 5.7: row directory flag, each link also has a slope (only with LINKS)
+LINK_ERROR = 16  # spec 5.7: row directory flag, the links are followed by the writer's error estimate (only with LINKS)
+FLAT_WEIGHT = 1e-6  # spec 5.7: a link whose weights sum to at most this times its range's area is spread by area
 HEADER_FLAG_CLUSTERS = 1  # spec 3.1, 4.3: the meta block holds a cluster order
 NO_CHUNK = 0xFFFFFFFF
 MISSING, PRESENT, SKIPPED_STATE = 0, 1, 2
@@ -374,13 +376,14 @@ def _words(b, shuffled) -> np.ndarray:
 def _split_links(raw, d, n, shuffled):
     """Spec 5.7: the links of a chunk's LINKS rows taken out of its payload. Returns the
     payload and directory as they would be without links (offsets shifted, LINKS
-    cleared), and {row: (starts, lengths, values, slopes)} (slopes an (m, 3) float32
-    array, zeros for a row without SLOPES); ValueError on a bad link."""
+    cleared), {row: (starts, lengths, values, slopes)} (slopes an (m, 3) float32
+    array, zeros for a row without SLOPES) and {row: link error} for the rows with
+    LINK_ERROR; ValueError on a bad link."""
     rows = len(d)
     d = d.copy()
     base = DIR_LEN * rows
     out = [bytes(raw[:base])]
-    links = {}
+    links, errors = {}, {}
     pos = base  # where the next row's data starts in the payload as stored
     new = base
     for j in range(rows):
@@ -393,6 +396,8 @@ def _split_links(raw, d, n, shuffled):
             raise ValueError(f"row {row}: links on a row that is not sparse")
         if fl & SLOPES and not fl & LINKS:
             raise ValueError(f"row {row}: slopes on a row without links")
+        if fl & LINK_ERROR and not fl & LINKS:
+            raise ValueError(f"row {row}: a link error on a row without links")
         out.append(bytes(raw[pos : pos + size]))
         d[j, 4], d[j, 5] = new & 0xFFFFFFFF, new >> 32
         pos += size
@@ -424,10 +429,18 @@ def _split_links(raw, d, n, shuffled):
                 slopes = np.zeros((m, 3), np.float32)
             links[row] = (starts.astype(np.uint32), lens.astype(np.uint32), vals.copy(), slopes)
             pos += 4 + per * m
-            d[j, 1] = fl & ~(LINKS | SLOPES)
+            if fl & LINK_ERROR:
+                if pos + 4 > len(raw):
+                    raise ValueError(f"row {row}: link error beyond the payload")
+                e = float(np.frombuffer(raw, dtype="<f4", count=1, offset=pos)[0])
+                if not (np.isfinite(e) and e >= 0):
+                    raise ValueError(f"row {row}: link error {e} is not a finite number >= 0")
+                errors[row] = e
+                pos += 4
+            d[j, 1] = fl & ~(LINKS | SLOPES | LINK_ERROR)
     if pos != len(raw):
         raise ValueError(f"row data ends at {pos}, payload is {len(raw)} bytes")
-    return b"".join(out), d, links
+    return b"".join(out), d, links, errors
 
 
 def _check_directory(d, rlen, n, sparse, k):
@@ -686,6 +699,7 @@ class FfzReader:
         # the rows carry no links.
         self.cluster_order = clusters
         self._links = {}  # row -> (starts, lengths, values, slopes) of the rows read so far
+        self._link_errors = {}  # row -> the writer's link error (spec 5.7, LINK_ERROR) of the rows read so far
 
     def _read_index(self):
         """Footer then index (spec 7, 6); raises ValueError with the offset."""
@@ -834,9 +848,10 @@ class FfzReader:
             raise ValueError("decompressed payload checksum mismatch")
         d = np.frombuffer(raw, dtype="<u4", count=6 * rows).reshape(rows, 6)
         if self.cluster_order is not None:
-            raw, d, links = _split_links(raw, d, n, bool(flags & SHUFFLED))
+            raw, d, links, errors = _split_links(raw, d, n, bool(flags & SHUFFLED))
             rlen = len(raw)
             self._links.update(links)
+            self._link_errors.update(errors)
         elif np.any(d[:, 1] & LINKS):
             j = int(np.flatnonzero(d[:, 1] & LINKS)[0])
             raise ValueError(f"row {int(d[j, 0])}: links in a file without a cluster order")
@@ -966,6 +981,23 @@ class FfzReader:
         empty = (np.zeros(0, np.uint32), np.zeros(0, np.uint32), np.zeros(0, np.float32), np.zeros((0, 3), np.float32))
         return self._links.get(i, empty)
 
+    def link_error(self, i):
+        """Row i's link error as the writer estimated it (spec 5.7, LINK_ERROR: the
+        relative error its links may make in the radiosity the row gathers), or None
+        for a row without one. Reads row i's chunk if it was not read yet."""
+        self.links(i)
+        return self._link_errors.get(int(i))
+
+    def link_errors(self) -> np.ndarray:
+        """Every row's link error (link_error), NaN for a row without one; reads every
+        chunk."""
+        out = np.full(self.n, np.nan)
+        for i in range(self.n):
+            e = self.link_error(i)
+            if e is not None:
+                out[i] = e
+        return out
+
     def centroids(self) -> np.ndarray:
         """Patch centroids x_j as spec 5.7 defines them, (n, 3) float64: a triangle's
         corner mean; a quadrilateral's area-weighted mean of the centroids of its
@@ -1002,8 +1034,9 @@ class FfzReader:
                     js = order[a : a + ln].astype(np.int64)
                     mean = area[js] @ x[js] / area[js].sum()
                     js = js[~np.isin(js, list(own))]
+                    whole = area[order[a : a + ln]].sum()
                     w = area[js] * (1.0 + (x[js] - mean) @ q)
-                    if not w.sum() > 0:  # kept columns hold all the weight: by area
+                    if not w.sum() > FLAT_WEIGHT * whole:  # kept columns hold (almost) all the weight: by area
                         w = area[js]
                     if w.sum() > 0:
                         rows.append(np.full(len(js), i))
@@ -1054,7 +1087,7 @@ class FfzReader:
             return w
 
         w = weights(slope)
-        flat = ~(w > 0) & np.any(slope != 0, axis=1)  # kept columns hold all the weight: by area
+        flat = ~(w > FLAT_WEIGHT * a_range) & np.any(slope != 0, axis=1)  # kept columns hold (almost) all the weight: by area
         q = np.where(flat[:, None], 0.0, slope)
         w = weights(q) if flat.any() else w
         use = w > 0

@@ -87,6 +87,10 @@ pub struct Row {
     /// Where the dropped mass goes: links to clusters of patches, disjoint and in
     /// ascending order (empty for rows of files without a cluster order).
     pub links: Vec<Link>,
+    /// With links: the writer's estimate of the relative error the links make in the
+    /// radiosity the row gathers (spec §5.7, LINK_ERROR), a finite number ≥ 0; `None`
+    /// when the writer made none.
+    pub link_error: Option<f32>,
 }
 
 impl Row {
@@ -96,6 +100,7 @@ impl Row {
             values: RowValues::Dense(vals),
             dropped: 0.0,
             links: Vec::new(),
+            link_error: None,
         }
     }
 
@@ -105,6 +110,7 @@ impl Row {
             values: RowValues::Skipped,
             dropped: 0.0,
             links: Vec::new(),
+            link_error: None,
         }
     }
 

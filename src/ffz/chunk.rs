@@ -125,7 +125,7 @@ pub fn raw_row_len(row: &Row) -> usize {
 fn links_len(row: &Row) -> usize {
     match row.links.len() {
         0 => 0,
-        m => 4 + 24 * m,
+        m => 4 + 24 * m + 4 * usize::from(row.link_error.is_some()),
     }
 }
 
@@ -144,6 +144,13 @@ pub(crate) fn check_row(row: &Row, layout: Layout, n: u32) -> Result<()> {
             "dropped mass {} is not a finite number ≥ 0",
             row.dropped
         ));
+    }
+    match row.link_error {
+        Some(e) if !(e.is_finite() && e >= 0.0) => {
+            return bad(format!("link error {e} is not a finite number ≥ 0"));
+        }
+        Some(_) if row.links.is_empty() => return bad("a link error without links".into()),
+        _ => {}
     }
     match (&row.values, layout) {
         (RowValues::Skipped, _) if row.dropped.to_bits() != 0 => {
@@ -287,7 +294,10 @@ pub(crate) fn encode_raw(
                 (spec::ROW_FLAG_SPARSE, cols.len() as u32)
             }
             RowValues::Sparse { cols, .. } => (
-                spec::ROW_FLAG_SPARSE | spec::ROW_FLAG_LINKS | spec::ROW_FLAG_SLOPES,
+                spec::ROW_FLAG_SPARSE
+                    | spec::ROW_FLAG_LINKS
+                    | spec::ROW_FLAG_SLOPES
+                    | r.link_error.map_or(0, |_| spec::ROW_FLAG_LINK_ERROR),
                 cols.len() as u32,
             ),
             RowValues::Skipped => {
@@ -319,6 +329,9 @@ pub(crate) fn encode_raw(
                 put_words(&mut out, vals.iter().map(|x| x.to_bits()), shuffle);
                 if !r.links.is_empty() {
                     put_links(&mut out, &r.links, shuffle);
+                    if let Some(e) = r.link_error {
+                        out.extend_from_slice(&e.to_le_bytes());
+                    }
                 }
             }
             RowValues::Skipped => {}
@@ -474,6 +487,25 @@ impl DecodedChunk {
             })
             .ok_or_else(|| format!("row {}: data out of bounds", e.row))?;
         let (data, link_data) = all.split_at(e.data_len() as usize);
+        // The link error, last (its length is in data_len_in's).
+        let (link_data, link_error) = match e.flags & spec::ROW_FLAG_LINK_ERROR {
+            0 => (link_data, None),
+            _ => {
+                let at = link_data
+                    .len()
+                    .checked_sub(4)
+                    .ok_or_else(|| format!("row {}: the link error flag with no link", e.row))?;
+                let (links, error) = link_data.split_at(at);
+                let x = f32::from_le_bytes(error.try_into().expect("4 bytes"));
+                if !(x.is_finite() && x >= 0.0) {
+                    return Err(format!(
+                        "row {}: link error {x} is not a finite number ≥ 0",
+                        e.row
+                    ));
+                }
+                (links, Some(x))
+            }
+        };
         let links = match link_data.len() {
             0 => Vec::new(),
             4 => return Err(format!("row {}: the links flag with no link", e.row)),
@@ -518,6 +550,7 @@ impl DecodedChunk {
             values,
             dropped: e.dropped,
             links,
+            link_error,
         };
         if !row.links.is_empty() && !links_match_dropped(row.linked_sum(), row.dropped) {
             return Err(format!(
@@ -643,10 +676,14 @@ pub fn decode_record(
         if e.flags & spec::ROW_FLAG_SLOPES != 0 && e.flags & spec::ROW_FLAG_LINKS == 0 {
             return Err(bad("link slopes on a row without links"));
         }
+        if e.flags & spec::ROW_FLAG_LINK_ERROR != 0 && e.flags & spec::ROW_FLAG_LINKS == 0 {
+            return Err(bad("a link error on a row without links"));
+        }
         let known = spec::ROW_FLAG_SKIPPED
             | spec::ROW_FLAG_SPARSE
             | spec::ROW_FLAG_LINKS
-            | spec::ROW_FLAG_SLOPES;
+            | spec::ROW_FLAG_SLOPES
+            | spec::ROW_FLAG_LINK_ERROR;
         if e.flags & !known != 0 {
             return Err(bad(&format!("unknown row flags {:#x}", e.flags)));
         }
@@ -707,6 +744,25 @@ pub fn decode_record(
 mod tests {
     use super::*;
 
+    /// The one row of a one-row chunk `bytes`, or the decoder's message.
+    fn decode_one(bytes: &[u8], n: u32, layout: Layout) -> Result<Row, String> {
+        let (h, _) = check_record(bytes).unwrap();
+        let d = decode_record(h, bytes, n, layout).map_err(|e| e.1)?;
+        d.row(&d.entries()[0], n)
+    }
+
+    /// `row` comes back unchanged from a one-row chunk, shuffled or not.
+    fn assert_round_trips(row: &Row, n: u32, layout: Layout) {
+        for shuffle in [false, true] {
+            let enc = ChunkEncoding {
+                zstd_level: 1,
+                shuffle,
+            };
+            let c = encode_chunk_with(std::slice::from_ref(row), layout, n, enc).unwrap();
+            assert_eq!(decode_one(&c.bytes, n, layout).unwrap(), *row);
+        }
+    }
+
     #[test]
     fn shuffle_round_trips() {
         let w: Vec<u32> = (0..37).map(|i| i * 0x0102_0304 + 7).collect();
@@ -732,6 +788,7 @@ mod tests {
                 },
                 dropped: 0.125,
                 links: Vec::new(),
+                link_error: None,
             },
             Row::skipped(1),
             Row {
@@ -742,6 +799,7 @@ mod tests {
                 },
                 dropped: 0.0,
                 links: Vec::new(),
+                link_error: None,
             },
         ];
         let layout = Layout::TopK { k: 3 };
@@ -767,6 +825,7 @@ mod tests {
             },
             dropped: 0.0,
             links: Vec::new(),
+            link_error: None,
         };
         let cases: Vec<(Row, Layout)> = vec![
             (Row::dense(0, vec![1.0; 3]), dense),
@@ -823,20 +882,10 @@ mod tests {
                 link(0, 3, 0.25, [0.5, -0.25, 0.0]),
                 link(4, 4, 0.125, [0.0, 0.0, 1.5]),
             ],
+            link_error: None,
         };
-        let decode = |bytes: &[u8]| {
-            let (h, _) = check_record(bytes).unwrap();
-            let d = decode_record(h, bytes, n, layout).map_err(|e| e.1)?;
-            d.row(&d.entries()[0], n)
-        };
-        for shuffle in [false, true] {
-            let enc = ChunkEncoding {
-                zstd_level: 1,
-                shuffle,
-            };
-            let c = encode_chunk_with(std::slice::from_ref(&row), layout, n, enc).unwrap();
-            assert_eq!(decode(&c.bytes).unwrap(), row);
-        }
+        let decode = |bytes: &[u8]| decode_one(bytes, n, layout);
+        assert_round_trips(&row, n, layout);
         let enc = ChunkEncoding {
             zstd_level: 1,
             shuffle: false,
@@ -858,5 +907,83 @@ mod tests {
         bad[4..8].copy_from_slice(&(spec::ROW_FLAG_SPARSE | spec::ROW_FLAG_SLOPES).to_le_bytes());
         let e = decode(&record(&bad, 1, enc).unwrap()).unwrap_err();
         assert!(e.contains("slopes"), "{e}");
+    }
+
+    /// A row's link error (spec §5.7, LINK_ERROR) round-trips, shuffled or not, after
+    /// its links; a row without one carries no flag and no bytes; the encoder refuses
+    /// one that is not finite and ≥ 0, or one without links, and the decoder a stored
+    /// one that is negative or NaN, or the flag on a row without links.
+    #[test]
+    fn a_link_error_round_trips_after_the_links_and_bad_ones_are_refused() {
+        let (n, layout) = (8, Layout::TopK { k: 1 });
+        let row = Row {
+            index: 2,
+            values: RowValues::Sparse {
+                cols: vec![5],
+                vals: vec![0.5],
+            },
+            dropped: 0.25,
+            links: vec![Link {
+                start: 0,
+                len: 3,
+                value: 0.25,
+                slope: [0.5, 0.0, 0.0],
+            }],
+            link_error: Some(0.0625),
+        };
+        let decode = |bytes: &[u8]| decode_one(bytes, n, layout);
+        assert_round_trips(&row, n, layout);
+        let raw = |r: &Row| encode_raw(std::slice::from_ref(r), layout, n, false).map(|p| p.bytes);
+        let with = raw(&row).unwrap();
+        let without = raw(&Row {
+            link_error: None,
+            ..row.clone()
+        })
+        .unwrap();
+        assert_eq!(with.len(), without.len() + 4);
+        assert_eq!(&with[with.len() - 4..], &0.0625f32.to_le_bytes());
+        let flags = |b: &[u8]| u32::from_le_bytes(b[4..8].try_into().unwrap());
+        assert_eq!(
+            flags(&with) & spec::ROW_FLAG_LINK_ERROR,
+            spec::ROW_FLAG_LINK_ERROR
+        );
+        assert_eq!(flags(&without) & spec::ROW_FLAG_LINK_ERROR, 0);
+        for bad in [f32::NAN, -1.0, f32::INFINITY] {
+            let r = Row {
+                link_error: Some(bad),
+                ..row.clone()
+            };
+            assert!(raw(&r).is_err(), "{bad} accepted");
+        }
+        let unlinked = Row {
+            links: Vec::new(),
+            dropped: 0.0,
+            ..row.clone()
+        };
+        assert!(
+            raw(&unlinked).is_err(),
+            "a link error without links accepted"
+        );
+        let enc = ChunkEncoding {
+            zstd_level: 1,
+            shuffle: false,
+        };
+        for bad in [-1.0f32, f32::NAN] {
+            let mut b = with.clone();
+            let at = b.len() - 4;
+            b[at..].copy_from_slice(&bad.to_le_bytes());
+            let e = decode(&record(&b, 1, enc).unwrap()).unwrap_err();
+            assert!(e.contains("link error"), "{e}");
+        }
+        // The flag on a row without links: the chunk is refused.
+        let mut b = raw(&Row {
+            link_error: None,
+            ..unlinked
+        })
+        .unwrap();
+        let f = flags(&b) | spec::ROW_FLAG_LINK_ERROR;
+        b[4..8].copy_from_slice(&f.to_le_bytes());
+        let (h, _) = check_record(&record(&b, 1, enc).unwrap()).unwrap();
+        assert!(decode_record(h, &record(&b, 1, enc).unwrap(), n, layout).is_err());
     }
 }

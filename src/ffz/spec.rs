@@ -55,6 +55,8 @@ pub const ROW_FLAG_SPARSE: u32 = 2;
 pub const ROW_FLAG_LINKS: u32 = 4;
 /// Row directory flag (§5.7, only with `ROW_FLAG_LINKS`): each link carries a slope.
 pub const ROW_FLAG_SLOPES: u32 = 8;
+/// Row flag (§5.7): a row with links ends with the writer's estimate of their error.
+pub const ROW_FLAG_LINK_ERROR: u32 = 16;
 /// Header flag (§3.1, §4.3): the meta block holds a cluster order and rows may link to
 /// clusters of it (§5.7). Only with the top-k layout.
 pub const HEADER_FLAG_CLUSTERS: u32 = 1;
@@ -431,7 +433,7 @@ impl RowDirEntryV1 {
 
     /// Bytes of row data this entry describes inside `raw`, the decompressed payload:
     /// [`RowDirEntryV1::data_len`], plus for a row with links (§5.7) the link count
-    /// and the links, whose count is read from the payload. `None` when that count
+    /// and the links, whose count is read from the payload, and its link error if any. `None` when that count
     /// lies beyond the payload or cannot be a count of disjoint ranges of `n` positions.
     pub(crate) fn data_len_in(&self, raw: &[u8], n: u32) -> Option<u64> {
         let entries = self.data_len();
@@ -440,7 +442,11 @@ impl RowDirEntryV1 {
         }
         let at = usize::try_from(self.offset.checked_add(entries)?).ok()?;
         let m = u32::from_le_bytes(raw.get(at..at.checked_add(4)?)?.try_into().ok()?);
-        (m <= n).then(|| entries + 4 + self.link_len() * u64::from(m))
+        let error = match self.flags & ROW_FLAG_LINK_ERROR {
+            0 => 0,
+            _ => 4,
+        };
+        (m <= n).then(|| entries + 4 + self.link_len() * u64::from(m) + error)
     }
 
     /// Bytes of one link (§5.7): 12, or 24 with slopes.

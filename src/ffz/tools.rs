@@ -287,6 +287,15 @@ pub fn verify_with(path: &Path, checks: VerifyChecks<'_>, out: &mut dyn Write) -
         let (lo, hi, mean) = rep.sky_view();
         writeln!(out, "{}", sky_view_line(lo, hi, mean)).map_err(&e)?;
     }
+    if let Some((row, max)) = rep.link_error_max {
+        writeln!(
+            out,
+            "link error:  mean {:.3e} max {max:.3e} (row {row}) over {} rows: the writer's estimate of the relative error links make in what a row gathers (spec §5.7)",
+            rep.link_error_sum / rep.link_error_rows as f64,
+            rep.link_error_rows
+        )
+        .map_err(&e)?;
+    }
     if let Some((row, sum)) = rep.worst_above_one {
         writeln!(
             out,

@@ -119,6 +119,11 @@ pub struct VerifyReport {
     /// The first faulty row and what is wrong with it ([`Row::faults`]).
     pub(crate) first_row_fault: Option<(u32, String)>,
     pub reciprocity: Option<Reciprocity>,
+    /// The writer's link errors (spec §5.7, LINK_ERROR): rows that have one, their
+    /// sum, and the largest with its row.
+    pub(crate) link_error_rows: u64,
+    pub(crate) link_error_sum: f64,
+    pub(crate) link_error_max: Option<(u32, f32)>,
 }
 
 impl VerifyReport {
@@ -360,6 +365,13 @@ impl FfzReader {
             let s = row.true_sum();
             rep.rows_checked += 1;
             rep.dropped_max = rep.dropped_max.max(row.dropped as f64);
+            if let Some(x) = row.link_error {
+                rep.link_error_rows += 1;
+                rep.link_error_sum += f64::from(x);
+                if rep.link_error_max.is_none_or(|(_, m)| x > m) {
+                    rep.link_error_max = Some((row.index, x));
+                }
+            }
             rep.row_sum_min = rep.row_sum_min.min(s);
             rep.row_sum_max = rep.row_sum_max.max(s);
             *sum_total += s;

@@ -70,6 +70,11 @@ pub(crate) enum Stream {
     Mc = 2,
     /// Top-k with a sampled tail: the systematic sample of a row's tail (j = u32::MAX).
     TopKTail = 3,
+    /// The emitters drawn for a patch's first-bounce radiosity (`engine/first_bounce.rs`;
+    /// j = u32::MAX).
+    FirstBounce = 4,
+    /// The points drawn for a patch's second-bounce radiosity (j = u32::MAX).
+    SecondBounce = 5,
 }
 
 /// A draw below `n` from 32 random bits r: ⌊r · n / 2³²⌋ (multiply-shift, bias

@@ -57,6 +57,7 @@ pub(crate) fn top_k_row(
         values: RowValues::Sparse { cols, vals },
         dropped: dropped as f32,
         links: Vec::new(),
+        link_error: None,
     }
 }
 

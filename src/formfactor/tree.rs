@@ -221,8 +221,7 @@ impl PatchTree {
         &self.nodes[id as usize]
     }
 
-    /// Number of nodes.
-    #[cfg(test)]
+    /// Number of nodes (ids 0..len).
     pub(crate) fn len(&self) -> usize {
         self.nodes.len()
     }

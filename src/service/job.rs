@@ -72,6 +72,54 @@ pub struct WorkerStats {
     pub(crate) peak_rss: u64,
     /// How the visibility of its pairs was found.
     pub(crate) pairs: PairRoutes,
+    /// The link errors of its rows (spec §5.7).
+    pub(crate) links: LinkErrors,
+}
+
+/// The writer's link errors of the rows computed (spec §5.7, `Row::link_error`): how
+/// many rows have one, their sum and the largest with its row.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub(crate) struct LinkErrors {
+    pub(crate) rows: u64,
+    pub(crate) sum: f64,
+    pub(crate) max: Option<(u32, f32)>,
+}
+
+impl LinkErrors {
+    pub(crate) fn add(&mut self, row: u32, e: f32) {
+        self.merge(&LinkErrors {
+            rows: 1,
+            sum: f64::from(e),
+            max: Some((row, e)),
+        });
+    }
+
+    /// Both together; of equal largest errors the lower row, so that the result does
+    /// not depend on the order rows were added in.
+    pub(crate) fn merge(&mut self, o: &LinkErrors) {
+        self.rows += o.rows;
+        self.sum += o.sum;
+        self.max = match (self.max, o.max) {
+            (Some(a), Some(b)) => Some(
+                if (b.1, std::cmp::Reverse(b.0)) > (a.1, std::cmp::Reverse(a.0)) {
+                    b
+                } else {
+                    a
+                },
+            ),
+            (a, b) => a.or(b),
+        };
+    }
+
+    /// The report's line, if any row has a link error.
+    pub(crate) fn summary(&self) -> Option<String> {
+        let (row, max) = self.max?;
+        Some(format!(
+            "link error: mean {:.3e} max {max:.3e} (row {row}) over {} rows: the estimated relative error links make in what a row gathers (spec §5.7; stored per row, `verify` reads it back)",
+            self.sum / self.rows.max(1) as f64,
+            self.rows
+        ))
+    }
 }
 
 impl WorkerStats {
@@ -140,6 +188,14 @@ impl ComputeReport {
         }
         s.push('\n');
         s.push_str(&WorkerStats::routes(&self.workers).pairs.summary());
+        let mut links = LinkErrors::default();
+        for w in &self.workers {
+            links.merge(&w.links);
+        }
+        if let Some(line) = links.summary() {
+            s.push('\n');
+            s.push_str(&line);
+        }
         for w in &self.workers {
             s.push_str(&format!(
                 "\nworker rank {}: {} rows, {} threads, busy {:.2} s ({:.0}% of wall x threads), peak RSS {:.1} MB",

@@ -78,6 +78,7 @@ fn rows_of_bucket(bucket: &[(u32, u32, f32)], base: u32, len: u32) -> Vec<Row> {
                 },
                 dropped: 0.0,
                 links: Vec::new(),
+                link_error: None,
             });
         }
     }

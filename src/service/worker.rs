@@ -19,6 +19,7 @@ use crossbeam::channel::{bounded, unbounded, Receiver, RecvTimeoutError, Sender}
 use crate::ffz::{encode_chunk, raw_row_len, EncodedChunk, Layout};
 use crate::formfactor::{RowEngine, Scratch};
 use crate::rows::Row;
+use crate::service::job::LinkErrors;
 use crate::service::link::WorkerLink;
 use crate::service::rss::peak_rss_bytes;
 use crate::service::symmetric::{in_run, HalfRowBuffer, PIECE_ZSTD_LEVEL};
@@ -117,6 +118,7 @@ pub(crate) fn run_worker(
     let busy_nanos = AtomicU64::new(0);
     let stop = AtomicBool::new(false);
     let pairs = Mutex::new(PairRoutes::default());
+    let links = Mutex::new(LinkErrors::default());
 
     let result = std::thread::scope(|s| {
         for t in 0..threads {
@@ -127,6 +129,7 @@ pub(crate) fn run_worker(
                 busy_nanos: &busy_nanos,
                 stop: &stop,
                 pairs: &pairs,
+                links: &links,
             };
             std::thread::Builder::new()
                 .name(format!("compute-{t}"))
@@ -152,6 +155,7 @@ pub(crate) fn run_worker(
         threads: threads as u32,
         peak_rss: peak_rss_bytes(),
         pairs: *pairs.lock().unwrap_or_else(|e| e.into_inner()),
+        links: *links.lock().unwrap_or_else(|e| e.into_inner()),
     };
     result?;
     link.done(stats.clone())?;
@@ -259,6 +263,8 @@ struct Counters<'a> {
     stop: &'a AtomicBool,
     /// The pair counts of every thread, added when it finishes.
     pairs: &'a Mutex<PairRoutes>,
+    /// The link errors of every thread's rows, added when it finishes.
+    links: &'a Mutex<LinkErrors>,
 }
 
 /// What a compute thread has computed and not yet handed to the driver.
@@ -290,13 +296,15 @@ impl Pending {
         }
     }
 
-    /// Compute row i (or its half) into the pending work.
-    fn compute(&mut self, engine: &RowEngine, i: u32, scratch: &mut Scratch) {
+    /// Compute row i (or its half) into the pending work; its link error, if any.
+    fn compute(&mut self, engine: &RowEngine, i: u32, scratch: &mut Scratch) -> Option<f32> {
         match self {
             Pending::Rows { rows, bytes } => {
                 let row = engine.compute_row(i, scratch);
                 *bytes += raw_row_len(&row);
+                let error = row.link_error;
                 rows.push(row);
+                error
             }
             Pending::Half {
                 buf,
@@ -306,6 +314,7 @@ impl Pending {
             } => {
                 engine.half_row(i, in_run, scratch, own, mirrored);
                 buf.add(i, own, mirrored);
+                None
             }
         }
     }
@@ -368,7 +377,9 @@ fn compute_thread(
         busy_nanos,
         stop,
         pairs,
+        links,
     } = counters;
+    let mut errors = LinkErrors::default();
     let mut scratch = Scratch::default();
     let mut pending = Pending::new(cfg);
     let mut oldest: Option<Instant> = None;
@@ -410,6 +421,9 @@ fn compute_thread(
                 });
                 break;
             }
+            if let Ok(Some(e)) = done {
+                errors.add(i, e);
+            }
             oldest.get_or_insert_with(Instant::now);
             computed.fetch_add(1, Ordering::Relaxed);
         }
@@ -429,6 +443,10 @@ fn compute_thread(
         .lock()
         .unwrap_or_else(|e| e.into_inner())
         .add(&PairRoutes::of(&scratch.counters()));
+    links
+        .lock()
+        .unwrap_or_else(|e| e.into_inner())
+        .merge(&errors);
 }
 
 fn panic_message(p: &(dyn std::any::Any + Send)) -> String {

@@ -188,6 +188,7 @@ mod tests {
             },
             dropped: 1.0 - val,
             links: Vec::new(),
+            link_error: None,
         };
         let rows = vec![row(0, 1, 0.6), row(1, 0, 0.6), row(2, 0, 0.5)];
         let rho = vec![[0.5f32; 3]; 3];

@@ -266,6 +266,7 @@ mod tests {
             },
             dropped: 0.25,
             links: Vec::new(),
+            link_error: None,
         };
         let v = RowView::new(&row, 4, true, true).unwrap().unwrap();
         assert!((v.scale - 1.0 / 0.75).abs() < 1e-15);
@@ -311,6 +312,7 @@ mod tests {
             },
             dropped: 0.0,
             links: Vec::new(),
+            link_error: None,
         };
         let v = RowView::new(&far, 3, true, true).unwrap().unwrap();
         let mut acc = vec![0.0; 3];

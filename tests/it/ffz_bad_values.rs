@@ -37,6 +37,7 @@ fn sparse_with(bad: Row) -> Vec<Row> {
                 },
                 dropped: 0.125,
                 links: Vec::new(),
+                link_error: None,
             }
         })
         .collect()
@@ -63,6 +64,7 @@ fn sparse(vals: [f32; 2], dropped: f32) -> Row {
         },
         dropped,
         links: Vec::new(),
+        link_error: None,
     }
 }
 
@@ -210,6 +212,7 @@ fn a_row_storing_nothing_but_dropped_mass_is_reported_by_verify_and_solve() {
         },
         dropped: 0.375,
         links: Vec::new(),
+        link_error: None,
     };
     let f = build(
         tmp.path(),

@@ -102,6 +102,7 @@ pub(crate) fn row(seed: u64, i: u32, n: u32, layout: Layout) -> Row {
                 values: RowValues::Sparse { cols, vals },
                 dropped: if empty { 0.0 } else { r.next_f32() * 1e-3 },
                 links: Vec::new(),
+                link_error: None,
             }
         }
     }

@@ -81,6 +81,7 @@ fn spec_rows(lines: &[String]) -> Vec<Row> {
                         },
                         dropped: t[d + 1].parse().unwrap(),
                         links,
+                        link_error: None,
                     }
                 }
                 other => panic!("unknown row kind {other}"),
@@ -167,6 +168,7 @@ fn example(kind: Example) -> (FileMeta, Vec<Vec<Row>>) {
             values: RowValues::Sparse { cols, vals },
             dropped: links.iter().map(|l| l.value).sum(),
             links,
+            link_error: None,
         };
         let chunks = vec![vec![
             row(0, vec![2], vec![0.5], vec![link(1, 2, 0.125, [0.0; 3])]),
@@ -187,6 +189,7 @@ fn example(kind: Example) -> (FileMeta, Vec<Vec<Row>>) {
             values: RowValues::Sparse { cols, vals },
             dropped,
             links: Vec::new(),
+            link_error: None,
         };
         let chunks = vec![
             vec![sparse(2, vec![0], vec![0.5], 0.125), Row::skipped(1)],

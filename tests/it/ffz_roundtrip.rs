@@ -68,6 +68,7 @@ fn empty_rows_and_n_one() {
             },
             dropped: 0.0,
             links: Vec::new(),
+            link_error: None,
         },
         Row {
             index: 0,
@@ -77,6 +78,7 @@ fn empty_rows_and_n_one() {
             },
             dropped: 0.25,
             links: Vec::new(),
+            link_error: None,
         },
     ];
     write(&p, &m, &rows, 1);

@@ -104,6 +104,7 @@ fn sparse_reciprocity_uses_only_pairs_stored_both_ways() {
         values: RowValues::Sparse { cols, vals },
         dropped: 0.0,
         links: Vec::new(),
+        link_error: None,
     };
     // A_0 F_01 = 0.4, A_1 F_10 = 2 · 0.25 = 0.5 → error 0.1 / 0.5 = 0.2.
     // F_03 = 0.1 but row 3 does not store column 0: not a stored pair.

@@ -49,6 +49,23 @@ fn worst(
     out
 }
 
+/// Every row of `linked` with links carries a link error (spec §5.7), and none is
+/// below the true relative error of what its row gathers, measured with the dense rows
+/// of `dense` (same mesh) and their solve's radiosity (`tests/python/link_error.py`).
+fn link_errors_hold(dense: &Path, linked: &Path) {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let out = std::process::Command::new("python3")
+        .arg(root.join("tests/python/link_error.py"))
+        .arg(root.join("formats"))
+        .args([dense, linked, &dense.with_extension("csv")])
+        .output()
+        .expect("python3");
+    let text =
+        String::from_utf8_lossy(&out.stdout).into_owned() + &String::from_utf8_lossy(&out.stderr);
+    eprintln!("link errors of {}: {text}", linked.display());
+    assert!(out.status.success(), "{text}");
+}
+
 fn compute(dir: &Path, name: &str, extra: &[&str]) -> std::path::PathBuf {
     compute_scene(dir, "builtin:room", name, extra)
 }
@@ -77,17 +94,16 @@ fn solve(file: &Path) -> BTreeMap<String, [f64; 3]> {
 #[test]
 fn links_put_the_rooms_light_where_dense_rows_put_it_and_the_pool_does_not() {
     let dir = tempfile::tempdir().unwrap();
-    let dense = solve(&compute(dir.path(), "dense", &[]));
+    let dense_file = compute(dir.path(), "dense", &[]);
+    let dense = solve(&dense_file);
     let pool = solve(&compute(
         dir.path(),
         "pool",
         &["--top-k", "64", "--links", "off"],
     ));
-    let links = solve(&compute(
-        dir.path(),
-        "links",
-        &["--top-k", "64", "--links", "256"],
-    ));
+    let links_file = compute(dir.path(), "links", &["--top-k", "64", "--links", "256"]);
+    let links = solve(&links_file);
+    link_errors_hold(&dense_file, &links_file);
     let (e_pool, g_pool) = worst(&dense, &pool);
     let (e_links, g_links) = worst(&dense, &links);
     eprintln!("worst surface: pool {e_pool:.3} ({g_pool}), links {e_links:.3} ({g_links})");
@@ -236,24 +252,22 @@ fn links_keep_light_in_the_lit_room_and_near_the_lit_end_where_the_pool_spreads_
         (corridor(dir.path()), "corridor"),
     ] {
         let scene = path_str(&scene);
-        let dense = solve(&compute_scene(
-            dir.path(),
-            scene,
-            &format!("{name}_dense"),
-            &[],
-        ));
+        let dense_file = compute_scene(dir.path(), scene, &format!("{name}_dense"), &[]);
+        let dense = solve(&dense_file);
         let pool = solve(&compute_scene(
             dir.path(),
             scene,
             &format!("{name}_pool"),
             &["--top-k", "32", "--links", "off"],
         ));
-        let links = solve(&compute_scene(
+        let links_file = compute_scene(
             dir.path(),
             scene,
             &format!("{name}_links"),
             &["--top-k", "32"],
-        ));
+        );
+        let links = solve(&links_file);
+        link_errors_hold(&dense_file, &links_file);
         let (e_pool, g_pool) = worst(&dense, &pool);
         let (e_links, g_links) = worst(&dense, &links);
         eprintln!(

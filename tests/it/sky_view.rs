@@ -328,6 +328,7 @@ fn a_top_k_row_above_one_only_by_its_dropped_mass_is_reported_not_failed() {
         },
         dropped,
         links: Vec::new(),
+        link_error: None,
     };
     // Row 0: stored 0.5, dropped 0.6 (an overestimated tail): a warning.
     let tail = dir.path().join("tail.ffz");

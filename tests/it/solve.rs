@@ -126,6 +126,7 @@ fn ring_rows(n: usize, keep: Option<usize>) -> (Vec<Row>, f64) {
                 values: RowValues::Sparse { cols, vals },
                 dropped: dropped as f32,
                 links: Vec::new(),
+                link_error: None,
             }
         })
         .collect();
@@ -826,6 +827,7 @@ fn sphere_top_50(n: usize, seed: u64) -> (Vec<f64>, Vec<usize>, MemoryRows) {
             },
             dropped: dropped as f32,
             links: Vec::new(),
+            link_error: None,
         })
         .collect();
     let src = source(&areas, rows);
@@ -907,6 +909,7 @@ fn the_pooled_solve_solves_the_documented_matrix_and_conserves_power() {
                 values: RowValues::Sparse { cols, vals },
                 dropped: (1.0 - stored) as f32,
                 links: Vec::new(),
+                link_error: None,
             }
         })
         .collect();

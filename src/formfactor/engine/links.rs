@@ -25,8 +25,16 @@
 //!    the same over the cluster (a link then places the light exactly, whatever the
 //!    radiosity), large near the row patch, where the kernel varies and the bound is
 //!    loose. It is the kernel-variation oracle of hierarchical radiosity with the
-//!    tree's cheap bounds in place of sampled kernel values. A leaf is not split; a
-//!    cluster that holds nothing the row dropped gets no link.
+//!    tree's cheap bounds in place of sampled kernel values. When something emits,
+//!    the spread also counts the radiosity: it is then the kernel's spread times the
+//!    scene's mean first-bounce radiosity B¹ plus the bound on Σ F⁰_ij times how much
+//!    B¹ varies over the cluster (`first_bounce.rs`), and the tolerance is scaled by
+//!    that mean. The second term is hierarchical radiosity's BF refinement with B¹ in
+//!    place of the solution: a link to a cluster whose radiosity is flat gathers it
+//!    exactly however the row's form factor lies inside, while a cluster holding the
+//!    pool of light under a lamp or a shadow's edge is opened (`builtin:room`, 256
+//!    links: worst surface 2.1 → 1.3 % at 3k patches, bench/LINKS.md). A leaf is not
+//!    split; a cluster that holds nothing the row dropped gets no link.
 //! 2. **The mass.** Each link's value is the exact mass of the columns the search
 //!    evaluated and did not keep (pushed out of the top k, below `--min-ff`, or
 //!    unoccludable tail columns) plus an estimate of the rest: tail columns that need
@@ -45,8 +53,19 @@
 //!    cost. The link stores the slope q of the linear weights A_j (1 + q · (x_j − x̄))
 //!    (spec §5.7) whose centroid is that one ([`link_slope`]). This is the linear
 //!    term of the link's distribution: with one sample a link it is a noisy estimate,
-//!    limited so that no weight is negative. Higher-order variation (a bright patch
-//!    under the lamp inside a floor cluster) is left to the cut.
+//!    limited so that no weight is negative. The same samples give the F-weighted
+//!    mean of B¹ over the link; the slope is then moved, as little as it can be in the
+//!    weights' own metric, until the weights gather that mean of B¹: where the
+//!    radiosity is B¹ plus a smooth remainder, the link then gathers what the row's
+//!    form factor would. Higher-order variation (a bright patch under the lamp inside
+//!    a floor cluster) is left to the cut.
+//!
+//! 4. **The link error.** The same estimate of the radiosity, its second bounce
+//!    added, measures what the row's links may get wrong: their placement (each
+//!    link's mass times the range of the radiosity over its cluster) and their
+//!    sampling (two standard errors), over what the row gathers ([`LinkSpread`]). It is
+//!    stored with the row (spec §5.7) and checked against the true error of rows
+//!    against dense rows in `tests/it/links.rs`.
 //!
 //! The kept entries are those of the row without links, bit for bit; the dropped mass
 //! stored is the sum of the links (spec §5.7), so a reader that ignores links reads the
@@ -55,8 +74,9 @@
 use std::cmp::Reverse;
 use std::collections::BinaryHeap;
 
-use glam::DVec3;
+use glam::{DVec3, DVec4};
 
+use super::first_bounce::Contrast;
 use super::topk_bounded::systematic;
 use super::topk_tree::Tail;
 use super::{RowEngine, Scratch};
@@ -134,9 +154,9 @@ impl RowEngine {
         exact: &[(u32, f64)],
         tail: &[Tail],
         scratch: &mut Scratch,
-    ) -> Vec<Link> {
+    ) -> (Vec<Link>, LinkSpread) {
         let Some(root) = tree.root() else {
-            return Vec::new();
+            return (Vec::new(), LinkSpread::default());
         };
         let at = |j: u32| {
             tree.position(j)
@@ -167,8 +187,15 @@ impl RowEngine {
             + d.columns.iter().map(|x| x.2).sum::<f64>()
             + d.nodes.iter().map(|x| x.3).sum::<f64>();
         let cut = self.link_cut(tree, root, row, &d, max, self.cfg.link_tol * total);
-        let (exact, evaluated, sampled, all, lean) =
-            self.link_values(tree, i, row, t, &d, &cut, scratch);
+        let LinkValues {
+            exact,
+            evaluated,
+            sampled,
+            points,
+            unoccluded,
+            all,
+            lean,
+        } = self.link_values(tree, i, row, t, &d, &cut, scratch);
         // In a closed scene the row's total is known better from hemisphere rays than
         // from the links' samples: what the link phase found (sampled or evaluated) is
         // scaled to that total less the known mass (a ratio estimate), so the row's
@@ -182,23 +209,34 @@ impl RowEngine {
             }
         }
         let mut links = Vec::with_capacity(cut.len());
-        for ((((&id, e), v), s), (known_x, found_x)) in
-            cut.iter().zip(exact).zip(evaluated).zip(sampled).zip(lean)
-        {
-            let mass = e + scale * (v + s);
+        // Per link of the cut, stored or not: (value, the scale of its sampled part's
+        // error, node id). That scale is the sampled part's mass without occluders
+        // over √points: one point's estimate can be 0 (a hidden patch) for a cluster
+        // that holds much visible mass, or a large multiple of a small visible part, so
+        // the realized value says little of its own error.
+        let mut spread = Vec::with_capacity(cut.len());
+        for (k, (&id, (known_x, found_x))) in cut.iter().zip(lean).enumerate() {
+            let mass = exact[k] + scale * (evaluated[k] + sampled[k]);
             let value = mass as f32;
-            if value.is_finite() && value > 0.0 {
+            let error = scale * unoccluded[k] / (points[k].max(1) as f64).sqrt();
+            let stored = value.is_finite() && value > 0.0;
+            spread.push((if stored { f64::from(value) } else { 0.0 }, error, id));
+            if stored {
                 let (a, b) = tree.range(id);
                 let centre = (known_x + scale * found_x) / mass;
                 links.push(Link {
                     start: a,
                     len: b - a,
                     value,
-                    slope: link_slope(tree, id, centre),
+                    slope: link_slope(tree, id, centre, self.contrast.as_ref()),
                 });
             }
         }
-        links
+        let spread = self
+            .contrast
+            .as_ref()
+            .map_or_else(LinkSpread::default, |c| LinkSpread::of(c, &spread));
+        (links, spread)
     }
 
     /// Step 1 (module docs): the clusters, as node ids in ascending order of position.
@@ -211,12 +249,18 @@ impl RowEngine {
         max: usize,
         tolerance: f64,
     ) -> Vec<u32> {
+        let contrast = self.contrast.as_ref();
+        let tolerance = tolerance * contrast.map_or(1.0, |c| c.scale);
         let spread = |id: u32| match tree.node(id).kids {
             Kids::Leaf => 0.0,
             Kids::Inner(..) => {
                 let b = tree.bound(id, row);
                 if b.sum.is_finite() {
-                    (b.sum - b.guess).max(0.0)
+                    let kernel = (b.sum - b.guess).max(0.0);
+                    match contrast {
+                        None => kernel,
+                        Some(c) => kernel * c.scale + b.sum * c.range[id as usize] as f64,
+                    }
                 } else {
                     f64::INFINITY
                 }
@@ -269,7 +313,15 @@ impl RowEngine {
         cut: &[u32],
         scratch: &mut Scratch,
     ) -> LinkValues {
-        let at = |j: u32| self.geom[j as usize].centroid;
+        // A patch's centroid and, as the fourth coordinate, its first-bounce radiosity
+        // (0 without): the first moments of step 3.
+        let at = |j: u32| {
+            let b = self
+                .contrast
+                .as_ref()
+                .map_or(0.0, |c| c.bounce[j as usize] as f64);
+            self.geom[j as usize].centroid.extend(b)
+        };
         // Each cluster's exact mass and sampled items.
         let mut exact = Vec::with_capacity(cut.len());
         let mut lean = Vec::with_capacity(cut.len());
@@ -283,8 +335,8 @@ impl RowEngine {
             let moment = known
                 .iter()
                 .map(|&(p, v)| v * at(order[p as usize]))
-                .sum::<DVec3>();
-            lean.push((moment, DVec3::ZERO));
+                .sum::<DVec4>();
+            lean.push((moment, DVec4::ZERO));
             let mut of: Vec<(Item, f64)> = within(&d.columns, |x| x.0, a, b)
                 .iter()
                 .map(|&(_, j, f0)| (Item::Column(j, f0), f0))
@@ -327,6 +379,8 @@ impl RowEngine {
             .map(|x| x.1)
             .sum();
         let mut rng = self.tail_rng(i);
+        let mut points = vec![0; cut.len()];
+        let mut unoccluded = vec![0.0; cut.len()];
         let mut sampled = vec![0.0; cut.len()];
         let mut evaluated = vec![0.0; cut.len()];
         for (k, of) in items.iter().enumerate() {
@@ -350,16 +404,14 @@ impl RowEngine {
             } else {
                 let w: f64 = of.iter().map(|x| x.1).sum();
                 if w.is_finite() && w > 0.0 && weight > 0.0 {
-                    let points = ((t as f64 * w / weight).round() as usize).max(1);
+                    let p = ((t as f64 * w / weight).round() as usize).max(1);
+                    points[k] = p;
+                    unoccluded[k] = w;
                     // Σ (value / weight) x of the samples: times the step below, the
                     // first moment of the estimate.
-                    let mut moment = DVec3::ZERO;
-                    sampled[k] = systematic(
-                        of.iter().copied(),
-                        w,
-                        points,
-                        &mut rng,
-                        |x, hits, rng| match (x, hits) {
+                    let mut moment = DVec4::ZERO;
+                    sampled[k] = systematic(of.iter().copied(), w, p, &mut rng, |x, hits, rng| {
+                        match (x, hits) {
                             (_, 0) => 0.0,
                             (Item::Column(j, f0), _) => {
                                 let v = hits as f64 * self.visibility_fraction(i, j, f0, scratch);
@@ -375,19 +427,99 @@ impl RowEngine {
                                     v / g
                                 })
                                 .sum(),
-                        },
-                    );
-                    lean[k].1 += moment * (w / points as f64);
+                        }
+                    });
+                    lean[k].1 += moment * (w / p as f64);
                 }
             }
         }
-        (exact, evaluated, sampled, evaluate_all, lean)
+        LinkValues {
+            exact,
+            evaluated,
+            sampled,
+            points,
+            unoccluded,
+            all: evaluate_all,
+            lean,
+        }
     }
 }
 
-/// What [`RowEngine::link_values`] finds: per link the known, evaluated and sampled
-/// masses, whether the whole tail was evaluated, and the first moments (known, rest).
-type LinkValues = (Vec<f64>, Vec<f64>, Vec<f64>, bool, Vec<(DVec3, DVec3)>);
+/// What [`RowEngine::link_values`] finds, per link of the cut.
+struct LinkValues {
+    /// The mass known before (columns not kept).
+    exact: Vec<f64>,
+    /// The mass evaluated now.
+    evaluated: Vec<f64>,
+    /// The sampled estimate of the rest, and the points it took (0: none sampled).
+    sampled: Vec<f64>,
+    points: Vec<usize>,
+    /// The estimate of the sampled part's mass without occluders (what the points were
+    /// shared out by).
+    unoccluded: Vec<f64>,
+    /// Whether the whole tail was evaluated.
+    all: bool,
+    /// The first moments (x and B¹, step 3) of the known mass and of the rest.
+    lean: Vec<(DVec4, DVec4)>,
+}
+
+/// Standard errors of the sampled link masses the link error allows for. The masses of
+/// one sample point are far from normal (a point on a visible patch of a mostly hidden
+/// cluster weighs the whole cluster's estimate); two are what kept every row of the
+/// 16-box room (1.5k and 10k patches), the two rooms and the corridor at or above its
+/// true error (`tests/it/links.rs`, bench/LINKS.md), one was not.
+const SAMPLING_SIGMAS: f64 = 2.0;
+
+/// A row's links measured against the radiosity of the first two bounces, B = B¹ + B²
+/// (`first_bounce.rs`; the row's link error, spec §5.7): see [`LinkSpread::error`].
+#[derive(Clone, Copy, Debug, Default)]
+pub(super) struct LinkSpread {
+    /// Σ_L F_L (max − min of B over L's cluster): the most the links' placement of
+    /// their mass can change the gathered B, their weights being ≥ 0.
+    placement: f64,
+    /// √Σ_L (σ_L (B̄_L − ḡ))²: the standard error that the sampling of the masses
+    /// (σ_L for link L, B̄_L its cluster's area mean of B; ḡ the links' mass-weighted
+    /// mean) gives the gathered B, the row's total being fixed.
+    sampling: f64,
+    /// Σ_L F_L B̄_L: what the links gather.
+    gathered: f64,
+    /// Whether B exists (something emits).
+    known: bool,
+}
+
+impl LinkSpread {
+    /// The spread of links given as (value, standard error of its mass, node id).
+    fn of(c: &Contrast, links: &[(f64, f64, u32)]) -> LinkSpread {
+        let mean = |id: u32| c.both_mean[id as usize];
+        let (mass, gathered) = links
+            .iter()
+            .fold((0.0, 0.0), |(m, g), &(v, _, id)| (m + v, g + v * mean(id)));
+        let centre = if mass > 0.0 { gathered / mass } else { 0.0 };
+        LinkSpread {
+            placement: links
+                .iter()
+                .map(|&(v, _, id)| v * c.both_range[id as usize] as f64)
+                .sum(),
+            sampling: links
+                .iter()
+                .map(|&(_, e, id)| (e * (mean(id) - centre)).powi(2))
+                .sum::<f64>()
+                .sqrt(),
+            gathered,
+            known: true,
+        }
+    }
+
+    /// The row's link error: (placement + [`SAMPLING_SIGMAS`] · sampling) over all the
+    /// row gathers of B, `kept` being what its kept entries gather (Σ F_ij B_j). `None`
+    /// without B, or when the row gathers none of it.
+    pub(super) fn error(&self, kept: f64) -> Option<f32> {
+        let total = kept + self.gathered;
+        (self.known && total > 0.0)
+            .then(|| ((self.placement + SAMPLING_SIGMAS * self.sampling) / total) as f32)
+            .filter(|e| e.is_finite())
+    }
+}
 
 /// Step 3 (module docs): the slope q of a link to node `id` whose mass has its
 /// centroid at `centre` (spec §5.7). The weights A_j (1 + q · (x_j − x̄)) over the
@@ -398,14 +530,29 @@ type LinkValues = (Vec<f64>, Vec<f64>, Vec<f64>, bool, Vec<(DVec3, DVec3)>);
 /// centroids, so that no weight is negative (the mass then leans less than it should,
 /// never the wrong way). The box holds more than the centroids, so this shrinks more
 /// than it must (bench/LINKS.md).
-fn link_slope(tree: &PatchTree, id: u32, centre: DVec3) -> [f32; 3] {
+///
+/// With a first-bounce estimate (`contrast`), `centre.w` is the F-weighted mean of B¹
+/// over the link, and before the limit q moves by δ = M⁺g (t − g · q) / (gᵀM⁺g), with
+/// g = Σ A_j (x_j − x̄) B¹_j and t = A centre.w − Σ A_j B¹_j: the least change, in
+/// the metric δᵀMδ = Σ A_j (δ · (x_j − x̄))² of the weights it moves, after which the
+/// weights' mean of B¹ is that target.
+fn link_slope(tree: &PatchTree, id: u32, centre: DVec4, contrast: Option<&Contrast>) -> [f32; 3] {
     let node = tree.node(id);
     let (area, mean, m) = node.moments();
-    let shift = centre - mean;
+    let shift = centre.truncate() - mean;
     if node.count() < 2 || !shift.is_finite() || area.is_nan() || area <= 0.0 {
         return [0.0; 3];
     }
-    let q = area * pseudo_solve(m, shift);
+    let mut q = area * pseudo_solve(m, shift);
+    if let Some(c) = contrast {
+        let (sum, g) = c.moments[id as usize];
+        let step = pseudo_solve(m, g);
+        let gg = g.dot(step);
+        let miss = area * centre.w - sum - q.dot(g);
+        if gg > 0.0 && (miss / gg).is_finite() {
+            q += step * (miss / gg);
+        }
+    }
     let (lo, hi) = node.centroid_bounds();
     // The least of q · (x − x̄) over the box: each axis at its worse end.
     let least: f64 = (0..3)
@@ -538,7 +685,9 @@ mod tests {
             let near = mean + 0.05 * (geom[pat[0] as usize].centroid - mean);
             let far = mean + 1e3 * (geom[pat[0] as usize].centroid - mean);
             for centre in [near, far] {
-                let q = DVec3::from_array(link_slope(&tree, id, centre).map(f64::from));
+                let q = DVec3::from_array(
+                    link_slope(&tree, id, centre.extend(0.0), None).map(f64::from),
+                );
                 let w: Vec<f64> = pat
                     .iter()
                     .map(|&j| {
@@ -574,5 +723,53 @@ mod tests {
         }
         // Near centres are reached (to the slopes' 5 bits) unless the box limits them.
         assert!(exact > tree.len() / 2, "{exact} of {} nodes", tree.len());
+    }
+
+    /// With a first-bounce estimate B¹, the slope is moved (least in the weights' own
+    /// metric) until the weights gather the target B¹ the link's samples found: for
+    /// every node of the room's tree over which B¹ varies, a target a little above the
+    /// node's area mean of B¹ is gathered to within the slope's rounding (4 bits).
+    #[test]
+    fn a_first_bounce_target_is_gathered_by_the_weights() {
+        let (tree, geom) = room_tree();
+        let b: Vec<f32> = geom
+            .iter()
+            .map(|g| (g.centroid.x * g.centroid.x + 0.5 * g.centroid.y + 3.0) as f32)
+            .collect();
+        let contrast = Contrast::new(&tree, b.clone(), &vec![0.0; b.len()], &geom);
+        let mut tried = 0;
+        for id in 0..tree.len() as u32 {
+            let node = tree.node(id);
+            let (area, mean, _) = node.moments();
+            let (sum, g) = contrast.moments[id as usize];
+            if node.count() < 2 || g.length() < 1e-3 * sum.abs() {
+                continue;
+            }
+            let pat = tree.patches_under(id);
+            let top = pat
+                .iter()
+                .map(|&j| b[j as usize] as f64)
+                .fold(f64::MIN, f64::max);
+            let target = sum / area + 0.02 * (top - sum / area);
+            let q = DVec3::from_array(
+                link_slope(&tree, id, mean.extend(target), Some(&contrast)).map(f64::from),
+            );
+            let w =
+                |j: u32| geom[j as usize].area * (1.0 + q.dot(geom[j as usize].centroid - mean));
+            let total: f64 = pat.iter().map(|&j| w(j)).sum();
+            let got = pat
+                .iter()
+                .map(|&j| w(j) * b[j as usize] as f64)
+                .sum::<f64>()
+                / total;
+            let asked = target - sum / area;
+            assert!(
+                (got - target).abs() <= 0.07 * asked.abs() + 1e-9,
+                "node {id}: gathered {got}, target {target} (mean {})",
+                sum / area
+            );
+            tried += 1;
+        }
+        assert!(tried > 10, "{tried} nodes tried");
     }
 }

@@ -143,6 +143,9 @@ pub struct RowEngine {
     /// hides (`topk_tree` step 4; off only in tests, which check that it changes no
     /// kept entry).
     cull_hidden: bool,
+    /// With links: how much the first-bounce radiosity varies over each tree node
+    /// (`first_bounce.rs`; `None` when nothing emits), which steers the links' cut.
+    contrast: Option<first_bounce::Contrast>,
 }
 
 /// Pair candidate lists (`Occluders::collect_between`) pay off only with few occluder
@@ -197,7 +200,7 @@ impl RowEngine {
             Solids::default()
         };
         static NEXT_ID: AtomicU64 = AtomicU64::new(0);
-        RowEngine {
+        let mut engine = RowEngine {
             solids,
             id: NEXT_ID.fetch_add(1, Ordering::Relaxed),
             occluders,
@@ -227,7 +230,15 @@ impl RowEngine {
             hide_margin,
             span,
             cull_hidden: true,
+            contrast: None,
+        };
+        if engine.cfg.links_rows() {
+            if let (Some(b), Some(tree)) = (engine.first_bounce(patches), &engine.tree) {
+                let second = engine.second_bounce(patches, tree, &b);
+                engine.contrast = Some(first_bounce::Contrast::new(tree, b, &second, &engine.geom));
+            }
         }
+        engine
     }
 
     /// The same engine without the hidden rows' node skipping (for tests: it must
@@ -745,6 +756,7 @@ struct Unoccluded {
 
 mod closure;
 mod exact;
+mod first_bounce;
 mod links;
 #[cfg(test)]
 mod tests;

@@ -328,6 +328,7 @@ impl Kept {
                 false => links.iter().map(|l| f64::from(l.value)).sum::<f64>() as f32,
             },
             links,
+            link_error: None,
         }
     }
 }

@@ -277,8 +277,13 @@ impl RowEngine {
         if let Some(max) = links {
             let mut exact = kept.out.take().unwrap_or_default();
             exact.extend(exact_columns);
-            let links = self.row_links(tree, i, &row, t, max, known, &exact, &tail, scratch);
-            return kept.into_linked_row(i, 0.0, links);
+            let (links, spread) =
+                self.row_links(tree, i, &row, t, max, known, &exact, &tail, scratch);
+            let mut out = kept.into_linked_row(i, 0.0, links);
+            if !out.links.is_empty() {
+                out.link_error = spread.error(self.kept_bounce(&out));
+            }
+            return out;
         }
         let tail_mass = exact_tail + self.tree_tail_mass(tree, i, &row, t, &tail, known, scratch);
         kept.into_row(i, tail_mass)

@@ -24,6 +24,7 @@
 use mpi::Tag;
 
 use crate::ffz::EncodedChunk;
+use crate::service::job::LinkErrors;
 use crate::service::{PairRoutes, ServiceError, WorkerStats};
 
 pub(crate) const REQUEST: Tag = 1;
@@ -133,9 +134,9 @@ pub(crate) fn decode_failed(v: &[u8], rank: i32) -> Result<(Option<u32>, String)
     Ok((row, String::from_utf8_lossy(&v[8..]).into_owned()))
 }
 
-/// Length of a DONE message: rows, busy seconds, threads, peak RSS, then the nine
-/// counts of [`PairRoutes`].
-const DONE_LEN: usize = 28 + 8 * 9;
+/// Length of a DONE message: rows, busy seconds, threads, peak RSS, the nine counts of
+/// [`PairRoutes`], then the link errors (rows, sum, row and value of the largest).
+const DONE_LEN: usize = 28 + 8 * 9 + 24;
 
 pub(crate) fn encode_done(s: &WorkerStats) -> Vec<u8> {
     let mut v = Vec::with_capacity(DONE_LEN);
@@ -146,6 +147,11 @@ pub(crate) fn encode_done(s: &WorkerStats) -> Vec<u8> {
     for x in s.pairs.to_words() {
         v.extend_from_slice(&x.to_le_bytes());
     }
+    let (row, max) = s.links.max.unwrap_or((0, 0.0));
+    v.extend_from_slice(&s.links.rows.to_le_bytes());
+    v.extend_from_slice(&s.links.sum.to_le_bytes());
+    v.extend_from_slice(&row.to_le_bytes());
+    v.extend_from_slice(&max.to_le_bytes());
     v
 }
 
@@ -172,6 +178,16 @@ pub(crate) fn decode_done(v: &[u8], rank: i32) -> Result<WorkerStats, ServiceErr
         threads: u32::from_le_bytes([v[16], v[17], v[18], v[19]]),
         peak_rss: u64_at(20),
         pairs: PairRoutes::from_words(std::array::from_fn(|k| u64_at(28 + 8 * k))),
+        links: {
+            let at = 28 + 8 * 9;
+            let rows = u64_at(at);
+            let u32_at = |o: usize| u32::from_le_bytes([v[o], v[o + 1], v[o + 2], v[o + 3]]);
+            LinkErrors {
+                rows,
+                sum: f64::from_bits(u64_at(at + 8)),
+                max: (rows > 0).then(|| (u32_at(at + 16), f32::from_bits(u32_at(at + 20)))),
+            }
+        },
     })
 }
 
@@ -239,11 +255,23 @@ mod tests {
                 exact_points: 1 << 40,
                 exact_unmet: 3,
             },
+            links: LinkErrors {
+                rows: 8,
+                sum: 0.25,
+                max: Some((6, 0.125)),
+            },
         };
         let d = decode_done(&encode_done(&s), 4).unwrap();
         assert_eq!(
-            (d.rows, d.busy_seconds, d.threads, d.peak_rss, d.pairs),
-            (9, 1.5, 2, 77, s.pairs)
+            (
+                d.rows,
+                d.busy_seconds,
+                d.threads,
+                d.peak_rss,
+                d.pairs,
+                d.links
+            ),
+            (9, 1.5, 2, 77, s.pairs, s.links)
         );
         assert!(decode_done(&encode_done(&s)[..28], 4).is_err());
     }
