@@ -50,14 +50,25 @@ demo-mpi: deps build
 # formats/test_ffz.py against that installed module (--import-mode=importlib, FFZ_INSTALLED
 # checks it) and a real computed file (the Cornell box at 300 patches, in 64 KiB chunks so
 # it has several), checked against its `ffstream export` through FFZ_FILE/FFZ_MTX/FFZ_CSV.
+#
+# The tests run a binary built with the `test-hooks` feature (fault injection read from
+# the environment, tests/README.md); then the product binary is rebuilt without it and
+# checked to hold none of the hooks' variable names, and the benchmarks and the Python
+# reader's tests use that product binary.
+HOOK_VARS := FFSTREAM_FAIL_ROW FFSTREAM_TEST_STOP_ROW FFSTREAM_TEST_SCENE_RANK
 test: deps
 	$(CARGO) fmt --check
-	$(CARGO) clippy --all-targets --quiet -- -D warnings
+	$(CARGO) clippy --all-targets --features test-hooks --quiet -- -D warnings
+	$(CARGO) clippy --quiet -- -D warnings
 	RUSTDOCFLAGS="-D warnings" $(CARGO) doc --no-deps --document-private-items --quiet
 	$(CARGO) check --no-default-features --all-targets --quiet
 	$(CARGO) check --manifest-path fuzz/Cargo.toml --target-dir target --no-default-features --quiet
+	$(CARGO) test --release --features test-hooks
 	$(CARGO) build --release
-	$(CARGO) test --release
+	@for v in $(HOOK_VARS); do \
+	  if grep -aq "$$v" target/release/ffstream; then \
+	    echo "error: the product binary target/release/ffstream reads the test hook $$v"; exit 1; fi; \
+	done; echo "==> the product binary holds no test hook ($(HOOK_VARS))"
 	$(CARGO) bench --no-run --quiet
 	$(PYTHON) bench/run.py --quick
 	@tmp=$$(mktemp -d) && \

@@ -759,12 +759,16 @@ fn execute_mpi(input: &SceneInput, output: PathBuf, o: &ComputeOptions) -> anyho
     }
 }
 
-/// Test hook (documented in the README): `FFSTREAM_TEST_SCENE_RANK=R:SCENE` makes rank R
-/// load SCENE instead, to exercise the start-up check that names a rank whose scene
-/// differs or is missing.
+/// Test hook (`test-hooks` feature only, tests/README.md): `FFSTREAM_TEST_SCENE_RANK=R:SCENE`
+/// makes rank R load SCENE instead, to exercise the start-up check that names a rank
+/// whose scene differs or is missing. Without the feature, the scene given.
 #[cfg(feature = "mpi")]
 fn scene_for_rank(input: &SceneInput, rank: i32) -> SceneInput {
+    #[cfg_attr(not(feature = "test-hooks"), allow(unused_mut))]
     let mut input = input.clone();
+    #[cfg(not(feature = "test-hooks"))]
+    let _ = rank;
+    #[cfg(feature = "test-hooks")]
     if let Ok(v) = std::env::var("FFSTREAM_TEST_SCENE_RANK") {
         if let Some((r, scene)) = v.split_once(':') {
             if r.parse::<i32>() == Ok(rank) {

@@ -26,13 +26,16 @@ use crate::service::symmetric::{in_run, HalfRowBuffer, PIECE_ZSTD_LEVEL};
 use crate::service::{ComputeJob, PairRoutes, ServiceError, WorkerStats};
 
 /// Environment variable that makes a worker fail on purpose when it reaches this row
-/// (fault-injection for tests of the failure path). Documented in the README.
+/// (fault-injection for tests of the failure path; read only with the `test-hooks`
+/// feature, tests/README.md).
+#[cfg(feature = "test-hooks")]
 pub(crate) const FAIL_ROW_ENV: &str = "FFSTREAM_FAIL_ROW";
 
 /// Environment variable that makes the worker process that reaches this row stop
 /// itself with SIGSTOP, as an operator's `kill -STOP` would (a hung or lost rank looks
-/// the same to rank 0): for the test of the liveness limit, `--stall-seconds`.
-/// Documented in the README.
+/// the same to rank 0): for the test of the liveness limit, `--stall-seconds`. Read
+/// only with the `test-hooks` feature.
+#[cfg(feature = "test-hooks")]
 pub(crate) const STOP_ROW_ENV: &str = "FFSTREAM_TEST_STOP_ROW";
 
 /// How one worker runs.
@@ -106,11 +109,7 @@ pub(crate) fn run_worker(
     static_rows: Option<Vec<u32>>,
 ) -> Result<WorkerStats, ServiceError> {
     let _span = tracing::info_span!("worker", rank = cfg.rank, threads = cfg.threads).entered();
-    let row_of = |var: &str| -> Option<u32> { std::env::var(var).ok()?.parse().ok() };
-    let faults = Faults {
-        fail_row: row_of(FAIL_ROW_ENV),
-        stop_row: row_of(STOP_ROW_ENV),
-    };
+    let faults = Faults::from_env();
     let threads = cfg.threads.max(1);
     let (jobs_tx, jobs_rx) = unbounded::<u32>();
     let (out_tx, out_rx) = bounded::<FromCompute>(2 * threads);
@@ -238,14 +237,35 @@ fn drive(
     }
 }
 
-/// Faults injected on purpose by the test hooks [`FAIL_ROW_ENV`] and [`STOP_ROW_ENV`].
+/// Faults injected on purpose by the test hooks `FFSTREAM_FAIL_ROW` and
+/// `FFSTREAM_TEST_STOP_ROW` (`test-hooks` feature).
 #[derive(Clone, Copy)]
 struct Faults {
     fail_row: Option<u32>,
     stop_row: Option<u32>,
 }
 
-/// [`STOP_ROW_ENV`]: stop this whole process with SIGSTOP, as `kill -STOP` would.
+impl Faults {
+    /// The faults the environment asks for, with the `test-hooks` feature; none
+    /// without it (the product binary reads no test variable).
+    fn from_env() -> Self {
+        #[cfg(feature = "test-hooks")]
+        {
+            let row_of = |var: &str| -> Option<u32> { std::env::var(var).ok()?.parse().ok() };
+            Faults {
+                fail_row: row_of(FAIL_ROW_ENV),
+                stop_row: row_of(STOP_ROW_ENV),
+            }
+        }
+        #[cfg(not(feature = "test-hooks"))]
+        Faults {
+            fail_row: None,
+            stop_row: None,
+        }
+    }
+}
+
+/// `FFSTREAM_TEST_STOP_ROW`: stop this whole process with SIGSTOP, as `kill -STOP` would.
 fn stop_process() {
     #[cfg(unix)]
     // SAFETY: raise(3) with a valid signal number has no memory-safety preconditions.
@@ -406,7 +426,7 @@ fn compute_thread(
                 stop_process();
             }
             let done = if faults.fail_row == Some(i) {
-                Err(format!("failure injected by {FAIL_ROW_ENV}={i}"))
+                Err(format!("failure injected by a test hook at row {i}"))
             } else {
                 catch_unwind(AssertUnwindSafe(|| {
                     pending.compute(engine, i, &mut scratch)

@@ -204,6 +204,10 @@ fn broken_job_resumes(hook: &str, row: u32, extra: &[&str], check: impl Fn(&str,
 }
 
 #[test]
+#[cfg_attr(
+    not(feature = "test-hooks"),
+    ignore = "needs the test-hooks feature (make test)"
+)]
 fn worker_failure_is_named_file_stays_readable_and_resume_completes_it() {
     if !need_mpi() {
         return;
@@ -220,6 +224,10 @@ fn worker_failure_is_named_file_stays_readable_and_resume_completes_it() {
 /// With a liveness limit rank 0 names the silent rank, keeps the rows written so far
 /// and ends the job; `--resume` then completes the file to the uninterrupted rows.
 #[test]
+#[cfg_attr(
+    not(feature = "test-hooks"),
+    ignore = "needs the test-hooks feature (make test)"
+)]
 fn a_stopped_worker_is_named_after_the_stall_limit_and_resume_completes_the_file() {
     if !need_mpi() {
         return;
@@ -239,6 +247,10 @@ fn a_stopped_worker_is_named_after_the_stall_limit_and_resume_completes_the_file
 }
 
 #[test]
+#[cfg_attr(
+    not(feature = "test-hooks"),
+    ignore = "needs the test-hooks feature (make test)"
+)]
 fn a_rank_with_a_different_scene_is_named_before_computing() {
     if !need_mpi() {
         return;

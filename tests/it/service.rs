@@ -250,6 +250,10 @@ fn gather_baseline_gives_the_streamed_rows() {
 }
 
 #[test]
+#[cfg_attr(
+    not(feature = "test-hooks"),
+    ignore = "needs the test-hooks feature (make test)"
+)]
 fn injected_worker_failure_names_the_row_keeps_the_file_and_resume_completes_it() {
     let dir = tempfile::tempdir().unwrap();
     let full = dir.path().join("full.ffz");

@@ -256,6 +256,10 @@ fn impossible_sizes_are_refused_before_allocating() {
 /// worker failure is said once: the `ffstream: error:` line (it used to come with a
 /// coloured `ERROR worker failed` log line saying the same; that is now at debug level).
 #[test]
+#[cfg_attr(
+    not(feature = "test-hooks"),
+    ignore = "needs the test-hooks feature (make test)"
+)]
 fn log_lines_to_a_pipe_carry_no_colour_codes() {
     let dir = tempfile::tempdir().unwrap();
     let run = |verbose: &[&str]| {

@@ -108,6 +108,10 @@ fn assert_closed_and_indexed(part: &Path) {
 }
 
 #[test]
+#[cfg_attr(
+    not(feature = "test-hooks"),
+    ignore = "needs the test-hooks feature (make test)"
+)]
 fn a_signal_closes_the_file_with_its_index_and_resume_completes_it() {
     let dir = tempfile::tempdir().unwrap();
     for (signal, name, extra) in [
@@ -149,6 +153,10 @@ fn a_signal_closes_the_file_with_its_index_and_resume_completes_it() {
 }
 
 #[test]
+#[cfg_attr(
+    not(feature = "test-hooks"),
+    ignore = "needs the test-hooks feature (make test)"
+)]
 fn a_second_signal_stops_at_once_and_the_rows_written_are_kept() {
     let dir = tempfile::tempdir().unwrap();
     let full = dir.path().join("full.ffz");
@@ -175,6 +183,10 @@ fn a_second_signal_stops_at_once_and_the_rows_written_are_kept() {
 /// `run` stops before its solve: the same exit code and message, and its `--resume`
 /// completes the file and goes on to the picture.
 #[test]
+#[cfg_attr(
+    not(feature = "test-hooks"),
+    ignore = "needs the test-hooks feature (make test)"
+)]
 fn a_signal_stops_run_before_the_solve_and_its_resume_finishes() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("run");
@@ -208,6 +220,10 @@ fn a_signal_stops_run_before_the_solve_and_its_resume_finishes() {
 /// ranks stop as in one process, rank 0 closes the file with its index and exits 143,
 /// and a resume with another rank count gives the rows of a run never stopped.
 #[test]
+#[cfg_attr(
+    not(feature = "test-hooks"),
+    ignore = "needs the test-hooks feature (make test)"
+)]
 fn under_mpirun_sigterm_to_every_rank_closes_the_file_and_resume_completes_it() {
     if !need_mpi() {
         return;
@@ -249,6 +265,10 @@ fn under_mpirun_sigterm_to_every_rank_closes_the_file_and_resume_completes_it() 
 /// `annual` stopped by SIGTERM while it computes its form factors exited 1 (the stop
 /// went out as an error); it exits 143 as `compute` and `run` do, and computes no year.
 #[test]
+#[cfg_attr(
+    not(feature = "test-hooks"),
+    ignore = "needs the test-hooks feature (make test)"
+)]
 fn a_signal_stops_annual_with_the_signal_exit_code() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("annual");
@@ -286,6 +306,10 @@ fn a_signal_stops_annual_with_the_signal_exit_code() {
 /// to every rank), and the resumed file is sound, its record within the rows it holds,
 /// and has the rows of a run never stopped.
 #[test]
+#[cfg_attr(
+    not(feature = "test-hooks"),
+    ignore = "needs the test-hooks feature (make test)"
+)]
 fn sigterm_to_one_worker_of_a_half_row_run_leaves_a_sound_route_record() {
     if !need_mpi() {
         return;
