@@ -1,5 +1,8 @@
-//! Gauss–Legendre quadrature on [-1, 1], used for the outer line integral of the
-//! `contour` kernel (see [`super::contour`]).
+//! The quadrature rules of the kernels: Gauss–Legendre on [-1, 1], used for the outer
+//! line integral of the `contour` kernel (see [`super::contour`]), and the embedded pair
+//! of triangle rules ([`RADON`] inside [`LAURIE`]) of the exact route's outer integral
+//! ([`super::shadow`]). (The far-field rules, tied to its patch maps, are in
+//! [`super::farfield`].)
 //!
 //! Nodes are the roots of the Legendre polynomial P_n, found by Newton's method from
 //! the classical starting guess cos(π (k − ¼) / (n + ½)) (Abramowitz & Stegun 25.4.29,
@@ -95,6 +98,68 @@ fn legendre_and_derivative(n: usize, x: f64) -> (f64, f64) {
     (p1, d)
 }
 
+/// The 7-point degree-5 rule on a triangle (Radon 1948; e.g. Stroud T2:5-1):
+/// barycentric points and weights (summing to 1), centroid first, then the two orbits
+/// of three.
+pub(crate) const RADON: [([f64; 3], f64); 7] = {
+    const S15: f64 = 3.872_983_346_207_417; // √15
+    const A1: f64 = (6.0 - S15) / 21.0;
+    const B1: f64 = (9.0 + 2.0 * S15) / 21.0;
+    const A2: f64 = (6.0 + S15) / 21.0;
+    const B2: f64 = (9.0 - 2.0 * S15) / 21.0;
+    const W1: f64 = (155.0 - S15) / 1200.0;
+    const W2: f64 = (155.0 + S15) / 1200.0;
+    [
+        ([1.0 / 3.0, 1.0 / 3.0, 1.0 / 3.0], 9.0 / 40.0),
+        ([B1, A1, A1], W1),
+        ([A1, B1, A1], W1),
+        ([A1, A1, B1], W1),
+        ([B2, A2, A2], W2),
+        ([A2, B2, A2], W2),
+        ([A2, A2, B2], W2),
+    ]
+};
+
+/// The 19-point degree-8 rule on a triangle in which [`RADON`]'s seven points are
+/// embedded (Laurie 1982, ACM TOMS 8(2), Algorithm 584 CUBTRI): the same seven points
+/// first, in [`RADON`]'s order and with their own weights, then an orbit of three at
+/// `A3`, one at `A4` and the six points (1 − A3 − A4, A3, A4). Weights sum to 1.
+pub(crate) const LAURIE: [([f64; 3], f64); 19] = {
+    let r = RADON;
+    const A3: f64 = 0.232_102_326_775_050_4;
+    const A4: f64 = 0.029_480_860_884_439_6;
+    const B3: f64 = 1.0 - 2.0 * A3;
+    const B4: f64 = 1.0 - 2.0 * A4;
+    const C: f64 = 1.0 - A3 - A4;
+    const W0: f64 = 0.037_861_091_200_314_7;
+    const W1: f64 = 0.037_620_425_413_182_9;
+    const W2: f64 = 0.078_357_352_244_117_4;
+    const W3: f64 = 0.116_271_479_656_965_9;
+    const W4: f64 = 0.013_444_267_375_165_5;
+    const W6: f64 = 0.037_509_722_455_231_7;
+    [
+        (r[0].0, W0),
+        (r[1].0, W1),
+        (r[2].0, W1),
+        (r[3].0, W1),
+        (r[4].0, W2),
+        (r[5].0, W2),
+        (r[6].0, W2),
+        ([B3, A3, A3], W3),
+        ([A3, B3, A3], W3),
+        ([A3, A3, B3], W3),
+        ([B4, A4, A4], W4),
+        ([A4, B4, A4], W4),
+        ([A4, A4, B4], W4),
+        ([C, A3, A4], W6),
+        ([C, A4, A3], W6),
+        ([A3, C, A4], W6),
+        ([A4, C, A3], W6),
+        ([A3, A4, C], W6),
+        ([A4, A3, C], W6),
+    ]
+};
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -137,5 +202,54 @@ mod tests {
         let x = 1.0 / 3f64.sqrt();
         assert!((r[0].0 + x).abs() < 1e-15 && (r[1].0 - x).abs() < 1e-15);
         assert!((r[0].1 - 1.0).abs() < 1e-15);
+    }
+
+    #[test]
+    fn the_rules_integrate_what_they_should() {
+        // ∫ λ₁^a λ₂^b λ₃^c over a triangle / area = 2 a! b! c! / (a + b + c + 2)!.
+        let f = |n: u32| (1..=n).product::<u32>() as f64;
+        let moment = |rule: &[([f64; 3], f64)], (a, b, c): (u32, u32, u32)| -> (f64, f64) {
+            let want = 2.0 * f(a) * f(b) * f(c) / f(a + b + c + 2);
+            let got: f64 = rule
+                .iter()
+                .map(|(l, w)| w * l[0].powi(a as i32) * l[1].powi(b as i32) * l[2].powi(c as i32))
+                .sum();
+            (got, want)
+        };
+        let upto = |degree: u32| {
+            (0..=degree).flat_map(move |a| {
+                (0..=degree - a).flat_map(move |b| (0..=degree - a - b).map(move |c| (a, b, c)))
+            })
+        };
+        for e in upto(5) {
+            let (got, want) = moment(&RADON, e);
+            assert!(
+                (got - want).abs() < 1e-15,
+                "degree 5: {e:?} {got} vs {want}"
+            );
+        }
+        for e in upto(8) {
+            let (got, want) = moment(&LAURIE, e);
+            assert!(
+                (got - want).abs() < 1e-15,
+                "degree 8: {e:?} {got} vs {want}"
+            );
+        }
+        // Neither is exact one degree up (else the error estimate would be blind there).
+        let (got, want) = moment(&RADON, (6, 0, 0));
+        assert!((got - want).abs() > 1e-6, "{got} vs {want}");
+        let (got, want) = moment(&LAURIE, (9, 0, 0));
+        assert!((got - want).abs() > 1e-8, "{got} vs {want}");
+        // The degree-5 rule's points are the first seven of the degree-8 rule's.
+        for (k, (l, _)) in RADON.iter().enumerate() {
+            assert_eq!(*l, LAURIE[k].0);
+        }
+        for (l, w) in LAURIE {
+            assert!(
+                w > 0.0
+                    && l.iter().all(|&x| x > 0.0)
+                    && (l.iter().sum::<f64>() - 1.0).abs() < 1e-15
+            );
+        }
     }
 }
