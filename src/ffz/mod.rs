@@ -20,6 +20,8 @@
 //! | `staged.rs` | `export`'s text outputs, renamed into place once complete |
 //! | `presence.rs` | [`RowPresence`]: which rows a file holds |
 //! | `routes.rs` | [`PairRoutes`]: how the pairs got their visibility, kept in the index |
+//! | `size.rs` | what a file will take before it is written (the plan `compute` prints) |
+//! | `error.rs` | `FfzError`, the error type of this layer |
 
 mod chunk;
 mod error;
