@@ -1,15 +1,24 @@
 //! Form-factor kernels against known answers (docs/known-answers.md §1-§5): Howell's analytic
 //! values, closed-cube row sums and reciprocity, scale invariance, determinism across
 //! threads, occlusion, and the error of the `point` and `mc` baselines.
+//!
+//! This file holds the unoccluded kernels against analytic values and closed scenes,
+//! determinism, a few occluded cases, the baselines and the counters; `top_k`: top-k
+//! rows, dense and with occluders; `half_rows`: half rows assembled into reciprocal
+//! rows; `occluded`: exact visibility against independent references; `rays`: the ray
+//! estimate's convergence; `analytic` and `scenes`: the analytic values and the test
+//! scenes the others use.
 
 pub(crate) mod analytic;
+mod half_rows;
 mod occluded;
 mod rays;
 pub(crate) mod scenes;
+mod top_k;
 
 use std::sync::Arc;
 
-use ffstream::formfactor::{Counters, FormFactorConfig, Method, RowEngine, Scratch, TopKTail};
+use ffstream::formfactor::{Counters, FormFactorConfig, Method, RowEngine, Scratch};
 use ffstream::rows::{Row, RowValues};
 use glam::{dvec3, DVec3};
 
@@ -577,175 +586,6 @@ fn obstructed_plates_lose_light() {
     }
 }
 
-#[test]
-fn top_k_keeps_largest_and_preserves_row_sum() {
-    let b = cube(4, false);
-    let dense = all_rows(&b.engine(FormFactorConfig::accurate()));
-    let k = 10;
-    let sparse = all_rows(&b.engine(FormFactorConfig::accurate().with_top_k(Some(k))));
-    let n = b.n();
-    for (d, s) in dense.iter().zip(&sparse) {
-        let RowValues::Sparse { cols, vals } = &s.values else {
-            panic!("expected sparse")
-        };
-        assert_eq!(cols.len(), k as usize);
-        assert!(cols.windows(2).all(|w| w[0] < w[1]));
-        let dv = d.to_dense(n);
-        for (&c, &v) in cols.iter().zip(vals) {
-            assert_eq!(v, dv[c as usize]);
-        }
-        let smallest_kept = vals.iter().cloned().fold(f32::INFINITY, f32::min);
-        let largest_dropped = (0..n)
-            .filter(|j| !cols.contains(&(*j as u32)))
-            .map(|j| dv[j])
-            .fold(0.0f32, f32::max);
-        assert!(smallest_kept >= largest_dropped);
-        assert!(
-            (s.true_sum() - d.true_sum()).abs() < 1e-6,
-            "row {}",
-            s.index
-        );
-        assert!((s.true_sum() - 1.0).abs() < TARGET);
-    }
-}
-
-#[test]
-fn top_k_sampled_tail_keeps_the_same_entries_and_estimates_dropped_mass() {
-    // Closed cube with an occluder-only box in the middle (not patches: light that
-    // meets it reaches no patch, so rows sum to about 0.91); many pairs partly hidden.
-    let mut b = cube(16, false);
-    b.blocker_box(dvec3(0.35, 0.35, 0.35), 0.3);
-    let k = 20;
-    let t = 64;
-    let base = FormFactorConfig::accurate().with_top_k(Some(k));
-    let exact_cfg = FormFactorConfig {
-        top_k_tail: TopKTail::Exact,
-        ..base.clone()
-    };
-    let sampled_cfg = FormFactorConfig {
-        top_k_tail: TopKTail::Sampled(t),
-        ..base
-    };
-    let (exact_e, sampled_e) = (b.engine(exact_cfg), b.engine(sampled_cfg));
-    let (mut se, mut ss) = (Scratch::new(), Scratch::new());
-    let (mut sum_diff, mut sum_dropped, mut worst) = (0.0f64, 0.0f64, 0.0f64);
-    for i in 0..b.n() as u32 {
-        let re = exact_e.compute_row(i, &mut se);
-        let rs = sampled_e.compute_row(i, &mut ss);
-        assert_eq!(re.values, rs.values, "row {i}: kept entries differ");
-        let d = rs.dropped as f64 - re.dropped as f64;
-        sum_diff += d;
-        sum_dropped += re.dropped as f64;
-        worst = worst.max(d.abs());
-    }
-    let (ce, cs) = (se.counters(), ss.counters());
-    println!(
-        "sampled tail ({t} hemisphere rays a row): mean dropped bias {:.2e} of dropped mass, worst row {worst:.2e}; shadow rays exact {} sampled {} (+{} hemisphere rays)",
-        sum_diff / sum_dropped,
-        ce.rays_cast,
-        cs.rays_cast,
-        cs.closure_rays
-    );
-    // The tree search's tail: the row total from hemisphere rays (the cube is the
-    // patches' own scene), no shadow rays for the tail's pairs.
-    assert!(cs.closure_rays > 0 && cs.rays_cast < ce.rays_cast);
-    // Unbiased: the errors of 1,536 rows average out (measured 7.5e-4 of the dropped
-    // mass)...
-    assert!(
-        (sum_diff / sum_dropped).abs() < 0.01,
-        "bias {}",
-        sum_diff / sum_dropped
-    );
-    // ... and no row is off by more than five standard errors of a proportion
-    // estimated from t rays (√(1/4t) at most).
-    assert!(worst < 5.0 * (0.25 / t as f64).sqrt(), "worst row {worst}");
-
-    // Without occluders between any pair the tail is exact: identical rows.
-    let c = cube(4, false);
-    let cfg = FormFactorConfig::accurate().with_top_k(Some(10));
-    let a = all_rows(&c.engine(FormFactorConfig {
-        top_k_tail: TopKTail::Sampled(4),
-        ..cfg.clone()
-    }));
-    let e = all_rows(&c.engine(cfg));
-    assert_eq!(a, e);
-}
-
-/// In a closed scene every hemisphere ray meets a patch's front, so the tree search's
-/// row totals are exactly 1 (f32 rounding) even from 4 rays a row: the dropped mass is
-/// 1 − the kept entries, with none of the sampling error of its tail.
-#[test]
-fn top_k_rows_of_a_closed_scene_sum_to_one_from_few_hemisphere_rays() {
-    let c = cube(12, false);
-    let cfg = FormFactorConfig {
-        top_k_tail: TopKTail::Sampled(4),
-        ..FormFactorConfig::accurate().with_top_k(Some(10))
-    };
-    let e = c.engine(cfg);
-    let mut s = Scratch::new();
-    for i in 0..c.n() as u32 {
-        let r = e.compute_row(i, &mut s);
-        assert!(
-            (r.true_sum() - 1.0).abs() < 1e-5,
-            "row {i}: {}",
-            r.true_sum()
-        );
-    }
-    assert_eq!(s.counters().closure_rays, 4 * c.n() as u64);
-}
-
-#[test]
-fn top_k_row_totals_of_patches_partly_under_a_box_are_their_uncovered_share() {
-    // A closed unit room, floor 5 × 5 (cells of 0.2), with a bottomless box standing on
-    // [0.27, 0.72] × [0.31, 0.68] × [0, 0.4]: the box's walls cross floor cells, off the
-    // lines of any grid of start points. A point of the floor
-    // beside the box sees the closed room (Σ_j F = 1), a point beneath it sees only
-    // the inside of the box (backs of faces: 0), so a cell's row total is the share
-    // of its area outside the footprint. The
-    // hemisphere estimate cuts such a cell along the walls standing on it and samples
-    // each part (engine/closure.rs): exact here. Without the cut, its 4 rays over the
-    // whole cell leave errors of up to 0.25 (0.5 for 0.7075 measured).
-    let (x, y, z) = (
-        dvec3(1.0, 0.0, 0.0),
-        dvec3(0.0, 1.0, 0.0),
-        dvec3(0.0, 0.0, 1.0),
-    );
-    let mut b = Built::default();
-    b.face("floor", DVec3::ZERO, x, y, 5, false);
-    b.face("ceiling", z, y, x, 5, false);
-    b.face("x0", DVec3::ZERO, y, z, 5, false);
-    b.face("x1", x, z, y, 5, false);
-    b.face("y0", DVec3::ZERO, z, x, 5, false);
-    b.face("y1", y, x, z, 5, false);
-    let (lo, hi) = (dvec3(0.27, 0.31, 0.0), dvec3(0.72, 0.68, 0.4));
-    b.bottomless_box(lo, hi, 2);
-    let cfg = FormFactorConfig {
-        top_k_tail: TopKTail::Sampled(4),
-        ..FormFactorConfig::accurate().with_top_k(Some(8))
-    };
-    let e = b.engine(cfg);
-    let mut s = Scratch::new();
-    let mut partial = 0;
-    for (i, p) in b.patches.patches.iter().enumerate() {
-        let c = p.corners();
-        let (plo, phi) = (c[0].min(c[2]), c[0].max(c[2]));
-        let overlap = |a: f64, b: f64, l: f64, h: f64| (b.min(h) - a.max(l)).max(0.0);
-        let covered = match p.group {
-            0 => overlap(plo.x, phi.x, lo.x, hi.x) * overlap(plo.y, phi.y, lo.y, hi.y) / p.area,
-            _ => 0.0,
-        };
-        let want = 1.0 - covered;
-        partial += (covered > 0.0 && covered < 1.0) as usize;
-        let got = e.compute_row(i as u32, &mut s).true_sum();
-        assert!(
-            (got - want).abs() < 1e-6,
-            "patch {i} (group {}): row total {got}, uncovered share {want}",
-            p.group
-        );
-    }
-    assert_eq!(partial, 8, "floor cells the box's walls cross");
-}
-
 /// Σ_ij |F_ij − exact_ij| over a scene, with the exact values from `contour`.
 fn l1_error(b: &Built, cfg: FormFactorConfig) -> f64 {
     let exact = pair_matrix(&b.engine(FormFactorConfig::reference()));
@@ -840,165 +680,4 @@ fn counters_and_describe() {
     total.add(&c);
     total.add(&c);
     assert_eq!(total.pairs_evaluated, 64);
-}
-
-/// Top-k with occluders, both tails: each kept entry equals the dense row's entry
-/// bitwise (same (i, j)-seeded rays), the kept set is the K largest of the dense row
-/// (ties aside: nothing dropped is larger than anything kept), and the true row sum
-/// (kept + dropped) equals the dense row sum (exactly up to f32 rounding for the exact
-/// tail; for the sampled tail, unbiased over the rows).
-#[test]
-fn top_k_with_occluders_equals_k_largest_of_dense_row() {
-    let mut b = cube(6, false);
-    b.blocker_box(dvec3(0.3, 0.3, 0.3), 0.4);
-    let k = 24u32;
-    let n = b.n();
-    let dense = all_rows(&b.engine(FormFactorConfig::accurate()));
-    for tail in [TopKTail::Exact, TopKTail::Sampled(16)] {
-        let cfg = FormFactorConfig {
-            top_k_tail: tail,
-            ..FormFactorConfig::accurate().with_top_k(Some(k))
-        };
-        let e = b.engine(cfg);
-        let mut scratch = Scratch::new();
-        let (mut sum_diff, mut sum_true) = (0.0f64, 0.0f64);
-        for d in &dense {
-            let r = e.compute_row(d.index, &mut scratch);
-            let RowValues::Sparse { cols, vals } = &r.values else {
-                panic!("expected a sparse row")
-            };
-            let dv = d.to_dense(n);
-            let nonzero = dv.iter().filter(|&&v| v > 0.0).count();
-            assert_eq!(cols.len(), nonzero.min(k as usize), "row {}", d.index);
-            for (&c, &v) in cols.iter().zip(vals) {
-                assert_eq!(v, dv[c as usize], "{tail} row {} col {c}", d.index);
-            }
-            let smallest_kept = vals.iter().cloned().fold(f32::INFINITY, f32::min);
-            let largest_dropped = (0..n)
-                .filter(|j| cols.binary_search(&(*j as u32)).is_err())
-                .map(|j| dv[j])
-                .fold(0.0f32, f32::max);
-            assert!(smallest_kept >= largest_dropped, "{tail} row {}", d.index);
-            let diff = r.true_sum() - d.true_sum();
-            if tail == TopKTail::Exact {
-                assert!(diff.abs() < 1e-6, "row {}: {diff}", d.index);
-            }
-            sum_diff += diff;
-            sum_true += d.true_sum();
-        }
-        let c = scratch.counters();
-        println!(
-            "top-{k} {tail}: mean row-sum deviation {:.2e}, rays cast {}, rays skipped {} ({:.1}% of budget), tail pairs skipped {}",
-            sum_diff / dense.len() as f64,
-            c.rays_cast,
-            c.rays_skipped,
-            100.0 * c.rays_skipped as f64 / (c.rays_cast + c.rays_skipped) as f64,
-            c.pairs_topk_tail_skipped
-        );
-        // The sampled tail is unbiased: the mean deviation is far below one row's
-        // tail mass.
-        assert!((sum_diff / sum_true).abs() < 2e-3, "{tail}: {sum_diff}");
-    }
-}
-
-/// `RowEngine::half_row` (the compute side of `--symmetric`): rows assembled from
-/// upper halves and mirrored entries are exactly reciprocal, evaluate half of the
-/// pairs of the dense rows, keep the upper entries of the dense rows bitwise, and in
-/// the closed unoccluded cube sum to 1 like the dense rows.
-#[test]
-fn half_rows_assemble_reciprocal_rows_with_half_the_pairs() {
-    let b = cube(4, false);
-    let e = b.engine(FormFactorConfig::accurate());
-    let n = e.n();
-    let mut s = Scratch::new();
-    let full = assemble_half_rows(&e, &vec![true; n], &mut s);
-    let half = s.counters();
-    let mut d = Scratch::new();
-    let mut row = Vec::new();
-    for (i, full_row) in full.iter().enumerate() {
-        e.row_values(i as u32, &mut d, &mut row);
-        for j in i + 1..n {
-            assert_eq!(full_row[j], row[j], "upper entry ({i}, {j})");
-        }
-        let sum: f64 = full_row.iter().sum();
-        let dense: f64 = row.iter().sum();
-        assert!((sum - 1.0).abs() < TARGET, "row {i}: {sum}");
-        assert!((sum - dense).abs() < 1e-7, "row {i}: {sum} vs {dense}");
-    }
-    let dense = d.counters();
-    assert_eq!(2 * half.pairs_evaluated, dense.pairs_evaluated);
-    let area = |k: usize| b.patches.patches[k].area;
-    for (i, full_row) in full.iter().enumerate() {
-        for (j, &fij) in full_row.iter().enumerate() {
-            let (a, c) = (area(i) * fij, area(j) * full[j][i]);
-            assert!((a - c).abs() <= 1e-15 * a.max(c), "({i}, {j}): {a} vs {c}");
-        }
-    }
-}
-
-/// Rows assembled from `RowEngine::half_row` over the rows with `in_run[i]` (others
-/// stay 0): row i gets its own entries and the mirrored entries of the rows before it.
-fn assemble_half_rows(e: &RowEngine, in_run: &[bool], s: &mut Scratch) -> Vec<Vec<f64>> {
-    let n = e.n();
-    let mut full = vec![vec![0.0f64; n]; n];
-    let (mut own, mut mirrored) = (Vec::new(), Vec::new());
-    for i in (0..n as u32).filter(|&i| in_run[i as usize]) {
-        e.half_row(i, in_run, s, &mut own, &mut mirrored);
-        for &(j, f) in &own {
-            full[i as usize][j as usize] = f;
-        }
-        for &(j, f) in &mirrored {
-            assert!(j > i && in_run[j as usize], "mirrored entry ({j}, {i})");
-            full[j as usize][i as usize] = f;
-        }
-    }
-    full
-}
-
-/// A run that computes only some rows (a resume, or `--rows needed`) gives those rows
-/// bitwise equal to a run that computes all of them: a pair's value never depends on
-/// which of its rows are in the run. And it evaluates every pair it needs once.
-#[test]
-fn half_rows_of_a_partial_run_equal_those_of_a_full_run() {
-    // A blocker inside, so that visibility rays (seeded by the pair) matter.
-    let mut b = cube(4, true);
-    let (lo, s) = (dvec3(0.3, 0.3, 0.3), 0.4);
-    let (x, y, z) = (dvec3(s, 0.0, 0.0), dvec3(0.0, s, 0.0), dvec3(0.0, 0.0, s));
-    b.blocker(lo, y, x);
-    b.blocker(lo + z, x, y);
-    let e = b.engine(FormFactorConfig::accurate());
-    let n = e.n();
-    let all = assemble_half_rows(&e, &vec![true; n], &mut Scratch::new());
-    let in_run: Vec<bool> = (0..n).map(|i| i % 3 != 1 && i % 7 != 0).collect();
-    let mut s = Scratch::new();
-    let part = assemble_half_rows(&e, &in_run, &mut s);
-    let mut needed = 0u64;
-    for i in 0..n {
-        if in_run[i] {
-            assert_eq!(part[i], all[i], "row {i}");
-            assert!(part[i].iter().any(|&f| f > 0.0), "row {i} is empty");
-        } else {
-            assert!(
-                part[i].iter().all(|&f| f == 0.0),
-                "row {i} is not in the run"
-            );
-        }
-        for j in 0..n {
-            // Pairs with at least one row in the run, counted once each.
-            if j > i && (in_run[i] || in_run[j]) && all[i][j] > 0.0 {
-                needed += 1;
-            }
-        }
-    }
-    let c = s.counters();
-    assert!(
-        c.pairs_evaluated >= needed,
-        "{} < {needed}",
-        c.pairs_evaluated
-    );
-    let pairs_with_a_row_in_run = (0..n)
-        .flat_map(|i| (i + 1..n).map(move |j| (i, j)))
-        .filter(|&(i, j)| in_run[i] || in_run[j])
-        .count() as u64;
-    assert!(c.pairs_evaluated <= pairs_with_a_row_in_run);
 }
