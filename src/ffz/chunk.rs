@@ -656,7 +656,6 @@ pub fn decode_record(
             h.crc_raw
         )));
     }
-    let sparse = layout.is_sparse();
     let mut entries = Vec::with_capacity(h.row_count as usize);
     let mut next = dir_len;
     for (k, b) in raw[..dir_len as usize]
@@ -665,50 +664,8 @@ pub fn decode_record(
     {
         let e = RowDirEntryV1::decode(b)
             .ok_or_else(|| here(format!("directory entry {k} cut short")))?;
-        let skipped = e.flags & spec::ROW_FLAG_SKIPPED != 0;
         let bad = |w: &str| here(format!("directory entry {k} (row {}): {w}", e.row));
-        if e.row >= n {
-            return Err(bad(&format!("row id ≥ n = {n}")));
-        }
-        if e.flags & spec::ROW_FLAG_LINKS != 0 && e.flags & spec::ROW_FLAG_SPARSE == 0 {
-            return Err(bad("links on a row that is not sparse"));
-        }
-        if e.flags & spec::ROW_FLAG_SLOPES != 0 && e.flags & spec::ROW_FLAG_LINKS == 0 {
-            return Err(bad("link slopes on a row without links"));
-        }
-        if e.flags & spec::ROW_FLAG_LINK_ERROR != 0 && e.flags & spec::ROW_FLAG_LINKS == 0 {
-            return Err(bad("a link error on a row without links"));
-        }
-        let known = spec::ROW_FLAG_SKIPPED
-            | spec::ROW_FLAG_SPARSE
-            | spec::ROW_FLAG_LINKS
-            | spec::ROW_FLAG_SLOPES
-            | spec::ROW_FLAG_LINK_ERROR;
-        if e.flags & !known != 0 {
-            return Err(bad(&format!("unknown row flags {:#x}", e.flags)));
-        }
-        if skipped
-            && (e.nnz != 0 || e.flags & spec::ROW_FLAG_SPARSE != 0 || e.dropped.to_bits() != 0)
-        {
-            return Err(bad("skipped row with data or dropped mass"));
-        }
-        if !skipped && (e.flags & spec::ROW_FLAG_SPARSE != 0) != sparse {
-            return Err(bad("row kind does not match the file layout"));
-        }
-        if !skipped && !sparse && e.nnz != n {
-            return Err(bad(&format!("dense row with {} values, n = {n}", e.nnz)));
-        }
-        if let Layout::TopK { k } = layout {
-            if e.nnz > k.min(n) {
-                return Err(bad(&format!(
-                    "{} entries, more than min(k = {k}, n = {n})",
-                    e.nnz
-                )));
-            }
-        }
-        if e.offset != next {
-            return Err(bad(&format!("data offset {} (expected {next})", e.offset)));
-        }
+        check_dir_entry(&e, k, n, layout, next)?;
         next += e
             .data_len_in(&raw, n)
             .ok_or_else(|| bad("link count beyond the payload or above n"))?;
@@ -738,6 +695,62 @@ pub fn decode_record(
         entries,
         by_row,
     })
+}
+
+/// The checks of directory entry `k` of a chunk against n, the layout and the canonical
+/// packing (spec §5.3), its data expected at byte `next` of the payload.
+fn check_dir_entry(
+    e: &RowDirEntryV1,
+    k: usize,
+    n: u32,
+    layout: Layout,
+    next: u64,
+) -> std::result::Result<(), ChunkFault> {
+    let here = |w: String| (0u64, w);
+    let sparse = layout.is_sparse();
+    let skipped = e.flags & spec::ROW_FLAG_SKIPPED != 0;
+    let bad = |w: &str| here(format!("directory entry {k} (row {}): {w}", e.row));
+    if e.row >= n {
+        return Err(bad(&format!("row id ≥ n = {n}")));
+    }
+    if e.flags & spec::ROW_FLAG_LINKS != 0 && e.flags & spec::ROW_FLAG_SPARSE == 0 {
+        return Err(bad("links on a row that is not sparse"));
+    }
+    if e.flags & spec::ROW_FLAG_SLOPES != 0 && e.flags & spec::ROW_FLAG_LINKS == 0 {
+        return Err(bad("link slopes on a row without links"));
+    }
+    if e.flags & spec::ROW_FLAG_LINK_ERROR != 0 && e.flags & spec::ROW_FLAG_LINKS == 0 {
+        return Err(bad("a link error on a row without links"));
+    }
+    let known = spec::ROW_FLAG_SKIPPED
+        | spec::ROW_FLAG_SPARSE
+        | spec::ROW_FLAG_LINKS
+        | spec::ROW_FLAG_SLOPES
+        | spec::ROW_FLAG_LINK_ERROR;
+    if e.flags & !known != 0 {
+        return Err(bad(&format!("unknown row flags {:#x}", e.flags)));
+    }
+    if skipped && (e.nnz != 0 || e.flags & spec::ROW_FLAG_SPARSE != 0 || e.dropped.to_bits() != 0) {
+        return Err(bad("skipped row with data or dropped mass"));
+    }
+    if !skipped && (e.flags & spec::ROW_FLAG_SPARSE != 0) != sparse {
+        return Err(bad("row kind does not match the file layout"));
+    }
+    if !skipped && !sparse && e.nnz != n {
+        return Err(bad(&format!("dense row with {} values, n = {n}", e.nnz)));
+    }
+    if let Layout::TopK { k } = layout {
+        if e.nnz > k.min(n) {
+            return Err(bad(&format!(
+                "{} entries, more than min(k = {k}, n = {n})",
+                e.nnz
+            )));
+        }
+    }
+    if e.offset != next {
+        return Err(bad(&format!("data offset {} (expected {next})", e.offset)));
+    }
+    Ok(())
 }
 
 #[cfg(test)]
