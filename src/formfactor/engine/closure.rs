@@ -13,7 +13,11 @@
 //! (start points on a jittered grid, directions from a Latin hypercube), and **zero in
 //! a closed scene**,
 //! where every ray meets a front face: there the row total is 1 and the dropped mass
-//! 1 − known, whatever the tail holds. The tree walk's estimate it replaces (light-tree
+//! 1 − known, whatever the tail holds. With the total comes a scale of its error,
+//! √(p̃(1 − p̃)/t) with p̃ = (hits + 1)/(t + 2) (Laplace's rule, so that a patch whose
+//! rays all met a front, or none did, still admits an error of about 1/t: a few rays
+//! can miss a sliver that sees the room), summed over the cells below; the link error
+//! of a row (spec §5.7) counts it. The tree walk's estimate it replaces (light-tree
 //! sampling over the unopened nodes, `tree_tail_mass`) has an error that grows with the
 //! tail: at 1M patches in the closed 16-box room, rows summed to up to 4.96
 //! (bench/PERF.md §23).
@@ -61,6 +65,13 @@ pub(super) struct ClosureScratch {
     cells: Vec<Piece>,
 }
 
+/// The variance of the share of `rays` rays that met a front, `hits` of them met
+/// one, with Laplace's rule of succession (module docs).
+fn ray_error(hits: usize, rays: usize) -> f64 {
+    let p = (hits as f64 + 1.0) / (rays as f64 + 2.0);
+    p * (1.0 - p) / rays.max(1) as f64
+}
+
 /// A cosine-distributed direction about `n` (`u`, `v`, `n` orthonormal) from two
 /// uniform numbers.
 fn cosine_direction(u: DVec3, v: DVec3, n: DVec3, c: f64, d: f64) -> DVec3 {
@@ -87,15 +98,15 @@ fn point_in_fan(v: &[DVec3], area: f64, p: f64, q: f64) -> DVec3 {
 }
 
 impl RowEngine {
-    /// T̂_i from `t` rays (module docs); `None` when the occluders are another mesh or
-    /// there are none, or patch i is not valid.
+    /// T̂_i from `t` rays and the scale of its error (module docs); `None` when the
+    /// occluders are another mesh or there are none, or patch i is not valid.
     pub(super) fn closure_total(
         &self,
         tree: &PatchTree,
         i: u32,
         t: usize,
         scratch: &mut Scratch,
-    ) -> Option<f64> {
+    ) -> Option<(f64, f64)> {
         if !hemisphere_totals(self.occluders.len(), !self.occluders.surfaces_are_patches) || t == 0
         {
             return None;
@@ -107,9 +118,9 @@ impl RowEngine {
         let s = &mut scratch.closure;
         let mut rng = self.tail_rng(i);
         if self.standing_cells(g, &mut s.cells) {
-            let (total, cast) = self.cells_total(tree, g, t, &mut rng, s);
+            let (total, sigma, cast) = self.cells_total(tree, g, t, &mut rng, s);
             scratch.pair.counters.closure_rays += cast as u64;
-            return Some(total);
+            return Some((total, sigma));
         }
         latin_pairs(&mut rng, t, &mut s.perms, &mut s.points);
         let n = g.normal;
@@ -119,7 +130,7 @@ impl RowEngine {
         // Latin hypercube's other two coordinates.
         let side = (t as f64).sqrt().round() as usize;
         let grid = side * side == t;
-        let mut sum = 0.0;
+        let (mut sum, mut hits) = (0.0, 0);
         for (k, &[p, q, c, d]) in s.points.iter().enumerate() {
             let (p, q) = match grid {
                 true => (
@@ -131,10 +142,11 @@ impl RowEngine {
             let (x, jacobian) = g.map.eval(p, q);
             if self.sees_a_front(tree, g, x, cosine_direction(u, v, n, c, d), &mut s.stack) {
                 sum += jacobian / g.area;
+                hits += 1;
             }
         }
         scratch.pair.counters.closure_rays += t as u64;
-        Some(sum / t as f64)
+        Some((sum / t as f64, ray_error(hits, t).sqrt()))
     }
 
     /// Whether the ray from `x` (on patch `g`) along `dir` first meets the front of a
@@ -176,7 +188,8 @@ impl RowEngine {
     /// proportion to its area (at least one), T̂ = Σ_c (A_c / A) · (fraction of the
     /// cell's rays that meet a front). Unbiased as the plain estimate, and exact in a
     /// closed scene where a cell sees either everything or nothing, as the cells of a
-    /// floor patch partly under a box do. Returns (T̂, rays cast).
+    /// floor patch partly under a box do. Returns (T̂, the scale of its error, rays
+    /// cast).
     fn cells_total(
         &self,
         tree: &PatchTree,
@@ -184,12 +197,12 @@ impl RowEngine {
         t: usize,
         rng: &mut SplitMix64,
         s: &mut ClosureScratch,
-    ) -> (f64, usize) {
+    ) -> (f64, f64, usize) {
         let n = g.normal;
         let (u, v) = n.any_orthonormal_pair();
         let areas: Vec<f64> = s.cells.iter().map(|c| c.vector_area().length()).collect();
         let area: f64 = areas.iter().sum();
-        let (mut total, mut cast) = (0.0, 0);
+        let (mut total, mut variance, mut cast) = (0.0, 0.0, 0);
         for (cell, &a) in s.cells.iter().zip(&areas) {
             let rays = ((t as f64 * a / area).round() as usize).max(1);
             latin_pairs(rng, rays, &mut s.perms, &mut s.points);
@@ -200,8 +213,9 @@ impl RowEngine {
                 hits += self.sees_a_front(tree, g, x, dir, &mut s.stack) as usize;
             }
             total += a / area * hits as f64 / rays as f64;
+            variance += (a / area).powi(2) * ray_error(hits, rays);
             cast += rays;
         }
-        (total, cast)
+        (total, variance.sqrt(), cast)
     }
 }

@@ -259,14 +259,17 @@ impl RowEngine {
 }
 
 impl RowEngine {
-    /// Σ F_ij (B¹_j + B²_j) over the kept entries of `row` (0 without B¹).
-    pub(super) fn kept_bounce(&self, row: &crate::rows::Row) -> f64 {
+    /// Σ F_ij (B¹_j + B²_j) and Σ F_ij over the kept entries of `row` (0s without B¹).
+    pub(super) fn kept_bounce(&self, row: &crate::rows::Row) -> (f64, f64) {
         let Some(c) = &self.contrast else {
-            return 0.0;
+            return (0.0, 0.0);
         };
-        let mut sum = 0.0;
-        row.for_each_nonzero(|j, f| sum += f64::from(f) * c.both[j as usize] as f64);
-        sum
+        let (mut sum, mut mass) = (0.0, 0.0);
+        row.for_each_nonzero(|j, f| {
+            sum += f64::from(f) * c.both[j as usize] as f64;
+            mass += f64::from(f);
+        });
+        (sum, mass)
     }
 }
 

@@ -201,11 +201,12 @@ impl RowEngine {
         // scaled to that total less the known mass (a ratio estimate), so the row's
         // dropped mass is the one it has without links, bias and all. Not when the
         // whole tail was evaluated: that is exact.
-        let mut scale = 1.0;
+        let (mut scale, mut total_error) = (1.0, 0.0);
         let found: f64 = sampled.iter().chain(&evaluated).sum();
         if !all && found > 0.0 {
-            if let Some(total) = self.closure_total(tree, i, t, scratch) {
+            if let Some((total, sigma)) = self.closure_total(tree, i, t, scratch) {
                 scale = (total - known).max(0.0) / found;
+                total_error = sigma;
             }
         }
         let mut links = Vec::with_capacity(cut.len());
@@ -235,7 +236,9 @@ impl RowEngine {
         let spread = self
             .contrast
             .as_ref()
-            .map_or_else(LinkSpread::default, |c| LinkSpread::of(c, &spread));
+            .map_or_else(LinkSpread::default, |c| {
+                LinkSpread::of(c, &spread, total_error)
+            });
         (links, spread)
     }
 
@@ -483,13 +486,19 @@ pub(super) struct LinkSpread {
     sampling: f64,
     /// Σ_L F_L B̄_L: what the links gather.
     gathered: f64,
+    /// Σ_L F_L: the links' mass.
+    mass: f64,
+    /// The standard error of the row's total from hemisphere rays, when the links'
+    /// mass was scaled to it (`closure.rs`); 0 otherwise.
+    total: f64,
     /// Whether B exists (something emits).
     known: bool,
 }
 
 impl LinkSpread {
-    /// The spread of links given as (value, standard error of its mass, node id).
-    fn of(c: &Contrast, links: &[(f64, f64, u32)]) -> LinkSpread {
+    /// The spread of links given as (value, standard error of its mass, node id), with
+    /// `total` the standard error of the row total they were scaled to.
+    fn of(c: &Contrast, links: &[(f64, f64, u32)], total: f64) -> LinkSpread {
         let mean = |id: u32| c.both_mean[id as usize];
         let (mass, gathered) = links
             .iter()
@@ -506,17 +515,23 @@ impl LinkSpread {
                 .sum::<f64>()
                 .sqrt(),
             gathered,
+            mass,
+            total,
             known: true,
         }
     }
 
-    /// The row's link error: (placement + [`SAMPLING_SIGMAS`] · sampling) over all the
-    /// row gathers of B, `kept` being what its kept entries gather (Σ F_ij B_j). `None`
-    /// without B, or when the row gathers none of it.
-    pub(super) fn error(&self, kept: f64) -> Option<f32> {
-        let total = kept + self.gathered;
-        (self.known && total > 0.0)
-            .then(|| ((self.placement + SAMPLING_SIGMAS * self.sampling) / total) as f32)
+    /// The row's link error: (placement + [`SAMPLING_SIGMAS`] · √(sampling² + (σ_T
+    /// B̄)²)) over all the row gathers of B, G; σ_T B̄ is what the error of the row's
+    /// total does to G, B̄ = G over the row's mass being its mean B. `kept` is what the
+    /// kept entries gather (Σ F_ij B_j), `kept_mass` their Σ F_ij. `None` without B, or
+    /// when the row gathers none of it.
+    pub(super) fn error(&self, kept: f64, kept_mass: f64) -> Option<f32> {
+        let gathered = kept + self.gathered;
+        let mean = gathered / (kept_mass + self.mass);
+        let random = self.sampling.hypot(self.total * mean);
+        (self.known && gathered > 0.0)
+            .then(|| ((self.placement + SAMPLING_SIGMAS * random) / gathered) as f32)
             .filter(|e| e.is_finite())
     }
 }

@@ -281,7 +281,8 @@ impl RowEngine {
                 self.row_links(tree, i, &row, t, max, known, &exact, &tail, scratch);
             let mut out = kept.into_linked_row(i, 0.0, links);
             if !out.links.is_empty() {
-                out.link_error = spread.error(self.kept_bounce(&out));
+                let (gather, mass) = self.kept_bounce(&out);
+                out.link_error = spread.error(gather, mass);
             }
             return out;
         }
@@ -466,7 +467,7 @@ impl RowEngine {
             }
             return sum;
         }
-        if let Some(total) = self.closure_total(tree, i, t, scratch) {
+        if let Some((total, _)) = self.closure_total(tree, i, t, scratch) {
             return (total - known).max(0.0);
         }
         let weight = |x: &Tail| match *x {
