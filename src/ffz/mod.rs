@@ -9,7 +9,7 @@
 //! | `meta.rs` | [`Layout`], [`FileMeta`], the meta block (header + patch table) |
 //! | `chunk.rs` | [`encode_chunk`] (runs on workers) and chunk decoding |
 //! | `index.rs` | the row → chunk index and the footer |
-//! | `writer.rs` | [`FfzWriter`]: create, resume, append, finish |
+//! | `writer/` | [`FfzWriter`]: create, append, finish; its lock, staging file and resume |
 //! | `recover.rs` | the recovery scan for files without a usable index |
 //! | `reader.rs` | [`FfzReader`]: open, random row access, sequential scan |
 //! | `verify.rs` | [`FfzReader::verify`] and [`compare`] |

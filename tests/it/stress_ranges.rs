@@ -129,7 +129,7 @@ fn compute_cases() -> Vec<(Vec<&'static str>, Vec<&'static str>)> {
 const SCENE: &[&str] = &["builtin:cornell", "--patches", "40", "--quiet"];
 
 /// For `--shadow-tol`: two plates and a blocker, one partly shadowed pair. The outer
-/// rule's work on a pair is capped (`MAX_POINTS` in `src/formfactor/shadow.rs`), about
+/// rule's work on a pair is capped (`MAX_POINTS` in `src/formfactor/shadow/integral.rs`), about
 /// 0.5 s a pair at the smallest tolerance: bounded, but 25 s for the 68 exact pairs of
 /// the Cornell box in 12 patches.
 const SHADOWED: &[&str] = &["builtin:obstructed", "--patches", "4", "--quiet"];

@@ -1,8 +1,8 @@
 #!/usr/bin/env python3
 """Writes the malformed STL, PLY and glTF files of this corpus (one problem each).
 
-Run from this directory: python3 make_mesh_corpus.py. tests/it/scene_formats.rs lists
-each file with the error it must give; the comments here say what each breaks.
+Run from this directory: python3 make_mesh_corpus.py. tests/it/scene_formats/bad_files.rs
+lists each file with the error it must give; the comments here say what each breaks.
 """
 import json
 import struct
