@@ -13,6 +13,7 @@ mod ffz_python;
 mod ffz_roundtrip;
 mod ffz_tools;
 mod formfactor;
+mod house;
 mod links;
 mod mpi;
 mod pipeline;
