@@ -45,9 +45,19 @@
 //! the kept entries of the other rows only and the solve says so
 //! ([`Pool::senders_without_rows`]).
 
-use super::error::SolveError;
-use super::source::RowSource;
-use super::system::{check_index, Presence, System};
+/// What one scan of the rows measures for the pool ([`Pool::from_scan`]), per patch.
+#[derive(Debug)]
+pub(crate) struct PoolScan {
+    /// Σ over reflecting rows r of A_r F_rx, per column x.
+    pub(crate) carried: Vec<f64>,
+    /// Σ over every row read of A_r F_rx, per column x.
+    pub(crate) shot_at: Vec<f64>,
+    /// A_r (stored + dropped − to non-reflecting patches) per row read, `None` for a
+    /// row not read.
+    pub(crate) total: Vec<Option<f64>>,
+    /// W = Σ_j A_j D_j over reflecting rows.
+    pub(crate) weight: f64,
+}
 
 /// The pool's weights, measured in one scan of the rows.
 #[derive(Clone, Debug, Default)]
@@ -63,52 +73,26 @@ pub(crate) struct Pool {
 }
 
 impl Pool {
-    /// Measure the pool from one scan of `src` for `sys`.
-    ///
-    /// # Errors
-    /// A row index out of range or seen twice, a malformed row, the source's error.
-    pub(crate) fn measure(sys: &System, src: &dyn RowSource) -> Result<Self, SolveError> {
-        let n = sys.n;
-        // Σ over reflecting rows, and over every row read, of A_r F_rx per column x.
-        let mut carried = vec![0.0f64; n];
-        let mut shot_at = vec![0.0f64; n];
-        let mut total: Vec<Option<f64>> = vec![None; n];
-        let mut weight = 0.0;
-        let mut presence = Presence::new(n);
-        src.scan(&mut |row| {
-            let r = check_index(row.index, n)?;
-            if !sys.reflects[r] && !sys.emits[r] {
-                return Ok(());
-            }
-            presence.mark(row.index)?;
-            let Some(view) = sys.view(row)? else {
-                return Ok(());
-            };
-            let a = sys.area[r];
-            let (mut stored, mut to_dark) = (0.0, 0.0);
-            let reflecting = sys.reflects[r];
-            view.visit(n, |x, f| {
-                if reflecting {
-                    carried[x] += a * f;
-                }
-                shot_at[x] += a * f;
-                stored += f;
-                if !sys.reflects[x] {
-                    to_dark += f;
-                }
-            })?;
-            if reflecting {
-                weight += a * view.dropped;
-            }
-            total[r] = Some(a * (stored + view.dropped - to_dark));
-            Ok(())
-        })?;
+    /// The pool from what one scan of the rows measured ([`PoolScan`]); `reflects`
+    /// per patch, `missing` the emitting patches without a stored row.
+    pub(crate) fn from_scan(
+        scan: PoolScan,
+        reflects: &[bool],
+        missing: Option<(u32, usize)>,
+    ) -> Self {
+        let PoolScan {
+            carried,
+            shot_at,
+            total,
+            weight,
+        } = scan;
+        let n = total.len();
         let send = (0..n)
             .map(|i| total[i].map_or(0.0, |t| (t - carried[i]).max(0.0)))
             .collect();
         let mut shoot_share: Vec<f64> = (0..n)
             .map(|j| match total[j] {
-                Some(t) if sys.reflects[j] => (t - shot_at[j]).max(0.0),
+                Some(t) if reflects[j] => (t - shot_at[j]).max(0.0),
                 _ => 0.0,
             })
             .collect();
@@ -116,13 +100,12 @@ impl Pool {
         for s in &mut shoot_share {
             *s = if u > 0.0 { *s / u } else { 0.0 };
         }
-        let missing = presence.missing(|i| sys.emits[i] && total[i].is_none());
-        Ok(Pool {
+        Pool {
             send,
             weight,
             shoot_share,
             senders_without_rows: missing,
-        })
+        }
     }
 
     /// β per column for radiosity `b` (`n × m`): Σ_i s_i B_i / W (0 when W = 0: no
@@ -158,8 +141,8 @@ impl Pool {
 
 #[cfg(test)]
 mod tests {
-    use super::*;
     use crate::rows::{Row, RowValues};
+    use crate::solve::system::System;
     use crate::solve::{DroppedMass, MemoryRows};
     use glam::DVec3;
 
@@ -200,7 +183,7 @@ mod tests {
     #[test]
     fn the_pool_takes_in_what_it_hands_out() {
         let (sys, src) = three();
-        let pool = Pool::measure(&sys, &src).unwrap();
+        let pool = sys.measure_pool(&src).unwrap();
         // Carried into patch 0 by rows 1 and 2: 0.6 + 0.5; its row sums to 1: nothing
         // left (clamped at 0). Patch 1: 1 − 0.6; patch 2: 1 − 0.
         let want = [0.0, 1.0 - 0.6, 1.0];

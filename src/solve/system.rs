@@ -9,7 +9,7 @@
 use crate::patch::PatchSet;
 
 use super::error::SolveError;
-use super::pool::Pool;
+use super::pool::{Pool, PoolScan};
 use super::source::RowSource;
 use super::DroppedMass;
 
@@ -373,13 +373,64 @@ impl System {
     /// the pool with one scan of `src`; returns the scans made (0 or 1).
     ///
     /// # Errors
-    /// As [`Pool::measure`].
+    /// As [`System::measure_pool`].
     pub(crate) fn prepare_pool(&mut self, src: &dyn RowSource) -> Result<usize, SolveError> {
         if self.dropped != DroppedMass::Pool || !src.may_drop() || self.links.is_some() {
             return Ok(0);
         }
-        self.pool = Some(Pool::measure(self, src)?);
+        self.pool = Some(self.measure_pool(src)?);
         Ok(1)
+    }
+
+    /// Measure the pool from one scan of `src` (the sums of [`PoolScan`]).
+    ///
+    /// # Errors
+    /// A row index out of range or seen twice, a malformed row, the source's error.
+    pub(crate) fn measure_pool(&self, src: &dyn RowSource) -> Result<Pool, SolveError> {
+        let sys = self;
+        let n = sys.n;
+        // Σ over reflecting rows, and over every row read, of A_r F_rx per column x.
+        let mut carried = vec![0.0f64; n];
+        let mut shot_at = vec![0.0f64; n];
+        let mut total: Vec<Option<f64>> = vec![None; n];
+        let mut weight = 0.0;
+        let mut presence = Presence::new(n);
+        src.scan(&mut |row| {
+            let r = check_index(row.index, n)?;
+            if !sys.reflects[r] && !sys.emits[r] {
+                return Ok(());
+            }
+            presence.mark(row.index)?;
+            let Some(view) = sys.view(row)? else {
+                return Ok(());
+            };
+            let a = sys.area[r];
+            let (mut stored, mut to_dark) = (0.0, 0.0);
+            let reflecting = sys.reflects[r];
+            view.visit(n, |x, f| {
+                if reflecting {
+                    carried[x] += a * f;
+                }
+                shot_at[x] += a * f;
+                stored += f;
+                if !sys.reflects[x] {
+                    to_dark += f;
+                }
+            })?;
+            if reflecting {
+                weight += a * view.dropped;
+            }
+            total[r] = Some(a * (stored + view.dropped - to_dark));
+            Ok(())
+        })?;
+        let missing = presence.missing(|i| sys.emits[i] && total[i].is_none());
+        let scan = PoolScan {
+            carried,
+            shot_at,
+            total,
+            weight,
+        };
+        Ok(Pool::from_scan(scan, &self.reflects, missing))
     }
 
     /// With a source whose rows link to clusters, the cluster order's gathering data

@@ -71,7 +71,6 @@ const KNOWN_CIRCLES: &[&[&str]] = &[
     &["src/ffz/routes.rs", "src/ffz/spec.rs"],
     &["src/formfactor/shadow/cone.rs", "src/formfactor/solids.rs"],
     &["src/scene/mesh.rs", "src/scene/obj.rs"],
-    &["src/solve/pool.rs", "src/solve/system.rs"],
 ];
 
 /// One `.rs` file: its path from the repository root (with `/`) and its text.
