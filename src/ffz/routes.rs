@@ -2,7 +2,7 @@
 //! reports at its end and the index of the file keeps, so that `ffstream info` can
 //! say it later, added up over the runs that wrote the file (`--resume`).
 
-use super::spec::{self, Le};
+use super::spec::{self, record_len, Le};
 
 /// How many evaluated pairs got their visibility which way (from the row engine's
 /// [`Counters`](crate::formfactor::Counters), summed over a worker's threads, then
@@ -153,23 +153,6 @@ pub struct StoredRoutes {
     /// Rows (half rows with `--symmetric`) whose pairs are counted.
     pub rows: u64,
     pub pairs: PairRoutes,
-}
-
-/// Bytes of a route record without the tenth count (spec §6.1): nine u64.
-pub(crate) const ROUTES_LEN: usize = 72;
-
-/// Bytes of the route record an index with these flags has (spec §6.1): none without
-/// [`spec::INDEX_FLAG_ROUTES`], nine u64 with it, ten with
-/// [`spec::INDEX_FLAG_ROUTES_UNMET`] too.
-pub(crate) fn record_len(flags: u32) -> usize {
-    match (
-        flags & spec::INDEX_FLAG_ROUTES != 0,
-        flags & spec::INDEX_FLAG_ROUTES_UNMET != 0,
-    ) {
-        (false, _) => 0,
-        (true, false) => ROUTES_LEN,
-        (true, true) => ROUTES_LEN + 8,
-    }
 }
 
 impl StoredRoutes {

@@ -495,11 +495,28 @@ impl IndexV1 {
     pub(crate) fn total_len(n_chunks: u64, n_rows: u64, flags: u32) -> Option<u64> {
         let chunk_table = n_chunks.checked_mul(8)?;
         let row_table = n_rows.checked_mul(8)?;
-        let routes = super::routes::record_len(flags) as u64;
+        let routes = record_len(flags) as u64;
         (INDEX_FIXED_LEN as u64)
             .checked_add(chunk_table)?
             .checked_add(row_table)?
             .checked_add(routes)
+    }
+}
+
+/// Bytes of a route record (`ffz::routes`) without the tenth count (spec §6.1): nine u64.
+pub(crate) const ROUTES_LEN: usize = 72;
+
+/// Bytes of the route record an index with these flags has (spec §6.1): none without
+/// [`INDEX_FLAG_ROUTES`], nine u64 with it, ten with
+/// [`INDEX_FLAG_ROUTES_UNMET`] too.
+pub(crate) fn record_len(flags: u32) -> usize {
+    match (
+        flags & INDEX_FLAG_ROUTES != 0,
+        flags & INDEX_FLAG_ROUTES_UNMET != 0,
+    ) {
+        (false, _) => 0,
+        (true, false) => ROUTES_LEN,
+        (true, true) => ROUTES_LEN + 8,
     }
 }
 

@@ -68,7 +68,6 @@ const LONG_FUNCTIONS: &[(&str, &str)] = &[
 /// that is no longer a circle.
 const KNOWN_CIRCLES: &[&[&str]] = &[
     &["src/daylight/glazing.rs", "src/daylight/scene.rs"],
-    &["src/ffz/routes.rs", "src/ffz/spec.rs"],
     &["src/formfactor/shadow/cone.rs", "src/formfactor/solids.rs"],
     &["src/scene/mesh.rs", "src/scene/obj.rs"],
 ];

@@ -98,7 +98,7 @@ fn route_counts_survive_a_resume_and_add_up() {
     w.push_row(Row::dense(0, vec![0.0, 0.5, 0.25])).unwrap();
     w.add_routes(&counts(1, 2, 1));
     let with = w.finish().unwrap().bytes_on_disk;
-    assert_eq!(with, plain + super::super::routes::ROUTES_LEN as u64);
+    assert_eq!(with, plain + super::super::spec::ROUTES_LEN as u64);
     let r = FfzReader::open(&path).unwrap();
     assert!(
         r.is_indexed() && r.warnings().is_empty(),
