@@ -195,7 +195,7 @@ impl<'p> Assembler<'p> {
     /// materials file beside it when there is one.
     ///
     /// # Errors
-    /// As [`super::obj::read_mtl`] for a materials file that exists but is not valid.
+    /// As [`super::mtl::read_mtl`] for a materials file that exists but is not valid.
     pub(super) fn new(path: &'p Path, unit: &'static str) -> Result<Self, SceneError> {
         let mut scene = Scene {
             source: path.display().to_string(),
@@ -203,7 +203,7 @@ impl<'p> Assembler<'p> {
         };
         let mtl = materials_file(path);
         if mtl.is_file() {
-            scene.materials = super::obj::read_mtl(&mtl, &mut scene.warnings)?;
+            scene.materials = super::mtl::read_mtl(&mtl, &mut scene.warnings)?;
         }
         let named = scene
             .materials

@@ -29,6 +29,7 @@ mod duplicates;
 mod error;
 mod gltf;
 mod mesh;
+mod mtl;
 mod obj;
 mod office;
 mod ply;

@@ -69,7 +69,6 @@ const LONG_FUNCTIONS: &[(&str, &str)] = &[
 const KNOWN_CIRCLES: &[&[&str]] = &[
     &["src/daylight/glazing.rs", "src/daylight/scene.rs"],
     &["src/formfactor/shadow/cone.rs", "src/formfactor/solids.rs"],
-    &["src/scene/mesh.rs", "src/scene/obj.rs"],
 ];
 
 /// One `.rs` file: its path from the repository root (with `/`) and its text.
