@@ -153,12 +153,25 @@ impl Glazing {
                 continue;
             }
             let x = a + (b - a) * (da / (da - db)) - p.origin;
-            if super::scene::inside(&p.outline, x.dot(p.u), x.dot(p.v)) {
+            if inside(&p.outline, x.dot(p.u), x.dot(p.v)) {
                 t *= p.tau;
             }
         }
         t
     }
+}
+
+/// Even-odd test of the point (a, b) against a polygon in its plane (`daylight::scene`
+/// also places its sensors with it).
+pub(crate) fn inside(poly: &[(f64, f64)], a: f64, b: f64) -> bool {
+    let mut inside = false;
+    for k in 0..poly.len() {
+        let (p, q) = (poly[k], poly[(k + 1) % poly.len()]);
+        if (p.1 > b) != (q.1 > b) && a < p.0 + (b - p.1) / (q.1 - p.1) * (q.0 - p.0) {
+            inside = !inside;
+        }
+    }
+    inside
 }
 
 #[cfg(test)]

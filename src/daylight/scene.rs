@@ -24,7 +24,7 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use glam::DVec3;
 
 use super::dome::SkyDome;
-use super::glazing::Glazing;
+use super::glazing::{inside, Glazing};
 use super::input::InputError;
 use crate::formfactor::polygon::Polygon;
 use crate::formfactor::shadow::point_polygon;
@@ -246,18 +246,6 @@ pub fn group_plane(scene: &crate::scene::Scene, group: &str) -> Option<(DVec3, D
     }
     let u = (first.corners[1] - o).normalize();
     Some((o, u, n.cross(u)))
-}
-
-/// Even-odd test of the point (a, b) against a polygon in its plane.
-pub(crate) fn inside(poly: &[(f64, f64)], a: f64, b: f64) -> bool {
-    let mut inside = false;
-    for k in 0..poly.len() {
-        let (p, q) = (poly[k], poly[(k + 1) % poly.len()]);
-        if (p.1 > b) != (q.1 > b) && a < p.0 + (b - p.1) / (q.1 - p.1) * (q.0 - p.0) {
-            inside = !inside;
-        }
-    }
-    inside
 }
 
 /// Integration points of a patch: `(point, area weight)`, weights summing to the area.

@@ -67,7 +67,6 @@ const LONG_FUNCTIONS: &[(&str, &str)] = &[
 /// docs/conventions.md §11. A circle not in this list fails, and so does an entry
 /// that is no longer a circle.
 const KNOWN_CIRCLES: &[&[&str]] = &[
-    &["src/daylight/glazing.rs", "src/daylight/scene.rs"],
     &["src/formfactor/shadow/cone.rs", "src/formfactor/solids.rs"],
 ];
 
