@@ -29,7 +29,6 @@ pub(crate) mod quadrature;
 pub mod sampling;
 pub(crate) mod scratch;
 pub(crate) mod shadow;
-pub(crate) mod solids;
 pub(crate) mod topk;
 pub(crate) mod tree;
 pub(crate) mod visibility;

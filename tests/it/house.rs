@@ -40,7 +40,7 @@ const LONG_FUNCTIONS: &[(&str, &str)] = &[
     ("src/ffz/meta.rs", "decode_meta"),
     ("src/ffz/tools.rs", "verify_with"),
     ("src/formfactor/engine/links.rs", "link_values"),
-    ("src/formfactor/solids.rs", "solid_of"),
+    ("src/formfactor/shadow/solids.rs", "solid_of"),
     ("src/solve/mod.rs", "solve"),
     ("src/solve/shooting.rs", "run"),
     (
@@ -63,13 +63,6 @@ const LONG_FUNCTIONS: &[(&str, &str)] = &[
         "every_numeric_option_at_the_ends_of_its_range_neither_panics_nor_hangs",
     ),
 ];
-/// Import circles still to be broken (issue 46), each as its sorted files; listed in
-/// docs/conventions.md §11. A circle not in this list fails, and so does an entry
-/// that is no longer a circle.
-const KNOWN_CIRCLES: &[&[&str]] = &[
-    &["src/formfactor/shadow/cone.rs", "src/formfactor/solids.rs"],
-];
-
 /// One `.rs` file: its path from the repository root (with `/`) and its text.
 struct Source {
     path: String,
@@ -810,17 +803,7 @@ fn no_two_files_of_src_use_each_other() {
         .into_iter()
         .filter(|c| c.len() > 1)
         .collect();
-    for known in KNOWN_CIRCLES {
-        if !circles.iter().any(|c| c == known) {
-            report.push(format!(
-                "no longer a circle, take it out of KNOWN_CIRCLES: {known:?}"
-            ));
-        }
-    }
-    for comp in circles
-        .into_iter()
-        .filter(|c| !KNOWN_CIRCLES.iter().any(|k| k == c))
-    {
+    for comp in circles {
         report.push(format!("circle: {}", comp.join(" ↔ ")));
         for ((a, b), (line, path)) in &edges {
             if comp.contains(a) && comp.contains(b) {

@@ -4,8 +4,8 @@
 //! enough pieces, get rays.
 
 use super::{ClippedPair, RowEngine, Scratch};
+use crate::formfactor::shadow::solids::NO_SOLID;
 use crate::formfactor::shadow::{self, Blocked, Caster, Pair};
-use crate::formfactor::solids::NO_SOLID;
 #[cfg(doc)]
 use crate::formfactor::Visibility;
 

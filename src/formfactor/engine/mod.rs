@@ -33,8 +33,8 @@ use super::geom::{PatchBound, PatchGeom};
 use super::polygon::{EdgeSet, Polygon};
 use super::quadrature::{gauss_table, GaussTable};
 use super::scratch::{Counters, PairScratch};
+use super::shadow::solids::{Solids, NO_SOLID};
 use super::shadow::{Caster, ShadowScratch};
-use super::solids::{Solids, NO_SOLID};
 use super::tree::PatchTree;
 use super::{mc, point, topk, visibility, FormFactorConfig, Method, TopKTail, Visibility};
 use crate::geometry::occluders::{
@@ -157,7 +157,7 @@ pub(crate) const PAIR_LISTS_MAX_OCCLUDERS: usize = 256;
 
 impl RowEngine {
     /// With exact visibility, how many convex solids the occluders hold and how many
-    /// triangles they are made of ([`super::solids`]); None otherwise.
+    /// triangles they are made of ([`super::shadow::solids`]); None otherwise.
     pub fn solids_found(&self) -> Option<(usize, usize)> {
         (self.cfg.visibility == Visibility::Exact).then(|| {
             let s = &self.solids;

@@ -8,7 +8,8 @@ use std::collections::BinaryHeap;
 
 use glam::DVec3;
 
-use super::cone::{Caster, Piece};
+use super::caster::Caster;
+use super::cone::Piece;
 use super::hidden::{hides, segments_may_cross, solid_hides};
 use super::lambert::point_polygon;
 use super::pair::Pair;
@@ -17,7 +18,7 @@ use super::union::{blocked_at, ShadowScratch};
 use crate::formfactor::contour::area_form_factor;
 use crate::formfactor::polygon::{Polygon, MAX_VERTS};
 use crate::formfactor::quadrature::{gauss_table, LAURIE, RADON};
-use crate::formfactor::solids::Solid;
+use crate::formfactor::shadow::solids::Solid;
 
 /// The state of one outer integral.
 pub(super) struct Run<'p, 'a> {

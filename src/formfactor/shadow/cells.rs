@@ -6,10 +6,11 @@
 
 use glam::DVec3;
 
-use super::cone::{usable, Caster, Piece};
+use super::caster::Caster;
+use super::cone::{usable, Piece};
 use super::hidden::segments_may_cross;
 use super::pair::Pair;
-use crate::formfactor::solids::{Solid, NO_SOLID};
+use crate::formfactor::shadow::solids::{Solid, NO_SOLID};
 
 /// Most cells [`split_at_events`] cuts P_i into. A kink left uncut can fool the rule:
 /// a triangle that barely crosses it may have all its samples on one side, so that its

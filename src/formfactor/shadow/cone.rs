@@ -3,50 +3,18 @@
 //! whose segment from x crosses it: the three planes through x and an edge, and the
 //! far side of its plane (the shadow of a triangle, clipped, in [`super`]). A convex
 //! solid seen from x gives one cone for all its triangles: its silhouette's planes and
-//! the far sides of the faces x sees ([`crate::formfactor::solids`]). A receiver
+//! the far sides of the faces x sees ([`super::solids`]). A receiver
 //! [`Piece`] is P_j clipped by such planes.
 
 use glam::DVec3;
 
+use super::caster::Caster;
+use super::solids::{Solid, MAX_FACES};
 use crate::formfactor::polygon::PolygonN;
-use crate::formfactor::solids::{Solid, NO_SOLID};
 
 /// A receiver piece: `P_j` (at most 8 vertices) clipped by the four planes of a cone
 /// (one vertex more per plane).
 pub(crate) type Piece = PolygonN<16>;
-
-/// An occluder triangle prepared for one pair: corners and unit plane normal.
-#[derive(Clone, Copy, Debug)]
-pub(crate) struct Caster {
-    pub(crate) v: [DVec3; 3],
-    pub(crate) normal: DVec3,
-    pub(crate) offset: f64,
-    /// The convex solid it belongs to ([`crate::formfactor::solids`]), or [`NO_SOLID`].
-    pub(crate) solid: u32,
-}
-
-impl Caster {
-    /// None for a degenerate triangle (it blocks nothing).
-    pub(crate) fn new(v: [DVec3; 3]) -> Option<Self> {
-        let n = (v[1] - v[0]).cross(v[2] - v[0]);
-        let len = n.length();
-        if !(len > 0.0 && len.is_finite()) {
-            return None;
-        }
-        let normal = n / len;
-        Some(Caster {
-            v,
-            normal,
-            offset: normal.dot(v[0]),
-            solid: NO_SOLID,
-        })
-    }
-
-    /// The same caster, part of solid `solid` (or [`NO_SOLID`]).
-    pub(crate) fn in_solid(self, solid: u32) -> Self {
-        Caster { solid, ..self }
-    }
-}
 
 /// A half-space `normal · y ≥ offset`.
 #[derive(Clone, Copy, Debug)]
@@ -159,7 +127,7 @@ impl Cone {
         true
     }
 
-    /// What the convex solid `k` hides of `receiver` from `x` ([`crate::formfactor::solids`]): the
+    /// What the convex solid `k` hides of `receiver` from `x` ([`super::solids`]): the
     /// cone of its silhouette beyond the faces x sees, written into `c`.
     pub(super) fn of_solid(
         x: DVec3,
@@ -168,7 +136,7 @@ impl Cone {
         tol: f64,
         c: &mut Cone,
     ) -> SolidShadow {
-        let mut side = [0.0; crate::formfactor::solids::MAX_FACES];
+        let mut side = [0.0; MAX_FACES];
         let mut sees = 0u32;
         for (f, face) in k.faces.iter().enumerate() {
             side[f] = face.normal.dot(x) - face.offset;

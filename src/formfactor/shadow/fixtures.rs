@@ -3,9 +3,9 @@
 
 use glam::dvec3;
 
-use super::cone::Caster;
+use super::caster::Caster;
 use crate::formfactor::polygon::Polygon;
-use crate::formfactor::solids::Solids;
+use crate::formfactor::shadow::solids::Solids;
 
 /// Howell's differential element to a parallel rectangle with a corner above
 /// it (a × b at height c), written out independently of [`point_polygon`].
@@ -28,7 +28,7 @@ pub(super) fn square(x0: f64, x1: f64, z0: f64, z1: f64, y: f64) -> Polygon {
 /// A closed box between a floor square and a smaller ceiling square, as one solid
 /// and as its twelve triangles each on its own.
 pub(super) fn box_between_squares() -> (Solids, Vec<Caster>, Vec<Caster>) {
-    use crate::formfactor::solids::tests::box_triangles;
+    use crate::formfactor::shadow::solids::tests::box_triangles;
     let tris = box_triangles(dvec3(0.4, 1.0, 0.4), dvec3(1.6, 2.0, 1.6), false);
     let found = Solids::find(&tris, 1e-9);
     assert_eq!(found.solids.len(), 1);

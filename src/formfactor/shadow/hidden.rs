@@ -6,8 +6,8 @@
 
 use glam::DVec3;
 
-use super::cone::Caster;
-use crate::formfactor::solids::Solid;
+use super::caster::Caster;
+use crate::formfactor::shadow::solids::Solid;
 
 /// Whether some segment from a point of the convex polygon `t` to a point of the
 /// convex polygon `q` may cross the triangle `c`: false when a plane separates `c`

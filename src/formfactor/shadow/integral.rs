@@ -10,7 +10,7 @@ use super::cone::Piece;
 use super::hidden::{hides, segments_may_cross, solid_hides};
 use super::pair::{Blocked, Pair};
 use super::union::ShadowScratch;
-use crate::formfactor::solids::{Solid, NO_SOLID};
+use crate::formfactor::shadow::solids::{Solid, NO_SOLID};
 
 /// The share of a pair's tolerance that the exact route treats as nothing: 1 /
 /// `UNRESOLVED` of it. A pair whose remainder is below that share of F⁰ ×
@@ -146,7 +146,7 @@ mod tests {
     use crate::formfactor::contour::{area_form_factor, ContourParams};
     use crate::formfactor::polygon::Polygon;
     use crate::formfactor::quadrature::{gauss_table, LAURIE};
-    use crate::formfactor::shadow::cone::Caster;
+    use crate::formfactor::shadow::caster::Caster;
     use crate::formfactor::shadow::fixtures::{
         box_between_squares, casters_of_square, corner_rectangle, square, square_facing,
     };

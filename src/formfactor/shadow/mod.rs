@@ -74,6 +74,7 @@
 //! from these steps. The rule pair itself is in [`super::quadrature`].
 
 mod adaptive;
+mod caster;
 mod cells;
 mod cone;
 #[cfg(test)]
@@ -82,11 +83,13 @@ mod hidden;
 mod integral;
 mod lambert;
 mod pair;
+pub(crate) mod solids;
 mod triangles;
 mod union;
 
+pub(crate) use caster::Caster;
 pub(crate) use cells::cut;
-pub(crate) use cone::{Caster, Piece};
+pub(crate) use cone::Piece;
 pub(crate) use hidden::polygon_hides;
 pub(crate) use integral::{blocked_integral, UNRESOLVED};
 pub(crate) use lambert::point_polygon;

@@ -4,10 +4,10 @@
 
 use glam::DVec3;
 
-use super::cone::Caster;
+use super::caster::Caster;
 use crate::formfactor::contour::ContourParams;
 use crate::formfactor::polygon::Polygon;
-use crate::formfactor::solids::Solid;
+use crate::formfactor::shadow::solids::Solid;
 
 /// The outer integral of one pair: what [`super::integral::blocked_integral`] needs besides the rule.
 pub(crate) struct Pair<'a> {

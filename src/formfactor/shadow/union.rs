@@ -9,10 +9,11 @@ use std::collections::BinaryHeap;
 
 use glam::DVec3;
 
-use super::cone::{usable, Caster, Cone, Piece, SolidShadow};
+use super::caster::Caster;
+use super::cone::{usable, Cone, Piece, SolidShadow};
 use super::lambert::point_polygon;
 use super::triangles::Open;
-use crate::formfactor::solids::Solid;
+use crate::formfactor::shadow::solids::Solid;
 
 /// Most pieces the union of the shadows of one point may be cut into before the
 /// pair goes to rays.
@@ -194,7 +195,7 @@ mod tests {
     #[test]
     fn a_convex_solid_hides_what_its_triangles_hide() {
         use crate::formfactor::sampling::SplitMix64;
-        use crate::formfactor::solids::{tests::box_triangles, Solids};
+        use crate::formfactor::shadow::solids::{tests::box_triangles, Solids};
         let tris: Vec<[DVec3; 3]> = [
             box_triangles(dvec3(1.0, 0.0, 1.0), dvec3(2.0, 1.5, 2.5), true),
             box_triangles(dvec3(2.5, 0.5, 0.5), dvec3(3.0, 2.5, 1.0), false),

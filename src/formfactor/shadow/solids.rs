@@ -1,4 +1,4 @@
-//! Convex solids among the occluder triangles, for exact visibility ([`super::shadow`]).
+//! Convex solids among the occluder triangles, for exact visibility ([`super`]).
 //!
 //! A box made of twelve triangles casts twelve shadows, and the shadow clipping cuts
 //! their union into disjoint pieces: each shadow minus the cones of all the shadows
@@ -36,10 +36,8 @@ use std::collections::HashMap;
 
 use glam::DVec3;
 
-use super::shadow::Caster;
-
-/// No solid: the triangle casts its own shadow.
-pub(crate) const NO_SOLID: u32 = u32::MAX;
+use super::caster::Caster;
+pub(crate) use super::caster::NO_SOLID;
 
 /// Most triangles of a component examined as a solid.
 const MAX_TRIANGLES: usize = 64;
