@@ -201,9 +201,9 @@ pub(crate) fn decode_header(bytes: &[u8]) -> Result<HeaderV1, spec::Fault> {
     HeaderV1::decode(&arr)
 }
 
-/// Decode the meta block that follows the header (spec §3.2 to §4.3). `bytes` is the
-/// whole file prefix (at least `header.meta_len` bytes). `Err` holds (file offset, reason).
-pub(crate) fn decode_meta(bytes: &[u8], header: &HeaderV1) -> Result<FileMeta, spec::Fault> {
+/// The meta block's body (after the header, before the checksum), once its length is
+/// checked against the header's and its CRC-32C against the stored one.
+fn meta_body<'a>(bytes: &'a [u8], header: &HeaderV1) -> Result<&'a [u8], spec::Fault> {
     let meta_len =
         usize::try_from(header.meta_len).map_err(|_| (40, "meta_len too large".to_string()))?;
     let min = spec::HEADER_LEN as u64
@@ -238,6 +238,13 @@ pub(crate) fn decode_meta(bytes: &[u8], header: &HeaderV1) -> Result<FileMeta, s
             ),
         ));
     }
+    Ok(body)
+}
+
+/// Decode the meta block that follows the header (spec §3.2 to §4.3). `bytes` is the
+/// whole file prefix (at least `header.meta_len` bytes). `Err` holds (file offset, reason).
+pub(crate) fn decode_meta(bytes: &[u8], header: &HeaderV1) -> Result<FileMeta, spec::Fault> {
+    let body = meta_body(bytes, header)?;
     let base = spec::HEADER_LEN as u64;
     let mut r = Le::new(body);
     let at = |r: &Le<'_>| base + r.pos() as u64;

@@ -326,54 +326,70 @@ pub fn verify_with(path: &Path, checks: VerifyChecks<'_>, out: &mut dyn Write) -
     }
     let mut ok = rep.ok();
     if let Some(tol) = checks.unoccluded_tol {
-        let u = super::unoccluded_excess(&r, tol, 0)?;
-        writeln!(
-            out,
-            "unoccluded:  {} of {} stored entries above their unoccluded form factor F0 (1 + {tol:e}) (F0 from the patch table: contour kernel, no occluders)",
-            u.above, u.entries
-        )
-        .map_err(&e)?;
-        if let Some((i, j, f, f0)) = u.worst {
-            writeln!(
-                out,
-                "FAIL: entry ({i}, {j}) = {f:e} exceeds its unoccluded value {f0:e} by {:.3e} (relative): visibility can only lower a form factor",
-                f64::from(f) / f0 - 1.0
-            )
-            .map_err(&e)?;
-            ok = false;
-        }
+        ok &= print_unoccluded(path, &r, tol, out)?;
     }
     if let Some(other) = against {
-        let b = FfzReader::open(other)?;
-        let c = compare(&r, &b, VerifyOptions::default())?;
-        writeln!(out, "against:     {}", other.display()).map_err(&e)?;
-        for d in &c.meta_differences {
-            writeln!(out, "  header differs: {d}").map_err(&e)?;
-        }
-        writeln!(
-            out,
-            "  rows compared {}: {} identical, {} differ (max abs diff {:.3e}{}); only in this file {} {:?}, only in the other {} {:?}",
-            c.rows_compared,
-            c.identical_rows,
-            c.differing_rows,
-            c.max_abs_diff,
-            c.worst_row.map(|r| format!(" in row {r}")).unwrap_or_default(),
-            c.only_in_a,
-            c.first_only_in_a,
-            c.only_in_b,
-            c.first_only_in_b
-        )
-        .map_err(&e)?;
-        for x in &c.errors {
-            writeln!(out, "FAIL: {x}").map_err(&e)?;
-        }
-        if !c.identical() {
-            writeln!(out, "FAIL: the files differ").map_err(&e)?;
-            ok = false;
-        }
+        ok &= print_against(path, &r, other, out)?;
     }
     writeln!(out, "{}", if ok { "OK" } else { "FAILED" }).map_err(&e)?;
     Ok(ok)
+}
+
+/// `verify --unoccluded`: prints how many stored entries lie above their unoccluded
+/// form factor and the worst; returns `false` when one does.
+fn print_unoccluded(path: &Path, r: &FfzReader, tol: f64, out: &mut dyn Write) -> Result<bool> {
+    let e = out_err(path);
+    let u = super::unoccluded_excess(r, tol, 0)?;
+    writeln!(
+        out,
+        "unoccluded:  {} of {} stored entries above their unoccluded form factor F0 (1 + {tol:e}) (F0 from the patch table: contour kernel, no occluders)",
+        u.above, u.entries
+    )
+    .map_err(&e)?;
+    if let Some((i, j, f, f0)) = u.worst {
+        writeln!(
+            out,
+            "FAIL: entry ({i}, {j}) = {f:e} exceeds its unoccluded value {f0:e} by {:.3e} (relative): visibility can only lower a form factor",
+            f64::from(f) / f0 - 1.0
+        )
+        .map_err(&e)?;
+        return Ok(false);
+    }
+    Ok(true)
+}
+
+/// `verify --against`: compares the file with `other` row by row and prints the
+/// differences; returns `false` when the files differ.
+fn print_against(path: &Path, r: &FfzReader, other: &Path, out: &mut dyn Write) -> Result<bool> {
+    let e = out_err(path);
+    let b = FfzReader::open(other)?;
+    let c = compare(r, &b, VerifyOptions::default())?;
+    writeln!(out, "against:     {}", other.display()).map_err(&e)?;
+    for d in &c.meta_differences {
+        writeln!(out, "  header differs: {d}").map_err(&e)?;
+    }
+    writeln!(
+        out,
+        "  rows compared {}: {} identical, {} differ (max abs diff {:.3e}{}); only in this file {} {:?}, only in the other {} {:?}",
+        c.rows_compared,
+        c.identical_rows,
+        c.differing_rows,
+        c.max_abs_diff,
+        c.worst_row.map(|r| format!(" in row {r}")).unwrap_or_default(),
+        c.only_in_a,
+        c.first_only_in_a,
+        c.only_in_b,
+        c.first_only_in_b
+    )
+    .map_err(&e)?;
+    for x in &c.errors {
+        writeln!(out, "FAIL: {x}").map_err(&e)?;
+    }
+    if !c.identical() {
+        writeln!(out, "FAIL: the files differ").map_err(&e)?;
+        return Ok(false);
+    }
+    Ok(true)
 }
 
 /// Write to each `(path, head)` its head, then `i j F_ij` (1-based) for every entry

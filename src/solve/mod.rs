@@ -270,6 +270,54 @@ pub fn scene_reflectance(patches: &crate::patch::PatchSet) -> Vec<[f32; 3]> {
     patches.patches.iter().map(|p| p.rho).collect()
 }
 
+/// The solve's warnings about what it could not do: the iteration limit reached, light
+/// of rows that are not stored, mass top-k rows dropped with nowhere to go.
+fn solve_warnings(cfg: &SolveConfig, it: &Iterate, fp: &FinalPass, sys: &System) -> Vec<String> {
+    let mut warnings = Vec::new();
+    if !it.converged {
+        warnings.push(format!(
+            "{} stopped at the iteration limit ({} {}) before reaching tolerance {:e}",
+            cfg.method,
+            it.iterations,
+            if cfg.method == SolveMethod::Shooting {
+                "shots"
+            } else {
+                "sweeps"
+            },
+            cfg.tolerance
+        ));
+    }
+    if let Some((first, count)) = fp.dark_sources_missing {
+        warnings.push(format!(
+            "irradiance H of non-reflecting patches lacks the light sent directly by {count} \
+             non-reflecting emitting patch(es) whose rows are not stored (first: row {first})"
+        ));
+    }
+    if let Some((first, count)) = sys.pool.as_ref().and_then(|p| p.senders_without_rows) {
+        warnings.push(format!(
+            "{count} emitting patch(es) have no stored row (first: row {first}): the light \
+             of theirs that the other rows' kept entries do not carry cannot be pooled \
+             and is lost"
+        ));
+    }
+    if let Some((count, first, total)) = sys.lost_mass() {
+        warnings.push(match sys.pool {
+            Some(_) => format!(
+                "{count} top-k row(s) store nothing but have dropped mass (first: row \
+                 {first}; total {total:.3e}): their light reaches the other patches only \
+                 through the pool, shared by a global rule; a larger --top-k, or links \
+                 (--links in compute), place it"
+            ),
+            None => format!(
+                "{count} top-k row(s) store nothing but have dropped mass (first: row \
+                 {first}; total {total:.3e}): that light cannot be redistributed and is \
+                 lost (absorbed); a larger --top-k keeps it"
+            ),
+        });
+    }
+    warnings
+}
+
 /// Solve B = E + ρ F B per RGB channel for every emission case in `emission_sets`
 /// (each n values), with reflectance `rho` (n values), reading F from `src`.
 ///
@@ -330,48 +378,7 @@ pub fn solve(
         }
     };
     let residual_cols = relative(&fp.residual_abs, &column_max_abs(&it.b, sys.m));
-    let mut warnings = Vec::new();
-    if !it.converged {
-        warnings.push(format!(
-            "{} stopped at the iteration limit ({} {}) before reaching tolerance {:e}",
-            cfg.method,
-            it.iterations,
-            if cfg.method == SolveMethod::Shooting {
-                "shots"
-            } else {
-                "sweeps"
-            },
-            cfg.tolerance
-        ));
-    }
-    if let Some((first, count)) = fp.dark_sources_missing {
-        warnings.push(format!(
-            "irradiance H of non-reflecting patches lacks the light sent directly by {count} \
-             non-reflecting emitting patch(es) whose rows are not stored (first: row {first})"
-        ));
-    }
-    if let Some((first, count)) = sys.pool.as_ref().and_then(|p| p.senders_without_rows) {
-        warnings.push(format!(
-            "{count} emitting patch(es) have no stored row (first: row {first}): the light \
-             of theirs that the other rows' kept entries do not carry cannot be pooled \
-             and is lost"
-        ));
-    }
-    if let Some((count, first, total)) = sys.lost_mass() {
-        warnings.push(match sys.pool {
-            Some(_) => format!(
-                "{count} top-k row(s) store nothing but have dropped mass (first: row \
-                 {first}; total {total:.3e}): their light reaches the other patches only \
-                 through the pool, shared by a global rule; a larger --top-k, or links \
-                 (--links in compute), place it"
-            ),
-            None => format!(
-                "{count} top-k row(s) store nothing but have dropped mass (first: row \
-                 {first}; total {total:.3e}): that light cannot be redistributed and is \
-                 lost (absorbed); a larger --top-k keeps it"
-            ),
-        });
-    }
+    let mut warnings = solve_warnings(cfg, &it, &fp, &sys);
     let energy = energy::energy_reports(&sys, &it.b, &it.h);
     if let Some((case, fraction)) = energy::created_light(&energy) {
         warnings.push(format!(

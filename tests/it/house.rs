@@ -37,11 +37,7 @@ const LONG_FUNCTIONS: &[(&str, &str)] = &[
     ("bench/ffz_write.rs", "main"),
     ("bench/perf_rays.rs", "main"),
     ("bench/perf_rows.rs", "main"),
-    ("src/ffz/meta.rs", "decode_meta"),
-    ("src/ffz/tools.rs", "verify_with"),
     ("src/formfactor/engine/links.rs", "link_values"),
-    ("src/formfactor/shadow/solids.rs", "solid_of"),
-    ("src/solve/mod.rs", "solve"),
     ("src/solve/shooting.rs", "run"),
     (
         "tests/it/consumers.rs",

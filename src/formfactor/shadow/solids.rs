@@ -190,6 +190,41 @@ fn outward_plane(p: &[DVec3], inside: DVec3, tol: f64) -> Option<(DVec3, f64)> {
     Some((n, o))
 }
 
+/// The faces of the solid made of `members`: their triangles' outward planes, merged
+/// where equal, and each member's face; `None` past [`MAX_FACES`] or for a triangle
+/// without an outward plane.
+fn merged_faces(
+    members: &[u32],
+    tris: &[[DVec3; 3]],
+    centre: DVec3,
+    tol: f64,
+) -> Option<(Vec<Face>, HashMap<u32, u8>)> {
+    let mut faces: Vec<Face> = Vec::new();
+    let mut face_of: HashMap<u32, u8> = HashMap::new();
+    for &k in members {
+        let (n, o) = outward_plane(&tris[k as usize], centre, tol)?;
+        let f = match faces
+            .iter()
+            .position(|f| !f.open && f.normal.dot(n) > 1.0 - 1e-12 && (f.offset - o).abs() <= tol)
+        {
+            Some(f) => f,
+            None => {
+                faces.push(Face {
+                    normal: n,
+                    offset: o,
+                    open: false,
+                });
+                faces.len() - 1
+            }
+        };
+        face_of.insert(k, f as u8);
+        if faces.len() > MAX_FACES {
+            return None;
+        }
+    }
+    Some((faces, face_of))
+}
+
 /// The solid the triangles `members` form, if they form one (module docs).
 fn solid_of(
     members: &[u32],
@@ -233,29 +268,7 @@ fn solid_of(
         return None;
     }
     // Faces: the triangles' planes, merged where equal.
-    let mut faces: Vec<Face> = Vec::new();
-    let mut face_of: HashMap<u32, u8> = HashMap::new();
-    for &k in members {
-        let (n, o) = outward_plane(&tris[k as usize], centre, tol)?;
-        let f = match faces
-            .iter()
-            .position(|f| !f.open && f.normal.dot(n) > 1.0 - 1e-12 && (f.offset - o).abs() <= tol)
-        {
-            Some(f) => f,
-            None => {
-                faces.push(Face {
-                    normal: n,
-                    offset: o,
-                    open: false,
-                });
-                faces.len() - 1
-            }
-        };
-        face_of.insert(k, f as u8);
-        if faces.len() > MAX_FACES {
-            return None;
-        }
-    }
+    let (mut faces, face_of) = merged_faces(members, tris, centre, tol)?;
     let mut solid_edges: Vec<SolidEdge> = Vec::new();
     for e in &edges {
         let owners = &by_edge[e];
