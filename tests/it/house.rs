@@ -37,23 +37,13 @@ const LONG_FUNCTIONS: &[(&str, &str)] = &[
     ("bench/ffz_write.rs", "main"),
     ("bench/perf_rays.rs", "main"),
     ("bench/perf_rows.rs", "main"),
-    ("src/formfactor/engine/links.rs", "link_values"),
     ("src/solve/shooting.rs", "run"),
     (
         "tests/it/consumers.rs",
         "udales_reading_loop_reads_the_exported_city_with_its_count_and_values",
     ),
-    (
-        "tests/it/daylight_scene/annual_command.rs",
-        "annual_command_writes_the_hourly_table_and_the_metrics",
-    ),
     ("tests/it/ffz_golden.rs", "dump_file"),
     ("tests/it/ffz_tools.rs", "info_verify_export_outputs"),
-    ("tests/it/render/cornell.rs", "cornell"),
-    (
-        "tests/it/render/cornell.rs",
-        "cornell_box_render_reads_back_as_a_cornell_box",
-    ),
     (
         "tests/it/stress_ranges.rs",
         "every_numeric_option_at_the_ends_of_its_range_neither_panics_nor_hangs",

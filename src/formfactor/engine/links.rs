@@ -300,32 +300,27 @@ impl RowEngine {
         cut
     }
 
-    /// Step 2 (module docs): per cluster of `cut`, the mass known before (columns not
-    /// kept), the mass evaluated now (small links, or every link when the whole tail
-    /// is small: the fourth value says so), the sampled estimate of the rest, and the
-    /// first moments Σ F x of the known mass and of the rest (evaluated and sampled),
-    /// x the centroid of the patch each value came from (step 3).
-    #[allow(clippy::too_many_arguments)]
-    fn link_values(
+    /// A patch's centroid and, as the fourth coordinate, its first-bounce radiosity (0
+    /// without): the point of the first moments of step 3.
+    fn moment_point(&self, j: u32) -> DVec4 {
+        let b = self
+            .contrast
+            .as_ref()
+            .map_or(0.0, |c| c.bounce[j as usize] as f64);
+        self.geom[j as usize].centroid.extend(b)
+    }
+
+    /// Per cluster of `cut`: the exact mass known before (columns not kept), its first
+    /// moment (with a zero moment for the rest, filled in by [`Self::link_values`]),
+    /// and the items of its tail (columns and unopened nodes) with their weights.
+    #[allow(clippy::type_complexity)]
+    fn cluster_items(
         &self,
         tree: &PatchTree,
-        i: u32,
         row: &PatchBound,
-        t: usize,
         d: &Dropped,
         cut: &[u32],
-        scratch: &mut Scratch,
-    ) -> LinkValues {
-        // A patch's centroid and, as the fourth coordinate, its first-bounce radiosity
-        // (0 without): the first moments of step 3.
-        let at = |j: u32| {
-            let b = self
-                .contrast
-                .as_ref()
-                .map_or(0.0, |c| c.bounce[j as usize] as f64);
-            self.geom[j as usize].centroid.extend(b)
-        };
-        // Each cluster's exact mass and sampled items.
+    ) -> (Vec<f64>, Vec<(DVec4, DVec4)>, Vec<Vec<(Item, f64)>>) {
         let mut exact = Vec::with_capacity(cut.len());
         let mut lean = Vec::with_capacity(cut.len());
         let mut items: Vec<Vec<(Item, f64)>> = Vec::with_capacity(cut.len());
@@ -337,7 +332,7 @@ impl RowEngine {
             exact.push(known.iter().map(|x| x.1).sum::<f64>());
             let moment = known
                 .iter()
-                .map(|&(p, v)| v * at(order[p as usize]))
+                .map(|&(p, v)| v * self.moment_point(order[p as usize]))
                 .sum::<DVec4>();
             lean.push((moment, DVec4::ZERO));
             let mut of: Vec<(Item, f64)> = within(&d.columns, |x| x.0, a, b)
@@ -358,6 +353,28 @@ impl RowEngine {
             }
             items.push(of);
         }
+        (exact, lean, items)
+    }
+
+    /// Step 2 (module docs): per cluster of `cut`, the mass known before (columns not
+    /// kept), the mass evaluated now (small links, or every link when the whole tail
+    /// is small: the fourth value says so), the sampled estimate of the rest, and the
+    /// first moments Σ F x of the known mass and of the rest (evaluated and sampled),
+    /// x the centroid of the patch each value came from (step 3).
+    #[allow(clippy::too_many_arguments)]
+    fn link_values(
+        &self,
+        tree: &PatchTree,
+        i: u32,
+        row: &PatchBound,
+        t: usize,
+        d: &Dropped,
+        cut: &[u32],
+        scratch: &mut Scratch,
+    ) -> LinkValues {
+        let at = |j: u32| self.moment_point(j);
+        // Each cluster's exact mass and sampled items.
+        let (exact, mut lean, items) = self.cluster_items(tree, row, d, cut);
         let size = |of: &[(Item, f64)]| -> usize {
             of.iter()
                 .map(|(x, _)| match *x {

@@ -130,6 +130,45 @@ fn annual_command_with_glazing_under_a_clear_sky() {
     }
 }
 
+/// `metrics.csv` in `out` against the hourly table `rows` (month, day, hour, then one
+/// column per sensor): occupied hours 8–18 are those ending 9 … 18.
+fn assert_metrics_match_the_table(out: &std::path::Path, rows: &[Vec<f64>]) {
+    let metrics = std::fs::read_to_string(out.join("metrics.csv")).unwrap();
+    let mut ml = metrics.lines();
+    assert!(ml
+        .next()
+        .unwrap()
+        .starts_with("sensor,occupied_hours,da300_percent,"));
+    for (k, line) in ml.enumerate() {
+        let f: Vec<&str> = line.split(',').collect();
+        let occ: Vec<f64> = rows
+            .iter()
+            .filter(|r| r[2] >= 9.0 && r[2] <= 18.0)
+            .map(|r| r[3 + k])
+            .collect();
+        assert_eq!(f[1].parse::<usize>().unwrap(), occ.len());
+        assert_eq!(occ.len(), 3650);
+        let share = |p: &dyn Fn(f64) -> bool| {
+            100.0 * occ.iter().filter(|&&e| p(e)).count() as f64 / occ.len() as f64
+        };
+        // The table rounds to 0.1 lx: hours within 0.05 lx of a threshold may count
+        // either way, at most a few.
+        let close = |x: f64| (f64::from(f[2].parse::<f32>().unwrap()) - x).abs() <= 0.1;
+        assert!(
+            close(share(&|e| e >= 300.0)),
+            "DA300 {} vs {}",
+            f[2],
+            share(&|e| e >= 300.0)
+        );
+        let udi = share(&|e| (100.0..=2000.0).contains(&e));
+        assert!(
+            (f[4].parse::<f64>().unwrap() - udi).abs() <= 0.1,
+            "UDI {} vs {udi}",
+            f[4]
+        );
+    }
+}
+
 /// `ffstream annual` end to end on the room with a window: the tables it writes are the
 /// library's numbers for the same form-factor file, hour by hour, and its metrics are
 /// what the hourly table gives when counted here.
@@ -193,40 +232,7 @@ fn annual_command_writes_the_hourly_table_and_the_metrics() {
     }
 
     // Metrics counted from the table: occupied hours 8–18 are those ending 9 … 18.
-    let metrics = std::fs::read_to_string(out.join("metrics.csv")).unwrap();
-    let mut ml = metrics.lines();
-    assert!(ml
-        .next()
-        .unwrap()
-        .starts_with("sensor,occupied_hours,da300_percent,"));
-    for (k, line) in ml.enumerate() {
-        let f: Vec<&str> = line.split(',').collect();
-        let occ: Vec<f64> = rows
-            .iter()
-            .filter(|r| r[2] >= 9.0 && r[2] <= 18.0)
-            .map(|r| r[3 + k])
-            .collect();
-        assert_eq!(f[1].parse::<usize>().unwrap(), occ.len());
-        assert_eq!(occ.len(), 3650);
-        let share = |p: &dyn Fn(f64) -> bool| {
-            100.0 * occ.iter().filter(|&&e| p(e)).count() as f64 / occ.len() as f64
-        };
-        // The table rounds to 0.1 lx: hours within 0.05 lx of a threshold may count
-        // either way, at most a few.
-        let close = |x: f64| (f64::from(f[2].parse::<f32>().unwrap()) - x).abs() <= 0.1;
-        assert!(
-            close(share(&|e| e >= 300.0)),
-            "DA300 {} vs {}",
-            f[2],
-            share(&|e| e >= 300.0)
-        );
-        let udi = share(&|e| (100.0..=2000.0).contains(&e));
-        assert!(
-            (f[4].parse::<f64>().unwrap() - udi).abs() <= 0.1,
-            "UDI {} vs {udi}",
-            f[4]
-        );
-    }
+    assert_metrics_match_the_table(&out, &rows);
 
     // One heat map per sensor: each hour's cell has the colour of its value on the
     // map's scale (values from the table, rounded to 0.1 lx: one level of colour).

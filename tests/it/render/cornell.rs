@@ -94,6 +94,27 @@ fn cornell(n: usize) -> PatchSet {
             }
         }
     }
+    ps.extend(blocks());
+    PatchSet {
+        patches: ps,
+        groups: [
+            "floor",
+            "ceiling",
+            "back_wall",
+            "right_wall",
+            "left_wall",
+            "short_block",
+            "tall_block",
+            "light",
+        ]
+        .map(String::from)
+        .to_vec(),
+    }
+}
+
+/// The short and the tall block of the Cornell box, each face cut 2 × 2.
+fn blocks() -> Vec<Patch> {
+    let mut ps = Vec::new();
     let short = [
         v(130., 165., 65.),
         v(82., 165., 225.),
@@ -135,21 +156,7 @@ fn cornell(n: usize) -> PatchSet {
     for f in tall_faces {
         ps.extend(grid(f.map(|k| tall[k]), 2, 2, G_TALL, KD_WHITE, BLACK));
     }
-    PatchSet {
-        patches: ps,
-        groups: [
-            "floor",
-            "ceiling",
-            "back_wall",
-            "right_wall",
-            "left_wall",
-            "short_block",
-            "tall_block",
-            "light",
-        ]
-        .map(String::from)
-        .to_vec(),
-    }
+    ps
 }
 
 /// `B = E + ρ·H(p)` with a made-up irradiance that is brightest under the light.
@@ -183,6 +190,54 @@ fn red_green(img: &Image, xs: std::ops::Range<u32>, ys: std::ops::Range<u32>) ->
         }
     }
     (r, g)
+}
+
+/// Every pixel inside the projected front opening of the box (shrunk by 2 pixels)
+/// shows some surface, and the opening covers most of the frame.
+fn assert_no_holes(img: &Image, cam: &Camera) {
+    let (w, h) = (img.width, img.height);
+    let opening = [
+        v(552.8, 0., 0.),
+        v(0., 0., 0.),
+        v(0., 548.8, 0.),
+        v(556., 548.8, 0.),
+    ]
+    .map(|p| cam.project(p, w, h).unwrap());
+    // Orientation of the projected quad, so that the edge distances below are positive
+    // inside whichever way it winds on screen.
+    let orient = (0..4)
+        .map(|k| {
+            let (a, b) = (opening[k], opening[(k + 1) % 4]);
+            a.0 * b.1 - b.0 * a.1
+        })
+        .sum::<f64>()
+        .signum();
+    let mut inside = 0;
+    for y in 0..h {
+        for x in 0..w {
+            let p = (f64::from(x) + 0.5, f64::from(y) + 0.5);
+            let margin = (0..4)
+                .map(|k| {
+                    let (a, b) = (opening[k], opening[(k + 1) % 4]);
+                    let (dx, dy) = (b.0 - a.0, b.1 - a.1);
+                    orient * (dx * (p.1 - a.1) - dy * (p.0 - a.0)) / dx.hypot(dy)
+                })
+                .fold(f64::INFINITY, f64::min);
+            if margin > 2.0 {
+                inside += 1;
+                assert_ne!(
+                    img.pixel(x, y),
+                    [0; 3],
+                    "black pixel ({x}, {y}) inside the box"
+                );
+            }
+        }
+    }
+    // The opening covers most of the frame (~97 % of the width at z = 0).
+    assert!(
+        inside > (w * h) as usize * 8 / 10,
+        "only {inside} pixels inside the opening"
+    );
 }
 
 #[test]
@@ -252,48 +307,7 @@ fn cornell_box_render_reads_back_as_a_cornell_box() {
 
     // No holes: every pixel inside the projected front opening of the box (shrunk by
     // 2 pixels) shows some surface.
-    let opening = [
-        v(552.8, 0., 0.),
-        v(0., 0., 0.),
-        v(0., 548.8, 0.),
-        v(556., 548.8, 0.),
-    ]
-    .map(|p| cam.project(p, w, h).unwrap());
-    // Orientation of the projected quad, so that the edge distances below are positive
-    // inside whichever way it winds on screen.
-    let orient = (0..4)
-        .map(|k| {
-            let (a, b) = (opening[k], opening[(k + 1) % 4]);
-            a.0 * b.1 - b.0 * a.1
-        })
-        .sum::<f64>()
-        .signum();
-    let mut inside = 0;
-    for y in 0..h {
-        for x in 0..w {
-            let p = (f64::from(x) + 0.5, f64::from(y) + 0.5);
-            let margin = (0..4)
-                .map(|k| {
-                    let (a, b) = (opening[k], opening[(k + 1) % 4]);
-                    let (dx, dy) = (b.0 - a.0, b.1 - a.1);
-                    orient * (dx * (p.1 - a.1) - dy * (p.0 - a.0)) / dx.hypot(dy)
-                })
-                .fold(f64::INFINITY, f64::min);
-            if margin > 2.0 {
-                inside += 1;
-                assert_ne!(
-                    img.pixel(x, y),
-                    [0; 3],
-                    "black pixel ({x}, {y}) inside the box"
-                );
-            }
-        }
-    }
-    // The opening covers most of the frame (~97 % of the width at z = 0).
-    assert!(
-        inside > (w * h) as usize * 8 / 10,
-        "only {inside} pixels inside the opening"
-    );
+    assert_no_holes(&img, &cam);
 
     // Deterministic: same bytes for any thread count and on a second run.
     for threads in [1, 2, 3] {
