@@ -56,7 +56,7 @@ pub(crate) struct ComputeOptions {
     pub visibility: Option<VisibilityArg>,
     /// Exact visibility: target error of an entry's blocked part, relative to the
     /// entry's unoccluded value (default: the preset's, fast 1e-2, accurate 1e-3,
-    /// reference 1e-6; see README for cost against accuracy). The rule refines where its
+    /// reference 1e-6; docs/methods.md §3 gives cost against accuracy). The rule refines where its
     /// error estimate is largest until the estimates add up to the tolerance; pairs it
     /// cannot bring there (out of points or depth) are counted in the report. Below
     /// about 1e-7 the estimate itself can be fooled where a pair needs more than 256
@@ -67,7 +67,7 @@ pub(crate) struct ComputeOptions {
     /// of the contour integral and of the far-field rule). Default: the preset's, fast
     /// 1e-6, accurate 1e-8, reference 1e-13. Looser is cheaper and the errors stay far
     /// below it: 0.1 keeps the unit cube's row sums within 1.2e-5 for half the CPU
-    /// (README, "Form-factor methods").
+    /// (docs/methods.md §2).
     #[arg(long, value_name = "TOL", value_parser = number::tolerance)]
     pub quad_tol: Option<f64>,
     /// Visibility samples per pair (mc: point pairs; contour: rays per pair that may be
@@ -75,7 +75,7 @@ pub(crate) struct ComputeOptions {
     #[arg(long, value_name = "S", value_parser = clap::value_parser!(u32).range(1..=i64::from(MAX_SAMPLES)))]
     pub samples: Option<u32>,
     /// Rays cast for a pair before the adaptive early stop (when they all agree the
-    /// pair is done; the stop is biased, see README). Equal to --samples: no early
+    /// pair is done; the stop is biased, docs/methods.md §3). Equal to --samples: no early
     /// stop. Default: the preset's, or --samples when that is given. 1 to 65536.
     #[arg(long, value_name = "B", value_parser = clap::value_parser!(u32).range(1..=i64::from(MAX_SAMPLES)))]
     pub first_batch: Option<u32>,
@@ -284,7 +284,7 @@ pub(super) fn build_job(
     let took = setup_start.elapsed().as_secs_f64();
     match role {
         // Every process that computes does this set-up itself; this is its cost
-        // (README: why ranks load the scene rather than receive it).
+        // (docs/cluster.md §2: why ranks load the scene rather than receive it).
         Role::Alone => super::say(&format!(
             "ffstream: set-up (load, subdivide, Bvh, engine) took {took:.3} s"
         )),

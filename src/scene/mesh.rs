@@ -16,8 +16,8 @@ use super::{Face, Material, Scene, SceneError};
 /// lengths and areas of the faces would be infinite.
 pub(super) const MAX_COORDINATE: f64 = 1e150;
 
-/// Reflectance of faces whose group has no material anywhere (docs: README, "Scene
-/// formats"): a mid grey that neither emits nor absorbs everything.
+/// Reflectance of faces whose group has no material anywhere (docs/scenes.md
+/// §5): a mid grey that neither emits nor absorbs everything.
 const FALLBACK_KD: f32 = 0.5;
 
 /// Name of the materials file entry used for groups it does not name.
