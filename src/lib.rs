@@ -8,6 +8,7 @@
 //! | module | holds |
 //! |---|---|
 //! | [`patch`] | [`patch::Patch`] and [`patch::PatchSet`]: the unit of the matrix, shared by every layer |
+//! | [`random`] | the one seeded random-number generator (SplitMix64) that every layer draws from |
 //! | [`rows`] | [`rows::Row`]: one computed matrix row, as compute produces it and the file stores it |
 //! | [`scene`] | scene files (OBJ/MTL, STL, PLY, glTF) loaded and validated, built-in scenes |
 //! | [`geometry`] | subdivision into patches, the occluders and the eight-wide tree that answer the visibility questions |
@@ -27,6 +28,7 @@ pub mod formfactor;
 pub mod geometry;
 mod input;
 pub mod patch;
+pub mod random;
 pub mod render;
 pub mod rows;
 pub mod scene;

@@ -11,52 +11,8 @@
 
 use glam::DVec3;
 
-/// SplitMix64 (Steele, Lea & Flood 2014): tiny, fast, and good enough to drive
-/// stratified jitter. The state is a plain counter, so a stream is fully determined
-/// by its seed. The one seeded generator of the project: the kernels draw from it
-/// (seeded by [`pair_seed`]), and so do the tests and benchmarks for their data.
-#[derive(Clone, Copy, Debug)]
-pub struct SplitMix64 {
-    state: u64,
-}
-
-impl SplitMix64 {
-    pub fn new(seed: u64) -> Self {
-        SplitMix64 { state: seed }
-    }
-
-    #[inline]
-    pub fn next_u64(&mut self) -> u64 {
-        self.state = self.state.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        mix64(self.state)
-    }
-
-    /// Uniform in [0, 1) with 53 random bits.
-    #[inline]
-    pub fn next_f64(&mut self) -> f64 {
-        (self.next_u64() >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
-    }
-
-    /// Uniform in [0, 1) with 24 random bits (every value exact in f32).
-    #[inline]
-    pub fn next_f32(&mut self) -> f32 {
-        (self.next_u64() >> 40) as f32 * (1.0 / (1u32 << 24) as f32)
-    }
-
-    /// Uniform integer in [0, n), 0 for n = 0 (the high word of a 64 × 64-bit
-    /// product: bias below n / 2⁶⁴).
-    #[inline]
-    pub fn below(&mut self, n: usize) -> usize {
-        ((u128::from(self.next_u64()) * n as u128) >> 64) as usize
-    }
-
-    /// Shuffles `v` in place (Fisher–Yates).
-    pub fn shuffle<T>(&mut self, v: &mut [T]) {
-        for k in (1..v.len()).rev() {
-            v.swap(k, self.below(k + 1));
-        }
-    }
-}
+pub(crate) use crate::random::mix64;
+pub use crate::random::SplitMix64;
 
 /// The uses of a pair's random numbers, each its own stream (see [`pair_seed`]). The
 /// values are part of the numbers a file holds: changing one changes rows.
@@ -91,14 +47,6 @@ fn two_unit(rng: &mut SplitMix64) -> (f64, f64) {
     let r = rng.next_u64();
     const SCALE: f64 = 1.0 / (1u64 << 32) as f64;
     ((r >> 32) as f64 * SCALE, (r & 0xFFFF_FFFF) as f64 * SCALE)
-}
-
-/// The SplitMix64 output function (a bijective 64-bit mixer).
-#[inline]
-pub(crate) fn mix64(mut z: u64) -> u64 {
-    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    z ^ (z >> 31)
 }
 
 /// Seed of the random stream for the ordered pair (i, j), the run seed and a stream

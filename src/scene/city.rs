@@ -16,7 +16,7 @@ use glam::DVec3;
 
 use super::builder::Builder;
 use super::Scene;
-use crate::formfactor::sampling::SplitMix64;
+use crate::random::SplitMix64;
 
 /// Blocks per side in `builtin("city", None)`.
 pub(crate) const DEFAULT_BLOCKS: usize = 4;

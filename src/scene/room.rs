@@ -13,6 +13,7 @@ use glam::DVec3;
 
 use super::builder::Builder;
 use super::Scene;
+use crate::random::SplitMix64;
 
 /// Boxes in `builtin("room", None)`.
 pub(crate) const DEFAULT_BOXES: usize = 16;
@@ -21,18 +22,10 @@ const CELL: f64 = 2.0;
 const MARGIN: f64 = 1.0;
 const HEIGHT: f64 = 3.0;
 
-/// SplitMix64 finaliser (Steele, Lea and Flood 2014): a good 64-bit mix for hashing
-/// small integers into uniform bits.
-fn mix(mut z: u64) -> u64 {
-    z = z.wrapping_add(0x9e37_79b9_7f4a_7c15);
-    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-    z ^ (z >> 31)
-}
-
-/// Uniform value in [0, 1) for box `i`, property `k`.
+/// Uniform value in [0, 1) for box `i`, property `k`: the first draw of the generator
+/// seeded with both (a hash of them, the same on every machine).
 fn unit(i: usize, k: u64) -> f64 {
-    (mix((i as u64) << 8 | k) >> 11) as f64 / (1u64 << 53) as f64
+    SplitMix64::new((i as u64) << 8 | k).next_f64()
 }
 
 /// A room with `boxes` boxes (see the module docs).
