@@ -26,7 +26,7 @@ use glam::DVec3;
 use super::dome::SkyDome;
 use super::glazing::{inside, Glazing};
 use super::input::InputError;
-use crate::formfactor::polygon::Polygon;
+use crate::formfactor::clip::Polygon;
 use crate::formfactor::shadow::point_polygon;
 use crate::geometry::occluders::Occluders;
 use crate::patch::{Patch, PatchSet};

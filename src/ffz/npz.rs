@@ -58,7 +58,7 @@ pub(crate) fn spill_path(npz: &Path) -> PathBuf {
 
 /// Where each row's entries are in the spill file, and how many it kept.
 #[derive(Debug)]
-pub(crate) struct Spill {
+pub(crate) struct NpzSpill {
     path: PathBuf,
     out: BufWriter<File>,
     len: u64,
@@ -68,12 +68,12 @@ pub(crate) struct Spill {
     counts: Vec<u64>,
 }
 
-impl Spill {
+impl NpzSpill {
     /// A spill file for an `n`-row matrix written to `npz` ([`spill_path`]).
     pub(crate) fn create(npz: &Path, n: u32) -> Result<Self> {
         let path = spill_path(npz);
         let f = File::create(&path).map_err(|e| FfzError::io(&path, "create", e))?;
-        Ok(Spill {
+        Ok(NpzSpill {
             out: BufWriter::with_capacity(1 << 20, f),
             path,
             len: 0,

@@ -5,7 +5,7 @@ use std::io::{BufWriter, Write};
 use std::path::Path;
 
 use super::error::{FfzError, Result};
-use super::npz::Spill;
+use super::npz::NpzSpill;
 use super::reader::FfzReader;
 use super::spec;
 use super::staged::Staged;
@@ -196,16 +196,16 @@ impl Default for VerifyChecks<'_> {
     }
 }
 
-/// [`verify_with`] with the default checks and `against`.
+/// [`print_verify_with`] with the default checks and `against`.
 ///
 /// # Errors
-/// As [`verify_with`].
-pub fn verify(path: &Path, against: Option<&Path>, out: &mut dyn Write) -> Result<bool> {
+/// As [`print_verify_with`].
+pub fn print_verify(path: &Path, against: Option<&Path>, out: &mut dyn Write) -> Result<bool> {
     let checks = VerifyChecks {
         against,
         ..VerifyChecks::default()
     };
-    verify_with(path, checks, out)
+    print_verify_with(path, checks, out)
 }
 
 /// Check a file (every chunk, index, row sums, sky view factors, reciprocity; with
@@ -217,7 +217,11 @@ pub fn verify(path: &Path, against: Option<&Path>, out: &mut dyn Write) -> Resul
 ///
 /// # Errors
 /// Opening errors of either file; `Io` when `out` fails.
-pub fn verify_with(path: &Path, checks: VerifyChecks<'_>, out: &mut dyn Write) -> Result<bool> {
+pub fn print_verify_with(
+    path: &Path,
+    checks: VerifyChecks<'_>,
+    out: &mut dyn Write,
+) -> Result<bool> {
     let against = checks.against;
     let r = FfzReader::open(path)?;
     let rep = r.verify_with(VerifyOptions {
@@ -399,7 +403,7 @@ fn write_entries(
     r: &FfzReader,
     outputs: &[(&Path, String)],
     kept: impl Fn(f32) -> bool,
-    spill: Option<&mut Spill>,
+    spill: Option<&mut NpzSpill>,
 ) -> Result<()> {
     let mut staged = Vec::with_capacity(outputs.len());
     let mut sinks = Vec::with_capacity(outputs.len());
@@ -429,7 +433,7 @@ fn fill_entries(
     r: &FfzReader,
     sinks: &mut Vec<(&Path, BufWriter<std::fs::File>)>,
     kept: impl Fn(f32) -> bool,
-    mut spill: Option<&mut Spill>,
+    mut spill: Option<&mut NpzSpill>,
 ) -> Result<()> {
     let mut werr: Option<(&Path, std::io::Error)> = None;
     let mut serr: Option<FfzError> = None;
@@ -566,7 +570,7 @@ pub fn export(path: &Path, to: ExportTargets<'_>) -> Result<()> {
     }
     if !outputs.is_empty() || to.npz.is_some() {
         let mut spill = match to.npz {
-            Some(npz) => Some(Spill::create(npz, r.n())?),
+            Some(npz) => Some(NpzSpill::create(npz, r.n())?),
             None => None,
         };
         let written = write_entries(&r, &outputs, kept, spill.as_mut());

@@ -51,7 +51,7 @@
 
 use glam::DVec3;
 
-use super::polygon::{Edge, EdgeSet, Polygon};
+use super::clip::{Edge, EdgeSet, Polygon};
 use super::quadrature::{GaussTable, MAX_ORDER};
 
 /// Accuracy parameters of the outer quadrature.

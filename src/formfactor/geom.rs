@@ -4,7 +4,7 @@
 
 use glam::DVec3;
 
-use super::polygon::{EdgeSet, Polygon};
+use super::clip::{EdgeSet, Polygon};
 use super::sampling::PatchMap;
 use crate::geometry::occluders::Between;
 

@@ -17,6 +17,7 @@
 //! drawn from a stream seeded by (i, j, seed), so a row is bitwise the same on any
 //! thread or rank.
 
+pub(crate) mod clip;
 pub(crate) mod clusters;
 pub(crate) mod contour;
 pub(crate) mod engine;
@@ -24,7 +25,6 @@ pub(crate) mod farfield;
 pub(crate) mod geom;
 pub(crate) mod mc;
 pub(crate) mod point;
-pub(crate) mod polygon;
 pub(crate) mod quadrature;
 pub mod sampling;
 pub(crate) mod scratch;

@@ -34,8 +34,8 @@ use std::f64::consts::PI;
 
 use glam::DVec3;
 
+use super::clip::convex_holds;
 use super::geom::{PatchBound, PatchGeom};
-use super::polygon::convex_holds;
 
 /// Patches a leaf holds at most.
 const LEAF_PATCHES: usize = 4;

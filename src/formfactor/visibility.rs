@@ -27,8 +27,8 @@
 //! by up to 2e-2. The `accurate` (default) and `reference` presets therefore cast all
 //! their rays; only an explicit `--first-batch` below `--samples` enables the stop.
 
+use super::clip::Polygon;
 use super::geom::PatchGeom;
-use super::polygon::Polygon;
 use super::sampling::{latin_pairs, pair_seed, SplitMix64, Stream};
 use super::scratch::PairScratch;
 use super::FormFactorConfig;

@@ -13,7 +13,7 @@
 //! | raster | [`raster`] | z-buffered, perspective-correct rasterization of horizontal bands on several threads, box filter |
 //! | tone map | [`tonemap`] | exposure (automatic or given), clamp, sRGB transfer, 8-bit quantisation |
 //! | image | [`image`] | [`Image`] and its PNG reader and writer |
-//! | mesh | [`ply`] | the lit mesh as PLY with the picture's vertices, colours and tone map |
+//! | mesh | [`lit_ply`] | the lit mesh as PLY with the picture's vertices, colours and tone map |
 //!
 //! Conventions (all documented where they are implemented):
 //! - Image coordinates: x to the right, y down, pixel `(i, j)` covers `[i, i+1) × [j, j+1)`,
@@ -29,7 +29,7 @@
 
 pub(crate) mod camera;
 pub(crate) mod image;
-pub(crate) mod ply;
+pub(crate) mod lit_ply;
 pub(crate) mod raster;
 pub(crate) mod setup;
 pub(crate) mod shading;
@@ -41,7 +41,7 @@ use crate::patch::PatchSet;
 
 pub use camera::Camera;
 pub use image::Image;
-pub use ply::{write_ply, write_ply_with, PlyEncoding, PlyOptions};
+pub use lit_ply::{write_ply, write_ply_with, PlyEncoding, PlyOptions};
 pub use tonemap::{auto_exposure, srgb_encode};
 
 /// Errors of the render layer.

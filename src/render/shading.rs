@@ -14,7 +14,7 @@
 //! bounding box diagonal of each other: positions are hashed by cells of that size and
 //! each corner is compared with the vertices of its cell and the 26 cells around it,
 //! so two copies of one vertex that differ by round-off meet even when they straddle a
-//! cell boundary. The PLY writer ([`super::ply`]) uses the same vertices and colours,
+//! cell boundary. The PLY writer ([`super::lit_ply`]) uses the same vertices and colours,
 //! so the mesh shows what the picture shows.
 //!
 //! Negative radiosity (solver round-off) is clamped to zero here.

@@ -1,6 +1,6 @@
 //! The `--gather` baseline (the paper's design) shared by the embedded and MPI modes:
 //! compute rows as `f64`, hold the whole dense matrix in memory, write it at the end.
-//! It exists to be measured against the streaming design; see `mpi/gather.rs` for the
+//! It exists to be measured against the streaming design; see `mpi/gather_ranks.rs` for the
 //! MPI variant.
 
 use crate::ffz::FfzWriter;

@@ -123,7 +123,7 @@ pub(crate) fn run_worker(
         for t in 0..threads {
             let jobs_rx = jobs_rx.clone();
             let out_tx = out_tx.clone();
-            let counters = Counters {
+            let counters = WorkerTally {
                 computed: &computed,
                 busy_nanos: &busy_nanos,
                 stop: &stop,
@@ -274,9 +274,9 @@ fn stop_process() {
     }
 }
 
-/// Counters shared by the compute threads of one worker.
+/// The tallies shared by the compute threads of one worker (rows done, busy time).
 #[derive(Clone, Copy)]
-struct Counters<'a> {
+struct WorkerTally<'a> {
     computed: &'a AtomicU64,
     busy_nanos: &'a AtomicU64,
     /// Set when the driver gave up: threads stop taking rows.
@@ -390,9 +390,9 @@ fn compute_thread(
     faults: Faults,
     jobs: &Receiver<u32>,
     out: &Sender<FromCompute>,
-    counters: Counters<'_>,
+    counters: WorkerTally<'_>,
 ) {
-    let Counters {
+    let WorkerTally {
         computed,
         busy_nanos,
         stop,

@@ -177,13 +177,13 @@ fn compare_reports_identity_differences_and_rows_in_one_file() {
     assert_eq!(c.worst_row, Some(target));
     assert!((c.max_abs_diff - 0.25).abs() < 1e-6, "{}", c.max_abs_diff);
 
-    // tools::verify --against: true for the identical pair, false for the other.
+    // tools::print_verify --against: true for the identical pair, false for the other.
     let mut out = Vec::new();
-    assert!(tools::verify(&a, Some(&b), &mut out).unwrap());
+    assert!(tools::print_verify(&a, Some(&b), &mut out).unwrap());
     let text = String::from_utf8(out).unwrap();
     assert!(text.ends_with("OK\n"), "{text}");
     let mut out = Vec::new();
-    assert!(!tools::verify(&a, Some(&d), &mut out).unwrap());
+    assert!(!tools::print_verify(&a, Some(&d), &mut out).unwrap());
     let text = String::from_utf8(out).unwrap();
     assert!(
         text.contains("FAIL: the files differ") && text.contains("only in the other 0"),
@@ -224,7 +224,7 @@ fn info_verify_export_outputs() {
 
     // Missing rows make verify fail and say so.
     let mut out = Vec::new();
-    assert!(!tools::verify(&path, None, &mut out).unwrap());
+    assert!(!tools::print_verify(&path, None, &mut out).unwrap());
     let text = String::from_utf8(out).unwrap();
     assert!(text.contains("FAIL: 2 rows missing"), "{text}");
 
@@ -349,7 +349,7 @@ fn verify_fails_on_a_cut_file_and_names_the_recovery() {
     let b = std::fs::read(&path).unwrap();
     std::fs::write(&path, &b[..b.len() - 40]).unwrap(); // footer and part of the index
     let mut out = Vec::new();
-    assert!(!tools::verify(&path, None, &mut out).unwrap());
+    assert!(!tools::print_verify(&path, None, &mut out).unwrap());
     let text = String::from_utf8(out).unwrap();
     assert!(
         text.contains("FAIL:") && text.contains("recovered 5 chunks") && text.contains("0 missing"),

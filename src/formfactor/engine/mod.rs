@@ -26,11 +26,11 @@ use std::sync::Arc;
 
 use glam::DVec3;
 
+use super::clip::{EdgeSet, Polygon};
 use super::clusters::{ClusterCache, Clusters};
 use super::contour::{area_form_factor_edges, ContourParams};
 use super::farfield::{self, FarOrders};
 use super::geom::{PatchBound, PatchGeom};
-use super::polygon::{EdgeSet, Polygon};
 use super::quadrature::{gauss_table, GaussTable};
 use super::scratch::{Counters, PairScratch};
 use super::shadow::solids::{Solids, NO_SOLID};

@@ -55,8 +55,8 @@ use glam::DVec3;
 
 use super::topk_bounded::{systematic, Kept};
 use super::{between, RowEngine, Scratch};
+use crate::formfactor::clip::{convex_holds, PolygonN};
 use crate::formfactor::geom::{PatchBound, PatchGeom};
-use crate::formfactor::polygon::{convex_holds, PolygonN};
 use crate::formfactor::sampling::SplitMix64;
 use crate::formfactor::shadow::{polygon_hides, Caster};
 use crate::formfactor::tree::{Kids, PatchTree};

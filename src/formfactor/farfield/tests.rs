@@ -5,8 +5,8 @@
 //! the error bound behind [`super::FarOrders`] on triangle and cube pairs (`calibrate`).
 
 use super::*;
+use crate::formfactor::clip::Polygon;
 use crate::formfactor::contour::{self, ContourParams};
-use crate::formfactor::polygon::Polygon;
 use crate::formfactor::quadrature::gauss_table;
 use glam::dvec3;
 
@@ -284,8 +284,8 @@ mod rule {
 
 mod calibrate {
     use super::*;
+    use crate::formfactor::clip::Polygon;
     use crate::formfactor::contour::{self, ContourParams};
-    use crate::formfactor::polygon::Polygon;
     use crate::formfactor::quadrature::gauss_table;
     use glam::dvec3;
 

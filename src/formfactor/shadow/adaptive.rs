@@ -15,8 +15,8 @@ use super::lambert::point_polygon;
 use super::pair::Pair;
 use super::triangles::{Cell, Open};
 use super::union::{blocked_at, ShadowScratch};
+use crate::formfactor::clip::{Polygon, MAX_VERTS};
 use crate::formfactor::contour::area_form_factor;
-use crate::formfactor::polygon::{Polygon, MAX_VERTS};
 use crate::formfactor::quadrature::{gauss_table, LAURIE, RADON};
 use crate::formfactor::shadow::solids::Solid;
 

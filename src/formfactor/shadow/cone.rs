@@ -10,7 +10,7 @@ use glam::DVec3;
 
 use super::caster::Caster;
 use super::solids::{Solid, MAX_FACES};
-use crate::formfactor::polygon::PolygonN;
+use crate::formfactor::clip::PolygonN;
 
 /// A receiver piece: `P_j` (at most 8 vertices) clipped by the four planes of a cone
 /// (one vertex more per plane).

@@ -4,7 +4,7 @@
 use glam::dvec3;
 
 use super::caster::Caster;
-use crate::formfactor::polygon::Polygon;
+use crate::formfactor::clip::Polygon;
 use crate::formfactor::shadow::solids::Solids;
 
 /// Howell's differential element to a parallel rectangle with a corner above

@@ -143,8 +143,8 @@ fn blocked_integral_within(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::formfactor::clip::Polygon;
     use crate::formfactor::contour::{area_form_factor, ContourParams};
-    use crate::formfactor::polygon::Polygon;
     use crate::formfactor::quadrature::{gauss_table, LAURIE};
     use crate::formfactor::shadow::caster::Caster;
     use crate::formfactor::shadow::fixtures::{

@@ -5,8 +5,8 @@
 use glam::DVec3;
 
 use super::caster::Caster;
+use crate::formfactor::clip::Polygon;
 use crate::formfactor::contour::ContourParams;
-use crate::formfactor::polygon::Polygon;
 use crate::formfactor::shadow::solids::Solid;
 
 /// The outer integral of one pair: what [`super::integral::blocked_integral`] needs besides the rule.

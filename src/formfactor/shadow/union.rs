@@ -185,7 +185,7 @@ fn subtract(p: &Piece, c: &Cone, tol: f64, out: &mut Vec<Piece>, spare: &mut Pie
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::formfactor::polygon::Polygon;
+    use crate::formfactor::clip::Polygon;
     use crate::formfactor::shadow::fixtures::{casters_of_square, square};
     use glam::dvec3;
 

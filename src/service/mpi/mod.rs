@@ -17,7 +17,7 @@
 //! non-zero exit code. A failed worker, having told rank 0, waits for that abort
 //! rather than finalising ([`MpiContext::await_abort`] says why).
 
-mod gather;
+mod gather_ranks;
 pub(crate) mod links;
 pub(crate) mod protocol;
 
@@ -27,7 +27,7 @@ use mpi::point_to_point::{Destination, Source};
 use mpi::topology::{Communicator, SimpleCommunicator};
 use mpi::Threading;
 
-pub use gather::run_gather;
+pub use gather_ranks::run_gather;
 use links::{MpiMasterLink, MpiWorkerLink};
 
 use crate::service::master::{prepare, report, run_master};
