@@ -100,7 +100,7 @@ pub(super) fn verify(a: VerifyArgs) -> anyhow::Result<ExitCode> {
         row_sum_tol: a.row_sum_tol,
         unoccluded_tol: a.unoccluded,
     };
-    let ok = ffstream::ffz::tools::print_verify_with(&a.file, checks, &mut out)?;
+    let ok = ffstream::ffz::tools::print_checks(&a.file, checks, &mut out)?;
     Ok(if ok {
         ExitCode::SUCCESS
     } else {

@@ -196,16 +196,16 @@ impl Default for VerifyChecks<'_> {
     }
 }
 
-/// [`print_verify_with`] with the default checks and `against`.
+/// [`print_checks`] with the default checks and `against`.
 ///
 /// # Errors
-/// As [`print_verify_with`].
+/// As [`print_checks`].
 pub fn print_verify(path: &Path, against: Option<&Path>, out: &mut dyn Write) -> Result<bool> {
     let checks = VerifyChecks {
         against,
         ..VerifyChecks::default()
     };
-    print_verify_with(path, checks, out)
+    print_checks(path, checks, out)
 }
 
 /// Check a file (every chunk, index, row sums, sky view factors, reciprocity; with
@@ -217,11 +217,7 @@ pub fn print_verify(path: &Path, against: Option<&Path>, out: &mut dyn Write) ->
 ///
 /// # Errors
 /// Opening errors of either file; `Io` when `out` fails.
-pub fn print_verify_with(
-    path: &Path,
-    checks: VerifyChecks<'_>,
-    out: &mut dyn Write,
-) -> Result<bool> {
+pub fn print_checks(path: &Path, checks: VerifyChecks<'_>, out: &mut dyn Write) -> Result<bool> {
     let against = checks.against;
     let r = FfzReader::open(path)?;
     let rep = r.verify_with(VerifyOptions {
