@@ -43,6 +43,11 @@ pub(crate) struct SolveOptions {
     /// Most sweeps (shooting: shots / n), at least 1.
     #[arg(long, default_value_t = 10_000, value_name = "N", value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..))]
     pub max_iterations: usize,
+    /// Memory the solve may use to make its sweeps faster, in MiB (0 to 1048576): rows
+    /// that link to clusters keep their links ready to gather (docs/numerics.md §8)
+    /// instead of working them out again at every sweep. The answer is the same with 0.
+    #[arg(long, default_value_t = (ffstream::solve::DEFAULT_CACHE_BYTES >> 20) as u64, value_name = "MIB", value_parser = clap::value_parser!(u64).range(0..=1 << 20))]
+    pub cache_mib: u64,
     /// Take reflectance and emission from this scene instead of the file's patch table
     /// (the scene must be the one the file was computed from).
     #[arg(long = "scene", value_name = "SCENE.obj")]
@@ -196,6 +201,7 @@ pub(super) fn solve_file(
         method,
         tolerance: o.tolerance,
         max_iterations: o.max_iterations,
+        cache_bytes: (o.cache_mib as usize) << 20,
         dropped: if o.no_renormalize {
             solve::DroppedMass::Absorb
         } else {

@@ -54,7 +54,7 @@ pub fn solve_adjoint(
         .map(|g| g.iter().map(|&x| [x; 3]).collect())
         .collect();
     let mut sys = System::new(src.patches(), &sets, rho, cfg.dropped)?;
-    sys.prepare_links(src);
+    sys.prepare_links(src, cfg.cache_bytes);
     sys.prepare_pool(src)?;
     let (n, m) = (sys.n, sys.m);
     let patches = src.patches();

@@ -78,7 +78,7 @@ pub(crate) fn run(
             return Err(missing_error(patches, first, FOR_GATHER));
         }
         let scale = column_max_abs(&b, m);
-        let beta_after = sys.beta(&b);
+        let beta_after = sys.pool_beta(&b);
         let bound: Vec<f64> = (0..m)
             .map(|c| coef[c] * change[c] + pool_coef[c] * (beta_after[c] - beta[c]).abs())
             .collect();

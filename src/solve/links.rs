@@ -13,11 +13,17 @@
 //! Σ A_j b_j + q_L · (Σ A_j x_j b_j − x̄_L Σ A_j b_j): read in O(1) from prefix sums over
 //! the cluster order (made once per sweep, O(n m)), less the few kept columns and the
 //! row patch that lie inside its range (found by binary search over the row's links).
+//! What that needs of the row alone (each link's Σ w_j, those patches) is worked out
+//! once and kept, within a memory budget ([`LinkSpace::with_cache`]), so that later
+//! sweeps read only the prefix sums (docs/numerics.md §8).
 //! Shooting and every other reader that visits entries one by one expands the link
 //! into its patches instead (O(b − a)).
 //!
 //! Gauss–Seidel reads the prefix sums made at the start of its sweep, so the links
 //! part of its update is a Jacobi step (the kept entries still see the newest values).
+
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::OnceLock;
 
 use glam::DVec3;
 
@@ -36,12 +42,99 @@ pub(crate) struct LinkSpace {
     /// Σ A and Σ A x over positions < p, for p in 0..=n.
     prefix_area: Vec<f64>,
     prefix_moment: Vec<DVec3>,
+    /// Rows' links made ready to gather, kept while they fit ([`LinkSpace::with_cache`]).
+    cache: Option<ReadyCache>,
+}
+
+/// A link made ready to gather: its range of positions, g = F_iL / Σ w_j over its own
+/// patches, its slope q (zero when the link goes by area) and k = 1 − q · x̄, so that
+/// its share of the gather is g (k Σ A b + q · Σ A x b) over its range.
+#[derive(Clone, Copy, Debug)]
+struct ReadyLink {
+    start: u32,
+    end: u32,
+    slope: [f32; 3],
+    g: f64,
+    k: f64,
+}
+
+/// A patch inside a link's range that is not the link's (a kept column or the row
+/// patch): its position and what its A_j b_j weighs in the link's sum, to be taken
+/// off it.
+#[derive(Clone, Copy, Debug)]
+struct Out {
+    position: u32,
+    factor: f64,
+}
+
+/// What a sweep's gathers through links read ([`LinkSpace::sums`]).
+#[derive(Debug)]
+pub(crate) struct Sums {
+    prefix: Vec<f64>,
+}
+
+/// One row's links made ready to gather, and Σ F_iL.
+#[derive(Debug)]
+struct Ready {
+    links: Vec<ReadyLink>,
+    out: Vec<Out>,
+    sum: f64,
+}
+
+impl Ready {
+    /// Bytes it holds.
+    fn bytes(&self) -> usize {
+        std::mem::size_of::<Self>()
+            + self.links.capacity() * std::mem::size_of::<ReadyLink>()
+            + self.out.capacity() * std::mem::size_of::<Out>()
+    }
+}
+
+/// The rows' ready links, by row, and the bytes they may take.
+#[derive(Debug)]
+struct ReadyCache {
+    rows: Vec<OnceLock<Ready>>,
+    budget: usize,
+    used: AtomicUsize,
 }
 
 /// A link whose weights sum to at most this fraction of its range's area is spread by
 /// area (spec §5.7): such a sum is what is left after prefix sums cancel, mostly
 /// rounding, and the link's mass would be divided by it.
 const FLAT_WEIGHT: f64 = 1e-6;
+
+/// [`LinkSpace::gather_ready`] for `M` columns a patch (`S` = 4 M numbers a position
+/// of the prefix sums): adds each ready link's share to `sums` and takes off the
+/// patches inside link ranges that are not the links'.
+fn gather_columns<const M: usize, const S: usize>(
+    ready: &Ready,
+    prefix: &[f64],
+    sums: &mut [f64; M],
+) {
+    let record = |p: usize| -> &[f64; S] {
+        prefix[p * S..(p + 1) * S]
+            .try_into()
+            .expect("S numbers a position")
+    };
+    for l in &ready.links {
+        let (rs, re) = (record(l.start as usize), record(l.end as usize));
+        let (g, q) = (l.g, l.slope.map(f64::from));
+        for (c, sum) in sums.iter_mut().enumerate() {
+            let d = |t: usize| re[4 * c + t] - rs[4 * c + t];
+            *sum += g * (l.k * d(0) + q[0] * d(1) + q[1] * d(2) + q[2] * d(3));
+        }
+    }
+    for x in &ready.out {
+        // A_j b_j as the prefix sums hold it (b as it was when they were made, not as
+        // a Gauss–Seidel sweep has since changed it: the two parts of the sum must
+        // see the same b).
+        let p = x.position as usize;
+        let (rs, re) = (record(p), record(p + 1));
+        for (c, sum) in sums.iter_mut().enumerate() {
+            *sum -= x.factor * (re[4 * c] - rs[4 * c]);
+        }
+    }
+}
 
 impl LinkSpace {
     /// The space of cluster order `order` (a permutation of the n patches, checked by
@@ -68,12 +161,27 @@ impl LinkSpace {
             centroid: centroid.to_vec(),
             prefix_area,
             prefix_moment,
+            cache: None,
         }
+    }
+
+    /// The same space keeping each row's links ready to gather (made once, the first
+    /// time the row is gathered) while they take at most `budget` bytes; rows beyond
+    /// are made ready again at every gather. For sources whose rows do not change
+    /// between gathers (a file): row i must always come with the same links and
+    /// kept columns.
+    pub(crate) fn with_cache(mut self, budget: usize) -> Self {
+        self.cache = Some(ReadyCache {
+            rows: (0..self.order.len()).map(|_| OnceLock::new()).collect(),
+            budget,
+            used: AtomicUsize::new(0),
+        });
+        self
     }
 
     /// Per position p in 0..=n and column c of the `m` columns a patch: Σ A_j b_j over
     /// positions < p, then the three components of Σ A_j x_j b_j (4 m numbers a
-    /// position).
+    /// position, so that a link's gather reads two runs of them).
     pub(crate) fn prefix(&self, b: &[f64], m: usize) -> Vec<f64> {
         let stride = 4 * m;
         let mut out = vec![0.0; (self.order.len() + 1) * stride];
@@ -84,9 +192,9 @@ impl LinkSpace {
             let (last, next) = (&done[p * stride..], &mut next[..stride]);
             for c in 0..m {
                 let ab = a * b[j * m + c];
-                next[c] = last[c] + ab;
+                next[4 * c] = last[4 * c] + ab;
                 for k in 0..3 {
-                    next[m + 3 * c + k] = last[m + 3 * c + k] + ab * x[k];
+                    next[4 * c + 1 + k] = last[4 * c + 1 + k] + ab * x[k];
                 }
             }
         }
@@ -146,19 +254,48 @@ impl LinkSpace {
         self.area[j] * (1.0 + q.dot(self.centroid[j] - mean))
     }
 
+    /// What the gathers of one sweep need of radiosity `b` (`m` columns a patch): the
+    /// prefix sums ([`LinkSpace::prefix`]).
+    pub(crate) fn sums(&self, b: &[f64], m: usize) -> Sums {
+        Sums {
+            prefix: self.prefix(b, m),
+        }
+    }
+
     /// `acc[c] += Σ_L F_iL · (Σ w_j b_j / Σ w_j over L's patches)` for row i with kept
-    /// columns `cols`, against the radiosity `prefix` was made of ([`LinkSpace::prefix`]).
-    /// Returns Σ F_iL.
+    /// columns `cols`, against the radiosity `sums` was made of ([`LinkSpace::sums`]).
+    /// Returns Σ F_iL. With a cache ([`LinkSpace::with_cache`]) a row's links are made
+    /// ready once, the first time it is gathered, while the cache has room.
     pub(crate) fn gather(
         &self,
         links: &[Link],
         i: u32,
         cols: &[u32],
-        prefix: &[f64],
+        sums: &Sums,
         acc: &mut [f64],
     ) -> f64 {
-        let m = acc.len();
-        let stride = 4 * m;
+        let slot = self.cache.as_ref().and_then(|c| c.rows.get(i as usize));
+        if let Some(ready) = slot.and_then(|s| s.get()) {
+            return self.gather_ready(ready, &sums.prefix, acc);
+        }
+        let ready = self.ready(links, i, cols);
+        let sum = self.gather_ready(&ready, &sums.prefix, acc);
+        if let (Some(cache), Some(slot)) = (&self.cache, slot) {
+            let bytes = ready.bytes();
+            let used = cache.used.fetch_add(bytes, Ordering::Relaxed);
+            if used + bytes <= cache.budget {
+                let _ = slot.set(ready);
+            } else {
+                cache.used.fetch_sub(bytes, Ordering::Relaxed);
+            }
+        }
+        sum
+    }
+
+    /// Row i's links with kept columns `cols`, made ready to gather: each link's weight
+    /// sum found once (with the patches in its range that are not its own taken out),
+    /// so that a gather reads only prefix sums.
+    fn ready(&self, links: &[Link], i: u32, cols: &[u32]) -> Ready {
         // The patches in the links' ranges that are not theirs (few: at most the kept
         // columns and the row patch), in order of link, each link's a slice of them.
         let mut out: Vec<(usize, usize)> = self
@@ -166,48 +303,84 @@ impl LinkSpace {
             .map(|(k, j)| (k, j as usize))
             .collect();
         out.sort_unstable();
+        let mut ready = Ready {
+            links: Vec::with_capacity(links.len()),
+            out: Vec::with_capacity(out.len()),
+            sum: 0.0,
+        };
         let mut next = 0;
-        let mut sum = 0.0;
         for (k, l) in links.iter().enumerate() {
-            let f = f64::from(l.value);
-            sum += f;
+            ready.sum += f64::from(l.value);
             let (s, e) = (l.start as usize, l.end() as usize);
             let first = next;
             while out.get(next).is_some_and(|x| x.0 == k) {
                 next += 1;
             }
             let theirs = &out[first..next];
-            let mine = || theirs.iter().map(|x| x.1);
             // Σ w over the range is its area (the slope's part sums to zero).
             let sum_w = |(mean, q)| {
                 self.prefix_area[e]
                     - self.prefix_area[s]
-                    - mine().map(|j| self.weight(j, mean, q)).sum::<f64>()
+                    - theirs
+                        .iter()
+                        .map(|x| self.weight(x.1, mean, q))
+                        .sum::<f64>()
             };
             let (mean, q, w) = self.tilt(l, sum_w);
             if w.is_nan() || w <= 0.0 {
                 continue;
             }
-            for c in 0..m {
-                let ab = prefix[e * stride + c] - prefix[s * stride + c];
-                let axb = DVec3::from_array(std::array::from_fn(|d| {
-                    prefix[e * stride + m + 3 * c + d] - prefix[s * stride + m + 3 * c + d]
-                }));
-                let wb = ab + q.dot(axb - mean * ab)
-                    - mine()
-                        .map(|j| {
-                            // A_j b_j as the prefix sums hold it (b as it was when they
-                            // were made, not as a Gauss–Seidel sweep has since changed
-                            // it: the two parts of the sum must see the same b).
-                            let p = self.pos[j] as usize;
-                            let ab = prefix[(p + 1) * stride + c] - prefix[p * stride + c];
-                            (1.0 + q.dot(self.centroid[j] - mean)) * ab
-                        })
-                        .sum::<f64>();
-                acc[c] += f * wb / w;
+            let g = f64::from(l.value) / w;
+            let slope = if q == DVec3::ZERO { [0.0; 3] } else { l.slope };
+            ready.links.push(ReadyLink {
+                start: l.start,
+                end: l.end() as u32,
+                g,
+                slope,
+                k: 1.0 - q.dot(mean),
+            });
+            for &(_, j) in theirs {
+                ready.out.push(Out {
+                    position: self.pos[j],
+                    factor: g * (1.0 + q.dot(self.centroid[j] - mean)),
+                });
             }
         }
-        sum
+        ready
+    }
+
+    /// [`LinkSpace::gather`] of links made ready ([`LinkSpace::ready`]).
+    fn gather_ready(&self, ready: &Ready, prefix: &[f64], acc: &mut [f64]) -> f64 {
+        match acc.len() {
+            // The common single-case path: the three sums in registers.
+            3 => {
+                let mut sums = [0.0; 3];
+                gather_columns::<3, 12>(ready, prefix, &mut sums);
+                for (a, s) in acc.iter_mut().zip(sums) {
+                    *a += s;
+                }
+            }
+            m => {
+                let stride = 4 * m;
+                for l in &ready.links {
+                    let rs = &prefix[l.start as usize * stride..][..stride];
+                    let re = &prefix[l.end as usize * stride..][..stride];
+                    let (g, q) = (l.g, l.slope.map(f64::from));
+                    for (c, a) in acc.iter_mut().enumerate() {
+                        let d = |t: usize| re[4 * c + t] - rs[4 * c + t];
+                        *a += g * (l.k * d(0) + q[0] * d(1) + q[1] * d(2) + q[2] * d(3));
+                    }
+                }
+                for x in &ready.out {
+                    let p = x.position as usize;
+                    for (c, a) in acc.iter_mut().enumerate() {
+                        *a -= x.factor
+                            * (prefix[(p + 1) * stride + 4 * c] - prefix[p * stride + 4 * c]);
+                    }
+                }
+            }
+        }
+        ready.sum
     }
 
     /// Call `f(j, F_ij)` for every patch j of row i's links (module docs), link by link
@@ -274,9 +447,9 @@ mod tests {
     fn gather_and_expand_agree_and_leave_out_kept_columns_and_the_row_patch() {
         let (space, b) = (space(), radiosity());
         let links = link([0.0; 3]);
-        let prefix = space.prefix(&b, 3);
+        let sums = space.sums(&b, 3);
         let mut acc = [0.0; 3];
-        let sum = space.gather(&links, 0, &[1], &prefix, &mut acc);
+        let sum = space.gather(&links, 0, &[1], &sums, &mut acc);
         assert_eq!(sum, 0.5);
         // Only patch 3 is the link's: the gather is 0.5 · b_3.
         assert!(
@@ -288,7 +461,7 @@ mod tests {
         assert_eq!(entries, vec![(3, 0.5)]);
         // Without kept columns: patches 3 and 1 (areas 4 and 2), the row patch left out.
         let mut acc = [0.0; 3];
-        space.gather(&links, 0, &[], &prefix, &mut acc);
+        space.gather(&links, 0, &[], &sums, &mut acc);
         let want = 0.5 * (4.0 * 3.0 + 2.0 * 1.0) / 6.0;
         assert!((acc[0] - want).abs() < 1e-12, "{acc:?} vs {want}");
         let mut entries = Vec::new();
@@ -302,7 +475,7 @@ mod tests {
     fn a_slope_tilts_the_link_by_the_spec_rule_in_gather_and_expand_alike() {
         let (space, b) = (space(), radiosity());
         let links = link([0.25, 0.0, 0.0]);
-        let prefix = space.prefix(&b, 3);
+        let sums = space.sums(&b, 3);
         // Row 2 (not in the range) keeps nothing: all three patches are the link's.
         let w = |a: f64, x: f64| a * (1.0 + 0.25 * (x - 2.0));
         let (w3, w1, w0) = (w(4.0, 3.0), w(2.0, 1.0), w(1.0, 0.0));
@@ -324,7 +497,7 @@ mod tests {
         // without kept columns inside the range.
         for (row, cols) in [(2u32, vec![]), (2, vec![1u32]), (0, vec![]), (1, vec![3])] {
             let mut acc = [0.0; 3];
-            space.gather(&links, row, &cols, &prefix, &mut acc);
+            space.gather(&links, row, &cols, &sums, &mut acc);
             let mut want = [0.0; 3];
             space.expand(&links, row, &cols, |j, f| {
                 for c in 0..3 {
@@ -351,12 +524,62 @@ mod tests {
         let (space, b) = (space(), radiosity());
         // x̄ = 2 over patches 3, 1, 0 (module test above): 1 + q (0 − 2) is 6e-8 at patch 0.
         let links = link([0.499_999_97, 0.0, 0.0]);
-        let prefix = space.prefix(&b, 3);
+        let sums = space.sums(&b, 3);
         let mut acc = [0.0; 3];
-        space.gather(&links, 2, &[1, 3], &prefix, &mut acc);
+        space.gather(&links, 2, &[1, 3], &sums, &mut acc);
         assert_eq!(acc, [0.0, 0.0, 0.5]);
         let mut entries = Vec::new();
         space.expand(&links, 2, &[1, 3], |j, f| entries.push((j, f)));
         assert_eq!(entries, vec![(0, 0.5)]);
+    }
+
+    /// A space with a cache gives, row by row, what the space without one gives: the
+    /// first gather of a row (which makes its links ready and keeps them), the later
+    /// ones (which read them back), and rows the budget leaves out (made ready again
+    /// each time).
+    #[test]
+    fn links_kept_ready_gather_what_links_made_ready_each_time_gather() {
+        let b = radiosity();
+        let links = [
+            Link {
+                start: 0,
+                len: 2,
+                value: 0.25,
+                slope: [0.25, 0.0, 0.0],
+            },
+            Link {
+                start: 2,
+                len: 2,
+                value: 0.125,
+                slope: [0.0; 3],
+            },
+        ];
+        let rows: [(u32, Vec<u32>); 3] = [(0, vec![]), (1, vec![3]), (2, vec![1, 0])];
+        let plain = space();
+        let sums = plain.sums(&b, 3);
+        for budget in [0, 200, 1 << 20] {
+            let kept = space().with_cache(budget);
+            for _ in 0..3 {
+                for (row, cols) in &rows {
+                    let (mut want, mut got) = ([0.0; 3], [0.0; 3]);
+                    let s0 = plain.gather(&links, *row, cols, &sums, &mut want);
+                    let s1 = kept.gather(&links, *row, cols, &sums, &mut got);
+                    assert_eq!(s0, s1);
+                    for c in 0..3 {
+                        assert!(
+                            (want[c] - got[c]).abs() <= 1e-15 * want[c].abs().max(1.0),
+                            "budget {budget}, row {row}: {got:?} vs {want:?}"
+                        );
+                    }
+                }
+            }
+            let held = kept.cache.as_ref().unwrap().rows.iter();
+            let n_held = held.filter(|r| r.get().is_some()).count();
+            match budget {
+                0 => assert_eq!(n_held, 0),
+                200 => assert!(n_held < 3, "a 200-byte budget held {n_held} rows"),
+                _ => assert_eq!(n_held, 3),
+            }
+        }
     }
 }

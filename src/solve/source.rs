@@ -7,8 +7,11 @@
 //! implements it in `ffz_source.rs`; [`MemoryRows`] holds rows in memory for tests and
 //! small scenes.
 
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::OnceLock;
+
 use crate::patch::PatchSet;
-use crate::rows::Row;
+use crate::rows::{Row, RowValues};
 
 use super::error::SolveError;
 
@@ -46,6 +49,89 @@ pub trait RowSource {
     /// The cluster order the rows' links name ranges of (spec §4.3), if they link.
     fn cluster_order(&self) -> Option<&[u32]> {
         None
+    }
+}
+
+/// A source whose scans after the first read the rows from memory, when they fit in
+/// `budget` bytes (else every scan reads the source, as without it). The first scan
+/// that completes without error keeps what it read; a source's rows do not change
+/// between scans. Random access ([`RowSource::row`]) goes to the source.
+pub(crate) struct Held<'s> {
+    inner: &'s dyn RowSource,
+    budget: usize,
+    rows: OnceLock<Vec<Row>>,
+    /// A first scan has been made (the rows are held, or did not fit).
+    tried: AtomicBool,
+}
+
+impl<'s> Held<'s> {
+    pub(crate) fn new(inner: &'s dyn RowSource, budget: usize) -> Self {
+        Held {
+            inner,
+            budget,
+            rows: OnceLock::new(),
+            tried: AtomicBool::new(budget == 0),
+        }
+    }
+}
+
+/// Bytes a row holds in memory.
+fn row_bytes(row: &Row) -> usize {
+    use std::mem::size_of;
+    let values = match &row.values {
+        RowValues::Dense(v) => v.capacity() * size_of::<f32>(),
+        RowValues::Sparse { cols, vals } => {
+            cols.capacity() * size_of::<u32>() + vals.capacity() * size_of::<f32>()
+        }
+        RowValues::Skipped => 0,
+    };
+    size_of::<Row>() + values + row.links.capacity() * size_of::<crate::rows::Link>()
+}
+
+impl RowSource for Held<'_> {
+    fn patches(&self) -> &PatchSet {
+        self.inner.patches()
+    }
+
+    fn scan(&self, f: &mut dyn FnMut(&Row) -> Result<(), SolveError>) -> Result<(), SolveError> {
+        if let Some(rows) = self.rows.get() {
+            return rows.iter().try_for_each(f);
+        }
+        if self.tried.swap(true, Ordering::Relaxed) {
+            return self.inner.scan(f);
+        }
+        let (mut held, mut bytes, mut fits) = (Vec::new(), 0, true);
+        self.inner.scan(&mut |row| {
+            if fits {
+                bytes += row_bytes(row);
+                fits = bytes <= self.budget;
+                match fits {
+                    true => held.push(row.clone()),
+                    false => held = Vec::new(),
+                }
+            }
+            f(row)
+        })?;
+        if fits {
+            let _ = self.rows.set(held);
+        }
+        Ok(())
+    }
+
+    fn row(&self, i: u32) -> Result<Option<Row>, SolveError> {
+        self.inner.row(i)
+    }
+
+    fn has_row(&self, i: u32) -> bool {
+        self.inner.has_row(i)
+    }
+
+    fn may_drop(&self) -> bool {
+        self.inner.may_drop()
+    }
+
+    fn cluster_order(&self) -> Option<&[u32]> {
+        self.inner.cluster_order()
     }
 }
 
@@ -188,5 +274,34 @@ mod tests {
             MemoryRows::new(two_patches(), far),
             Err(SolveError::OutOfRange { row: 7, .. })
         ));
+    }
+
+    /// Scans of a held source deliver the rows of the source, in its order, every time:
+    /// from memory when they fit the budget, from the source when they do not.
+    #[test]
+    fn a_held_source_scans_as_its_source_whether_the_rows_fit_or_not() {
+        let rows = vec![
+            Row::dense(1, vec![0.25, 0.0]),
+            Row::dense(0, vec![0.0, 0.5]),
+        ];
+        let m = MemoryRows::new(two_patches(), rows.clone()).unwrap();
+        for (budget, fits) in [(0, false), (1, false), (1 << 20, true)] {
+            let held = Held::new(&m, budget);
+            for _ in 0..3 {
+                let mut seen = Vec::new();
+                held.scan(&mut |r| {
+                    seen.push(r.clone());
+                    Ok(())
+                })
+                .unwrap();
+                assert_eq!(seen, rows, "budget {budget}");
+            }
+            assert_eq!(held.rows.get().is_some(), fits, "budget {budget}");
+        }
+        // A first scan stopped by an error keeps nothing.
+        let held = Held::new(&m, 1 << 20);
+        let stop = held.scan(&mut |_| Err(SolveError::DuplicateRow { row: 0 }));
+        assert!(stop.is_err());
+        assert!(held.rows.get().is_none());
     }
 }

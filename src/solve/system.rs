@@ -166,7 +166,7 @@ pub(crate) struct Ambient {
     /// The pool's β per column.
     pub(crate) pool: Vec<f64>,
     /// Prefix sums over the cluster order of A·b, for links (`links.rs`).
-    prefix: Option<Vec<f64>>,
+    links: Option<super::links::Sums>,
 }
 
 impl std::ops::Index<usize> for Ambient {
@@ -434,22 +434,27 @@ impl System {
     }
 
     /// With a source whose rows link to clusters, the cluster order's gathering data
-    /// (`links.rs`).
-    pub(crate) fn prepare_links(&mut self, src: &dyn RowSource) {
-        self.links = src
-            .cluster_order()
-            .map(|order| super::links::LinkSpace::new(order, &self.area, &self.centroid));
+    /// (`links.rs`), keeping rows' links ready to gather in up to `cache_bytes`.
+    pub(crate) fn prepare_links(&mut self, src: &dyn RowSource, cache_bytes: usize) {
+        self.links = src.cluster_order().map(|order| {
+            super::links::LinkSpace::new(order, &self.area, &self.centroid).with_cache(cache_bytes)
+        });
     }
 
     /// What every row's gather needs of radiosity `b` beyond its own entries: the
     /// pool's β (zeros without a pool) and the prefix sums of the links.
     pub(crate) fn beta(&self, b: &[f64]) -> Ambient {
         Ambient {
-            pool: match &self.pool {
-                Some(p) => p.beta(b, self.m),
-                None => vec![0.0; self.m],
-            },
-            prefix: self.links.as_ref().map(|l| l.prefix(b, self.m)),
+            pool: self.pool_beta(b),
+            links: self.links.as_ref().map(|l| l.sums(b, self.m)),
+        }
+    }
+
+    /// The pool's β of radiosity `b` (zeros without a pool).
+    pub(crate) fn pool_beta(&self, b: &[f64]) -> Vec<f64> {
+        match &self.pool {
+            Some(p) => p.beta(b, self.m),
+            None => vec![0.0; self.m],
         }
     }
 
@@ -467,10 +472,9 @@ impl System {
         acc: &mut [f64],
     ) -> Result<f64, SolveError> {
         let mut abs_sum = view.gather(b, self.m, acc)?;
-        if let (false, Some(space), Some(prefix)) =
-            (view.links.is_empty(), &self.links, &beta.prefix)
+        if let (false, Some(space), Some(sums)) = (view.links.is_empty(), &self.links, &beta.links)
         {
-            abs_sum += space.gather(view.links, view.index, view.cols(), prefix, acc);
+            abs_sum += space.gather(view.links, view.index, view.cols(), sums, acc);
         } else if self.pool.is_some() && view.dropped > 0.0 {
             for (a, x) in acc.iter_mut().zip(&beta.pool) {
                 *a += view.dropped * x;

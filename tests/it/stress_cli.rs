@@ -345,6 +345,11 @@ fn option_values_out_of_range_are_refused_at_once_naming_the_range() {
             "1..",
         ),
         (
+            &["solve", "no.ffz", "-o", "r.csv"],
+            "--cache-mib=1048577",
+            "0..=1048576",
+        ),
+        (
             &["render", "no.ffz", "-o", "i.png"],
             "--width=0",
             "1..=16384",

@@ -228,6 +228,8 @@ fn every_numeric_option_at_the_ends_of_its_range_neither_panics_nor_hangs() {
             ("--tolerance", BELOW_ONE),
             ("--max-iterations", "1"),
             ("--max-iterations", "18446744073709551615"),
+            ("--cache-mib", "0"),
+            ("--cache-mib", "1048576"),
         ] {
             let a = strings(&[
                 "solve",
