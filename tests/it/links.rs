@@ -443,3 +443,59 @@ print("\n".join(out))
     );
     assert_eq!(String::from_utf8_lossy(&out.stdout), want);
 }
+
+/// Per sensor: the mean illuminance over occupied hours from `annual`'s metrics.csv.
+fn mean_lux(dir: &Path) -> BTreeMap<String, f64> {
+    let text = std::fs::read_to_string(dir.join("metrics.csv")).unwrap();
+    let mut lines = text.lines();
+    let head: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let col = head.iter().position(|h| *h == "mean_occupied_lux").unwrap();
+    lines
+        .map(|l| {
+            let f: Vec<&str> = l.split(',').collect();
+            (f[0].to_string(), f[col].parse().unwrap())
+        })
+        .collect()
+}
+
+/// `annual`'s inter-reflection (the adjoint solve, `solve/adjoint.rs`) reads a linked
+/// file through its links: on the office lit by a year of clear skies, with top-16 rows
+/// and links, every sensor's mean illuminance is within 0.5 % of what dense rows give
+/// on the same mesh, where the pool puts some sensor more than 5 % off. Measured at 800
+/// patches and a 1 m grid (24 sensors): links +0.04 % at worst, the pool +14.5 %; at
+/// 3,000 patches, top-32 and a 0.5 m grid, links −0.14 % and the pool +17 %.
+#[test]
+fn annual_reads_linked_rows_through_their_links_and_matches_dense_rows() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = |name: &str, extra: &[&str]| {
+        let out = dir.path().join(name);
+        let mut args = vec![
+            "annual",
+            "builtin:office",
+            "--location",
+            "52.0,4.4,1",
+            "--grid",
+            "floor:1.0",
+            "--patches",
+            "800",
+            "-q",
+            "-o",
+            path_str(&out),
+        ];
+        args.extend_from_slice(extra);
+        ok(&args);
+        mean_lux(&out)
+    };
+    let dense = run("dense", &[]);
+    let spread = |other: &BTreeMap<String, f64>| {
+        dense
+            .iter()
+            .map(|(k, d)| ((other[k] / d - 1.0).abs(), k.clone()))
+            .fold((0.0, String::new()), |a, b| if b.0 > a.0 { b } else { a })
+    };
+    assert!(dense.len() >= 20, "{} sensors", dense.len());
+    let (links, at) = spread(&run("links", &["--top-k", "16"]));
+    assert!(links <= 0.005, "links: {at} is {:.2} % off", 100.0 * links);
+    let (pool, at) = spread(&run("pool", &["--top-k", "16", "--links", "off"]));
+    assert!(pool > 0.05, "pool: {at} only {:.2} % off", 100.0 * pool);
+}
