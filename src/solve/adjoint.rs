@@ -10,7 +10,9 @@
 //! importance is in rendering.
 //!
 //! Iteration: Jacobi sweeps on y, one sequential scan of the rows per sweep; row i
-//! scatters F_ij ρ_i y_i into every column j. The same rows the forward solve reads (a
+//! scatters F_ij ρ_i y_i into every column j (through a row's links, spec §5.7, as
+//! range additions applied after the scan: O(1) a link, as the forward gather's
+//! prefix sums are, `links.rs`). The same rows the forward solve reads (a
 //! patch that reflects nothing contributes nothing), with the same treatment of the
 //! mass top-k rows dropped (scaled rows, or the pool's rank-one term transposed:
 //! y_j gains (s_j / W) Σ_i D_i ρ_i y_i, `pool.rs`), so forward and adjoint answer the
@@ -69,6 +71,8 @@ pub fn solve_adjoint(
         let mut weights = vec![0.0; m];
         // Σ_i D_i ρ_i y_i over reflecting rows: the pool's term, transposed.
         let mut gamma = vec![0.0; m];
+        // The links' range additions (their patches get them after the scan).
+        let mut scatter = sys.links.as_ref().map(|l| l.scatter_start(m));
         src.scan(&mut |row| {
             let Some((i, view)) = sys.gather_view(row, &mut presence, patches)? else {
                 return Ok(());
@@ -84,13 +88,29 @@ pub fn solve_adjoint(
                     *g += view.dropped * w;
                 }
             }
-            view.visit(n, |j, f| {
+            view.visit_entries(n, |j, f| {
                 let out = &mut next[j * m..(j + 1) * m];
                 for (o, w) in out.iter_mut().zip(&weights) {
                     *o += f * w;
                 }
-            })
+            })?;
+            if let (false, Some(space), Some(into)) =
+                (view.links.is_empty(), &sys.links, scatter.as_mut())
+            {
+                space.scatter(
+                    view.links,
+                    view.index,
+                    view.cols(),
+                    &weights,
+                    into,
+                    &mut next,
+                );
+            }
+            Ok(())
         })?;
+        if let (Some(space), Some(into)) = (&sys.links, &scatter) {
+            into.add_to(space, &mut next);
+        }
         if let Some(first) = presence.missing(|i| sys.reflects[i]) {
             return Err(missing_error(patches, first, FOR_GATHER));
         }

@@ -67,6 +67,47 @@ struct Out {
     factor: f64,
 }
 
+/// The range additions of a scatter through links ([`LinkSpace::scatter`]): per
+/// position and column, the differences of Σ g k w and Σ g q w over the links whose
+/// range starts or ends there.
+#[derive(Debug)]
+pub(crate) struct Scatter {
+    diff: Vec<f64>,
+    m: usize,
+}
+
+/// Ranges of at most this many positions are scattered into their patches directly:
+/// a range addition costs 8 m numbers in an array of n × 4 m, read back once a sweep,
+/// and at daylight scales (3,000 patches, 96 sensors) the direct way was twice as fast
+/// (bench/LINKS.md).
+const DIRECT_SPAN: usize = 64;
+
+impl Scatter {
+    /// Add what the links sent to `next` (n × m): patch j at position p gets
+    /// A_j (α + β · x_j) in column c, α and β the sums of g k w and g q w over the links
+    /// whose range holds p.
+    pub(crate) fn add_to(&self, space: &LinkSpace, next: &mut [f64]) {
+        let m = self.m;
+        if self.diff.is_empty() {
+            return;
+        }
+        let mut running = vec![0.0; 4 * m];
+        for (p, &j) in space.order.iter().enumerate() {
+            for (r, d) in running
+                .iter_mut()
+                .zip(&self.diff[p * 4 * m..(p + 1) * 4 * m])
+            {
+                *r += d;
+            }
+            let (j, x) = (j as usize, space.centroid[j as usize]);
+            for c in 0..m {
+                let r = &running[4 * c..4 * c + 4];
+                next[j * m + c] += space.area[j] * (r[0] + r[1] * x.x + r[2] * x.y + r[3] * x.z);
+            }
+        }
+    }
+}
+
 /// What a sweep's gathers through links read ([`LinkSpace::sums`]).
 #[derive(Debug)]
 pub(crate) struct Sums {
@@ -274,12 +315,26 @@ impl LinkSpace {
         sums: &Sums,
         acc: &mut [f64],
     ) -> f64 {
+        self.with_ready(links, i, cols, |ready| {
+            self.gather_ready(ready, &sums.prefix, acc)
+        })
+    }
+
+    /// `f` of row i's links made ready: those kept, or made now (and kept while the
+    /// cache has room).
+    fn with_ready<T>(
+        &self,
+        links: &[Link],
+        i: u32,
+        cols: &[u32],
+        f: impl FnOnce(&Ready) -> T,
+    ) -> T {
         let slot = self.cache.as_ref().and_then(|c| c.rows.get(i as usize));
         if let Some(ready) = slot.and_then(|s| s.get()) {
-            return self.gather_ready(ready, &sums.prefix, acc);
+            return f(ready);
         }
         let ready = self.ready(links, i, cols);
-        let sum = self.gather_ready(&ready, &sums.prefix, acc);
+        let out = f(&ready);
         if let (Some(cache), Some(slot)) = (&self.cache, slot) {
             let bytes = ready.bytes();
             let used = cache.used.fetch_add(bytes, Ordering::Relaxed);
@@ -289,7 +344,83 @@ impl LinkSpace {
                 cache.used.fetch_sub(bytes, Ordering::Relaxed);
             }
         }
-        sum
+        out
+    }
+
+    /// The transpose of [`LinkSpace::gather`], for a solve that scatters rows into
+    /// columns (`adjoint.rs`): row i with kept columns `cols` sends `w[c]` (`m`
+    /// columns) through its links, F_ij w[c] into column j of every patch j of every
+    /// link. A link's range of more than [`DIRECT_SPAN`] positions goes into `into` as
+    /// a range addition, O(1) a link (apply them with [`Scatter::add_to`]); a smaller
+    /// one, and the patches inside a range that are not the link's (taken off), go to
+    /// `next` (n × m) at once.
+    pub(crate) fn scatter(
+        &self,
+        links: &[Link],
+        i: u32,
+        cols: &[u32],
+        w: &[f64],
+        into: &mut Scatter,
+        next: &mut [f64],
+    ) {
+        self.scatter_spans(links, (i, cols), w, into, next, DIRECT_SPAN);
+    }
+
+    /// [`LinkSpace::scatter`] with ranges of at most `direct` positions sent directly.
+    fn scatter_spans(
+        &self,
+        links: &[Link],
+        (i, cols): (u32, &[u32]),
+        w: &[f64],
+        into: &mut Scatter,
+        next: &mut [f64],
+        direct: usize,
+    ) {
+        let m = w.len();
+        let stride = 4 * m;
+        self.with_ready(links, i, cols, |ready| {
+            for l in &ready.links {
+                let part = [l.k, l.slope[0].into(), l.slope[1].into(), l.slope[2].into()];
+                let (s, e) = (l.start as usize, l.end as usize);
+                if e - s <= direct {
+                    // A small range: straight into its patches.
+                    for &j in &self.order[s..e] {
+                        let (j, x) = (j as usize, self.centroid[j as usize]);
+                        let f = l.g
+                            * self.area[j]
+                            * (part[0]
+                                + DVec3::from_array(part[1..].try_into().expect("three")).dot(x));
+                        for (o, &wc) in next[j * m..(j + 1) * m].iter_mut().zip(w) {
+                            *o += f * wc;
+                        }
+                    }
+                    continue;
+                }
+                if into.diff.is_empty() {
+                    into.diff = vec![0.0; (self.order.len() + 1) * stride];
+                }
+                for (c, &wc) in w.iter().enumerate() {
+                    for (t, x) in part.into_iter().enumerate() {
+                        into.diff[s * stride + 4 * c + t] += l.g * x * wc;
+                        into.diff[e * stride + 4 * c + t] -= l.g * x * wc;
+                    }
+                }
+            }
+            for x in &ready.out {
+                let j = self.order[x.position as usize] as usize;
+                for (c, &wc) in w.iter().enumerate() {
+                    next[j * m + c] -= x.factor * self.area[j] * wc;
+                }
+            }
+        });
+    }
+
+    /// An empty [`Scatter`] for `m` columns a patch.
+    pub(crate) fn scatter_start(&self, m: usize) -> Scatter {
+        Scatter {
+            diff: Vec::new(),
+            m,
+        }
     }
 
     /// Row i's links with kept columns `cols`, made ready to gather: each link's weight
@@ -579,6 +710,41 @@ mod tests {
                 0 => assert_eq!(n_held, 0),
                 200 => assert!(n_held < 3, "a 200-byte budget held {n_held} rows"),
                 _ => assert_eq!(n_held, 3),
+            }
+        }
+    }
+
+    /// The scatter through links (range additions) sends into each column what the
+    /// expansion of the links says, F_ij w, kept columns and the row patch left out,
+    /// with and without a slope, for rows with and without kept columns in the range.
+    #[test]
+    fn the_scatter_through_links_is_the_transpose_of_their_expansion() {
+        let space = space();
+        let w = [2.0, -1.0, 0.5];
+        for slope in [[0.0; 3], [0.25, 0.0, 0.0]] {
+            let links = link(slope);
+            for (row, cols) in [(2u32, vec![]), (2, vec![1u32]), (0, vec![]), (1, vec![3])] {
+                let mut want = vec![0.0; 4 * 3];
+                space.expand(&links, row, &cols, |j, f| {
+                    for c in 0..3 {
+                        want[j * 3 + c] += f * w[c];
+                    }
+                });
+                // Ranges as range additions (0), and straight into their patches.
+                for direct in [0, DIRECT_SPAN] {
+                    let mut got = vec![0.0; 4 * 3];
+                    let mut into = space.scatter_start(3);
+                    space.scatter_spans(&links, (row, &cols), &w, &mut into, &mut got, direct);
+                    into.add_to(&space, &mut got);
+                    assert_eq!(into.diff.is_empty(), direct > 0);
+                    for (k, (g, x)) in got.iter().zip(&want).enumerate() {
+                        assert!(
+                            (g - x).abs() < 1e-12,
+                            "slope {slope:?}, row {row} {cols:?}, direct {direct}, entry {k}: \
+                             {got:?} vs {want:?}"
+                        );
+                    }
+                }
             }
         }
     }

@@ -181,12 +181,31 @@ impl<'r> RowView<'r> {
         Ok(abs_sum * self.scale)
     }
 
-    /// Call `f(j, s F_ij)` for every stored non-zero entry, in column order.
+    /// Call `f(j, s F_ij)` for every stored non-zero entry, in column order, and then
+    /// for every patch of the row's links (expanded, spec §5.7).
     ///
     /// # Errors
     /// [`SolveError::OutOfRange`] for a column ≥ n, [`SolveError::BadRow`] for an entry
     /// that is not finite.
     pub(crate) fn visit(&self, n: usize, mut f: impl FnMut(usize, f64)) -> Result<(), SolveError> {
+        self.visit_entries(n, &mut f)?;
+        if let (false, Some(space), Entries::Sparse(cols, _)) =
+            (self.links.is_empty(), self.space, self.entries)
+        {
+            space.expand(self.links, self.index, cols, f);
+        }
+        Ok(())
+    }
+
+    /// [`RowView::visit`] of the stored entries alone, the links left out.
+    ///
+    /// # Errors
+    /// As [`RowView::visit`].
+    pub(crate) fn visit_entries(
+        &self,
+        n: usize,
+        mut f: impl FnMut(usize, f64),
+    ) -> Result<(), SolveError> {
         let bad_value = |x: f32| SolveError::BadRow {
             row: self.index,
             message: format!("value {x} is not finite"),
@@ -215,11 +234,6 @@ impl<'r> RowView<'r> {
                     }
                 }
             }
-        }
-        if let (false, Some(space), Entries::Sparse(cols, _)) =
-            (self.links.is_empty(), self.space, self.entries)
-        {
-            space.expand(self.links, self.index, cols, f);
         }
         Ok(())
     }
