@@ -18,6 +18,7 @@
 //! | `tools.rs` | `info`, `verify`, `export` for the command line |
 //! | `udales.rs` | `export --udales`: `vfsparse.inp` and `svf.inp` as uDALES reads them |
 //! | `staged.rs` | `export`'s text outputs, renamed into place once complete |
+//! | `params.rs` | [`ParamList`]: the header's params string as key=value settings, and the resume's comparison of two |
 //! | `presence.rs` | [`RowPresence`]: which rows a file holds |
 //! | `routes.rs` | [`PairRoutes`]: how the pairs got their visibility, kept in the index |
 //! | `size.rs` | what a file will take before it is written (the plan `compute` prints) |
@@ -28,6 +29,7 @@ mod error;
 mod index;
 mod meta;
 pub mod npz;
+pub mod params;
 mod presence;
 mod reader;
 mod recover;
@@ -47,6 +49,7 @@ pub use chunk::{
 };
 pub use error::FfzError;
 pub use meta::{FileMeta, Layout};
+pub use params::ParamList;
 pub use presence::{RowPresence, RowState};
 pub use reader::FfzReader;
 pub use recover::{torn_header, BadRegion};
