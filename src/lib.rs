@@ -15,6 +15,7 @@
 //! | [`formfactor`] | the form-factor kernels (`point`, `mc`, `contour`), exact visibility, and the row engine (dense, top-k and linked rows) |
 //! | [`ffz`] | the `.ffz` file format: spec types, chunk codec, streaming writer, mmap reader, verification and exports |
 //! | [`service`] | the I/O master and its transports (embedded threads, MPI) |
+//! | [`job`] | a compute job's typed settings, the header's run parameters, and the building of the job from them |
 //! | [`solve`] | out-of-core radiosity solvers |
 //! | [`render`] | software rasterizer for the lit scene |
 //! | [`vtu`] | the patches as a VTK unstructured grid with per-patch values (ParaView, meshio) |
@@ -27,6 +28,7 @@ pub mod ffz;
 pub mod formfactor;
 pub mod geometry;
 mod input;
+pub mod job;
 pub mod patch;
 pub mod random;
 pub mod render;
