@@ -13,7 +13,8 @@
 //! | [`scene`] | scene files (OBJ/MTL, STL, PLY, glTF) loaded and validated, built-in scenes |
 //! | [`geometry`] | subdivision into patches, the occluders and the eight-wide tree that answer the visibility questions |
 //! | [`formfactor`] | the form-factor kernels (`point`, `mc`, `contour`), exact visibility, and the row engine (dense, top-k and linked rows) |
-//! | [`ffz`] | the `.ffz` file format: spec types, chunk codec, streaming writer, mmap reader, verification and exports |
+//! | [`ffz`] | the `.ffz` file format: spec types, chunk codec, streaming writer, mmap reader, verification |
+//! | [`report`] | what is made of a file: `info`, the printed `verify`, the exports, `verify --unoccluded` |
 //! | [`service`] | the I/O master and its transports (embedded threads, MPI) |
 //! | [`job`] | a compute job's typed settings, the header's run parameters, and the building of the job from them |
 //! | [`solve`] | out-of-core radiosity solvers |
@@ -32,6 +33,7 @@ pub mod job;
 pub mod patch;
 pub mod random;
 pub mod render;
+pub mod report;
 pub mod rows;
 pub mod scene;
 pub mod service;

@@ -13,22 +13,19 @@
 //! | `recover.rs` | the recovery scan for files without a usable index |
 //! | `reader.rs` | [`FfzReader`]: open, random row access, sequential scan |
 //! | `verify.rs` | [`FfzReader::verify`] and [`compare`] |
-//! | `unoccluded.rs` | `verify --unoccluded`: entries against their unoccluded form factor |
-//! | `npz.rs` | `export --npz`: the CSR arrays as `scipy.sparse.save_npz` writes them |
-//! | `tools.rs` | `info`, `verify`, `export` for the command line |
-//! | `udales.rs` | `export --udales`: `vfsparse.inp` and `svf.inp` as uDALES reads them |
-//! | `staged.rs` | `export`'s text outputs, renamed into place once complete |
 //! | `params.rs` | [`ParamList`]: the header's params string as key=value settings, and the resume's comparison of two |
 //! | `presence.rs` | [`RowPresence`]: which rows a file holds |
 //! | `routes.rs` | [`PairRoutes`]: how the pairs got their visibility, kept in the index |
 //! | `size.rs` | what a file will take before it is written (the plan `compute` prints) |
 //! | `error.rs` | `FfzError`, the error type of this layer |
+//!
+//! What is made of a file for people and other programs (`info`, the printed `verify`,
+//! the exports, `verify --unoccluded`) is not the format's: it is in [`crate::report`].
 
 mod chunk;
 mod error;
 mod index;
 mod meta;
-pub mod npz;
 pub mod params;
 mod presence;
 mod reader;
@@ -36,10 +33,6 @@ mod recover;
 mod routes;
 pub mod size;
 pub mod spec;
-mod staged;
-pub mod tools;
-pub mod udales;
-mod unoccluded;
 mod verify;
 mod writer;
 
@@ -54,6 +47,5 @@ pub use presence::{RowPresence, RowState};
 pub use reader::FfzReader;
 pub use recover::{torn_header, BadRegion};
 pub use routes::{PairRoutes, StoredRoutes};
-pub use unoccluded::{unoccluded_excess, UnoccludedReport, UNOCCLUDED_ABS_TOL};
 pub use verify::{compare, BadChunk, CompareReport, VerifyOptions, VerifyReport, ROW_SUM_TOL};
 pub use writer::{FfzWriter, WriterOptions, WriterStats};

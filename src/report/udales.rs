@@ -30,9 +30,11 @@
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 
-use super::error::{FfzError, Result};
-use super::reader::FfzReader;
+use crate::ffz::FfzError;
+
 use super::staged::Staged;
+use super::Result;
+use crate::ffz::FfzReader;
 use crate::rows::RowValues;
 use crate::scene::{self, SceneFormat};
 
@@ -95,9 +97,9 @@ fn refuse(path: &Path, why: String) -> FfzError {
 
 /// The value of `key=` in the header's params (spec §3.2), decoded.
 fn param(params: &str, key: &str) -> Option<String> {
-    super::params::ParamList::parse(params)
+    crate::ffz::ParamList::parse(params)
         .get(key)
-        .map(super::params::decode_value)
+        .map(crate::ffz::params::decode_value)
 }
 
 /// The path of the STL a scene spec (as `compute` took it) names, or why it is none.
