@@ -3,21 +3,11 @@
 //! through a memory map. The specification is `formats/ffz-v1.md`; every on-disk
 //! structure here names its section there, and the spec wins where they disagree.
 //!
-//! | file | holds |
-//! |---|---|
-//! | `spec.rs` | on-disk structures (`HeaderV1`, `ChunkHeaderV1`, ...), magics, CRC-32C |
-//! | `meta.rs` | [`Layout`], [`FileMeta`], the meta block (header + patch table) |
-//! | `chunk.rs` | [`encode_chunk`] (runs on workers) and chunk decoding |
-//! | `index.rs` | the row → chunk index and the footer |
-//! | `writer/` | [`FfzWriter`]: create, append, finish; its lock, staging file and resume |
-//! | `recover.rs` | the recovery scan for files without a usable index |
-//! | `reader.rs` | [`FfzReader`]: open, random row access, sequential scan |
-//! | `verify.rs` | [`FfzReader::verify`] and [`compare`] |
-//! | `params.rs` | [`ParamList`]: the header's params string as key=value settings, and the resume's comparison of two |
-//! | `presence.rs` | [`RowPresence`]: which rows a file holds |
-//! | `routes.rs` | [`PairRoutes`]: how the pairs got their visibility, kept in the index |
-//! | `size.rs` | what a file will take before it is written (the plan `compute` prints) |
-//! | `error.rs` | `FfzError`, the error type of this layer |
+//! One file per on-disk concern (the spec types, the meta block, the chunk codec, the
+//! index, the writer with its lock, staging and resume, the reader, the recovery scan,
+//! verification, the params string); the files are listed in docs/architecture.md §6.
+//! The public types: [`FfzWriter`], [`FfzReader`], [`FileMeta`], [`Layout`],
+//! [`ParamList`], [`compare`].
 //!
 //! What is made of a file for people and other programs (`info`, the printed `verify`,
 //! the exports, `verify --unoccluded`) is not the format's: it is in [`crate::report`].

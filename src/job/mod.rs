@@ -4,17 +4,14 @@
 //! its arguments into [`JobSettings`] and calls [`build_job`]; tests and benchmarks
 //! build their jobs the same way.
 //!
-//! | file | holds |
-//! |---|---|
-//! | `settings.rs` | [`JobSettings`], [`FormSettings`] (a preset and the values given on top, merged in one place), [`PatchBudget`], [`RowMode`], [`HalfRows`], and the rules of which settings go together |
-//! | `params.rs` | [`RunParams`]: the header's run parameters, typed and versioned; written as the params string, read back, compared for a resume |
-//! | `plan.rs` | [`plan::Plan`]: what a job will take (file, disk, memory), said before heavy work, and the disk check |
-//! | `build.rs` | [`build_job`]: scene, plan, patches, occluders, engine, header |
+//! [`settings`] holds what a job is asked and which settings go together, [`params`]
+//! the header's run parameters, [`plan`] the plan and its disk check, `build.rs` the
+//! building itself (the files are listed in docs/architecture.md §6).
 
 mod build;
 pub mod params;
 pub mod plan;
-mod settings;
+pub mod settings;
 
 pub use build::{build_job, scene_warnings};
 pub use params::{EngineParams, RunParams};

@@ -4,13 +4,7 @@
 //! ([`crate::ffz`]) and never the other way round; their errors are the format layer's
 //! [`FfzError`] (a report fails where reading or writing a file fails).
 //!
-//! | file | holds |
-//! |---|---|
-//! | `tools.rs` | `info`, `verify`, `export` for the command line |
-//! | `npz.rs` | `export --npz`: the CSR arrays as `scipy.sparse.save_npz` writes them |
-//! | `udales.rs` | `export --udales`: `vfsparse.inp` and `svf.inp` as uDALES reads them |
-//! | `staged.rs` | `export`'s text outputs, renamed into place once complete |
-//! | `unoccluded.rs` | `verify --unoccluded`: entries against their unoccluded form factor (builds a row engine) |
+//! The files are listed in docs/architecture.md §6.
 
 pub mod npz;
 mod staged;
