@@ -10,6 +10,7 @@ use clap::Args;
 
 use ffstream::ffz::WriterOptions;
 use ffstream::formfactor::{TopKTail, MAX_SAMPLES};
+use ffstream::job::settings::defaults;
 use ffstream::job::{build_job, FormSettings, JobSettings, PatchBudget, RowMode, MAX_THREADS};
 use ffstream::scene::{self, Scene};
 use ffstream::service::{interrupt, ComputeJob, ComputeReport, Role};
@@ -143,21 +144,21 @@ pub(crate) struct ComputeOptions {
     #[arg(long)]
     pub gather: bool,
     /// zstd compression level of the row chunks, 1 (fastest) to 22.
-    #[arg(long, default_value_t = 1, value_name = "LEVEL", value_parser = clap::value_parser!(i32).range(1..=22))]
+    #[arg(long, default_value_t = defaults::ZSTD_LEVEL, value_name = "LEVEL", value_parser = clap::value_parser!(i32).range(1..=22))]
     pub zstd_level: i32,
     /// Target uncompressed size of a row chunk, in KiB (1 to 1048576, i.e. 1 GiB; a
     /// chunk holds at least one row).
-    #[arg(long, default_value_t = 1024, value_name = "KIB", value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=1 << 20))]
+    #[arg(long, default_value_t = defaults::CHUNK_KIB, value_name = "KIB", value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=1 << 20))]
     pub chunk_kib: usize,
     /// Seconds after which a compute thread sends its pending rows even if its chunk is
     /// not full (bounds the work a killed run loses). 0 to 1e9.
-    #[arg(long, default_value_t = 5.0, value_name = "SECONDS", value_parser = number::seconds)]
+    #[arg(long, default_value_t = defaults::FLUSH_SECONDS, value_name = "SECONDS", value_parser = number::seconds)]
     pub flush_seconds: f64,
     /// MPI: rank 0 ends the job, keeping the rows written so far for --resume, when a
     /// worker rank has sent nothing for this many seconds (stopped by SIGSTOP, hung, its
     /// node lost). Quiet workers send a heartbeat every min(limit/4, 5 s), so a long row
     /// is not silence. A number > 0, at most 1e9.
-    #[arg(long, default_value_t = 600.0, value_name = "SECONDS", value_parser = number::positive_seconds)]
+    #[arg(long, default_value_t = defaults::STALL_SECONDS, value_name = "SECONDS", value_parser = number::positive_seconds)]
     pub stall_seconds: f64,
     /// Start even when the free disk is less than the file's size before compression
     /// (the plan printed first gives both; zstd may make the file fit, and a run that

@@ -193,6 +193,19 @@ pub fn layout_of(cfg: &FormFactorConfig, n: usize) -> Layout {
     }
 }
 
+/// The defaults of the settings that do not change the rows, held here once for the
+/// library ([`JobSettings::new`]) and the command line (its options' defaults).
+pub mod defaults {
+    /// zstd level of the row chunks.
+    pub const ZSTD_LEVEL: i32 = 1;
+    /// Target uncompressed size of a row chunk, in KiB.
+    pub const CHUNK_KIB: usize = 1024;
+    /// Seconds after which a compute thread sends its pending rows.
+    pub const FLUSH_SECONDS: f64 = 5.0;
+    /// MPI: seconds of silence after which rank 0 ends the job.
+    pub const STALL_SECONDS: f64 = 600.0;
+}
+
 /// `threads`, or one per core.
 pub fn threads_or_all(threads: Option<usize>) -> usize {
     threads.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()))
@@ -254,12 +267,12 @@ impl JobSettings {
             resume: false,
             overwrite: false,
             writer: WriterOptions {
-                zstd_level: 1,
-                chunk_bytes: 1024 * 1024,
+                zstd_level: defaults::ZSTD_LEVEL,
+                chunk_bytes: defaults::CHUNK_KIB * 1024,
                 fsync: true,
             },
-            flush_seconds: 5.0,
-            stall_seconds: 600.0,
+            flush_seconds: defaults::FLUSH_SECONDS,
+            stall_seconds: defaults::STALL_SECONDS,
             progress: true,
             space_check: true,
         }
