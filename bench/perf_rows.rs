@@ -31,12 +31,16 @@ use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
 use ffstream::formfactor::sampling::SplitMix64;
-use ffstream::formfactor::{Counters, FormFactorConfig, RowEngine, Scratch, TopKSearch, TopKTail};
-use ffstream::geometry::merge::OccluderMesh;
+use ffstream::formfactor::{
+    Counters, Preset, RowEngine, Scratch, TopKSearch, TopKTail, Visibility,
+};
 use ffstream::geometry::occluders::Occluders;
-use ffstream::geometry::subdivide::{default_max_edge, subdivide};
+use ffstream::job::{
+    build_job, EngineParams, FormSettings, HalfRows, JobSettings, PatchBudget, RowMode,
+};
 use ffstream::patch::PatchSet;
 use ffstream::rows::Row;
+use ffstream::service::{ComputeJob, Role};
 
 struct Args {
     scene: String,
@@ -192,105 +196,240 @@ fn sparse(i: u32, entries: &[(u32, f64)]) -> Row {
 /// every pair evaluated), `topkKs` (exhaustive search with the tail sampled from 32
 /// pairs), `fast`, `fasttopkK` (exactly `--preset fast --top-k K`, as bench/run.py's
 /// top-k scaling series runs it), `fasttopkKx` (the same with `--top-k-search
-/// exhaustive`), `occluders` (the scene's faces as foreign occluders,
-/// i.e. `--occluders` with the scene's own OBJ), `fineocc` (occluders = the patches'
-/// own triangles, as if the OBJ were tessellated as finely as the patches), `qtolTOL`
-/// (the accurate preset with `--quad-tol TOL`), `minffEPS` (`--min-ff EPS`),
-/// `symmetricMODE` (MODE in half rows),
-/// `exact`,
-/// `exactTOL` or `exactTOLrN` (the accurate preset with `--visibility exact`,
+/// exhaustive`), `occluders` (the scene's faces, or `--occluders F`, as foreign
+/// occluders, as given), `fineocc` (occluders = the patches' own triangles, as if the
+/// OBJ were tessellated as finely as the patches), `qtolTOL` (the accurate preset with
+/// `--quad-tol TOL`), `minffEPS` (`--min-ff EPS`), `symmetricMODE` (MODE in half rows),
+/// `exact`, `exactTOL` or `exactTOLrN` (the accurate preset with `--visibility exact`,
 /// `--shadow-tol TOL`, `--samples N` for the pairs left to rays), `raysN` (the accurate
-/// preset with `--samples N`).
-fn config_of(mode: &str) -> FormFactorConfig {
-    let base = FormFactorConfig::accurate();
+/// preset with `--samples N`). Each is the library's settings of those options, so that
+/// a mode computes what the command line computes.
+fn form_of(mode: &str) -> FormSettings {
+    let base = FormSettings::default();
+    let after = |prefix: &str| mode[prefix.len()..].to_string();
     match mode {
-        m if m.starts_with("fasttopk") => {
-            // The CLI applies --top-k on top of the preset and keeps its tail setting.
-            let k = m["fasttopk".len()..]
-                .trim_end_matches('x')
-                .parse()
-                .unwrap_or(64);
-            let mut c = FormFactorConfig::fast().with_top_k(Some(k));
-            if m.ends_with('x') {
-                c.top_k_search = TopKSearch::Exhaustive;
-            }
-            c
-        }
+        m if m.starts_with("fasttopk") => FormSettings {
+            preset: Preset::Fast,
+            rows: RowMode::TopK(
+                after("fasttopk")
+                    .trim_end_matches('x')
+                    .parse()
+                    .unwrap_or(64),
+            ),
+            top_k_search: m.ends_with('x').then_some(TopKSearch::Exhaustive),
+            ..base
+        },
         m if m.starts_with("topk") => {
-            let k = m[4..].trim_end_matches(['s', 'e']).parse().unwrap_or(256);
-            let mut c = base.with_top_k(Some(k));
-            if m.ends_with('s') || m.ends_with('e') {
-                c.top_k_search = TopKSearch::Exhaustive;
-                c.top_k_tail = match m.ends_with('s') {
-                    true => TopKTail::Sampled(32),
-                    false => TopKTail::Exact,
-                };
+            let exhaustive = m.ends_with('s') || m.ends_with('e');
+            FormSettings {
+                rows: RowMode::TopK(
+                    after("topk")
+                        .trim_end_matches(['s', 'e'])
+                        .parse()
+                        .unwrap_or(256),
+                ),
+                top_k_search: exhaustive.then_some(TopKSearch::Exhaustive),
+                top_k_tail: match (exhaustive, m.ends_with('s')) {
+                    (false, _) => None,
+                    (true, true) => Some(TopKTail::Sampled(32)),
+                    (true, false) => Some(TopKTail::Exact),
+                },
+                ..base
             }
-            c
         }
-        "fast" => FormFactorConfig::fast(),
+        "fast" => FormSettings {
+            preset: Preset::Fast,
+            ..base
+        },
         m if m.starts_with("symmetric") && m.len() > "symmetric".len() => {
-            config_of(&m["symmetric".len()..])
+            form_of(&after("symmetric"))
         }
-        m if m.starts_with("minff") => {
-            // `minffEPS`: the accurate preset with `--min-ff EPS` (tree search).
-            base.with_min_ff(m["minff".len()..].parse().ok())
-        }
-        m if m.starts_with("qtol") => {
-            // `qtolTOL`: the accurate preset with `--quad-tol TOL`.
-            let mut c = base;
-            c.quad_tol = m["qtol".len()..].parse().unwrap_or(c.quad_tol);
-            c
-        }
+        m if m.starts_with("minff") => FormSettings {
+            rows: RowMode::of(None, after("minff").parse().ok()),
+            ..base
+        },
+        m if m.starts_with("qtol") => FormSettings {
+            quad_tol: after("qtol").parse().ok(),
+            ..base
+        },
         m if m.starts_with("exact") => {
-            // `exact`, `exactTOL` or `exactTOLrN`: the accurate preset with
-            // --visibility exact (--shadow-tol TOL), N rays for the pairs left to rays.
-            let (tol, rays) = m["exact".len()..]
+            // `exact`, `exactTOL` or `exactTOLrN`.
+            let rest = after("exact");
+            let (tol, rays) = rest
                 .split_once('r')
-                .map_or((&m["exact".len()..], None), |(t, r)| (t, Some(r)));
-            let mut c = match rays.and_then(|r| r.parse().ok()) {
-                Some(n) => base.with_samples(n),
-                None => base,
-            };
-            c.visibility = ffstream::formfactor::Visibility::Exact;
-            if let Ok(t) = tol.parse() {
-                c.shadow_tol = t;
+                .map_or((rest.as_str(), None), |(t, r)| (t, Some(r)));
+            FormSettings {
+                visibility: Some(Visibility::Exact),
+                shadow_tol: tol.parse().ok(),
+                samples: rays.and_then(|r| r.parse().ok()),
+                ..base
             }
-            c
         }
-        m if m.starts_with("rays") => {
-            // `raysN`: the accurate preset with N rays per pair (all cast).
-            base.with_samples(m["rays".len()..].parse().unwrap_or(16))
-        }
+        m if m.starts_with("rays") => FormSettings {
+            samples: Some(after("rays").parse().unwrap_or(16)),
+            ..base
+        },
         _ => base,
+    }
+}
+
+/// The job of `mode` as `ffstream compute` builds it (output nowhere, full rows: the
+/// half rows of the `symmetric` modes are the benchmark's own, `half_row_all`).
+fn job_of(a: &Args, form: FormSettings) -> ComputeJob {
+    let mut s = JobSettings::new(a.scene.clone(), "/dev/null");
+    s.budget = PatchBudget::Target(a.patches);
+    s.form = form;
+    s.half_rows = HalfRows::Off;
+    s.threads = Some(a.threads);
+    s.progress = false;
+    build_job(&s, Role::Alone, &|_| {}).expect("the job of a mode")
+}
+
+/// The engine of `mode` and the run parameters a file header would carry for it.
+fn engine_of(a: &Args, mode: &str, patches: &PatchSet) -> (Arc<RowEngine>, String) {
+    let foreign = |occ: Occluders| {
+        let e = RowEngine::new(
+            patches,
+            Arc::new(occ),
+            form_of("default").config(HalfRows::Off).unwrap(),
+        );
+        let params = EngineParams::of_engine(&e).to_string();
+        (Arc::new(e), params)
+    };
+    match mode {
+        "occluders" => {
+            let coarse = ffstream::scene::open_scene(a.occluders.as_deref().unwrap_or(&a.scene))
+                .expect("coarse scene");
+            foreign(Occluders::new_foreign(coarse.triangles().collect()))
+        }
+        "fineocc" => foreign(Occluders::new(
+            patches
+                .patches
+                .iter()
+                .flat_map(|p| {
+                    let c = p.corners();
+                    (1..c.len() - 1).map(move |k| (p.face, [c[0], c[k], c[k + 1]]))
+                })
+                .collect(),
+        )),
+        _ => {
+            let job = job_of(a, form_of(mode));
+            (
+                Arc::clone(job.engine.as_ref().expect("an engine")),
+                job.meta.params,
+            )
+        }
+    }
+}
+
+/// The rows the modes are checked against: `--ref-rows` random ones and up to
+/// `--ref-partial` partly hidden ones, computed with `--ref-mode` (default: the
+/// reference preset); their indices and dense values.
+fn reference_rows(a: &Args, first: &RowEngine, n: usize) -> (Vec<u32>, Vec<Vec<f32>>) {
+    let mut rng = SplitMix64::new(12345);
+    let mut ref_idx: Vec<u32> = (0..a.ref_rows)
+        .map(|_| (rng.next_f64() * n as f64) as u32)
+        .collect();
+    if a.ref_partial > 0 {
+        let all: Vec<u32> = (0..n as u32).collect();
+        let (rows, _, wall) = run_rows(first, &all, a.threads, full_row);
+        let partial: Vec<u32> = rows
+            .iter()
+            .filter(|r| (1e-4..=1.0 - 1e-4).contains(&r.true_sum()))
+            .map(|r| r.index)
+            .collect();
+        let take = a.ref_partial.min(partial.len());
+        println!(
+            "partly hidden rows ({}, all {n} rows in {wall:.1} s): {} (total in [1e-4, 1 - 1e-4]); {take} of them, evenly spread, join the reference rows",
+            a.modes.first().map_or("default", String::as_str),
+            partial.len()
+        );
+        ref_idx.extend((0..take).map(|k| partial[k * partial.len() / take]));
+    }
+    ref_idx.sort_unstable();
+    ref_idx.dedup();
+    if ref_idx.is_empty() {
+        return (ref_idx, Vec::new());
+    }
+    let form = match a.ref_mode.as_deref() {
+        Some(m) => form_of(m),
+        None => FormSettings {
+            preset: Preset::Reference,
+            ..FormSettings::default()
+        },
+    };
+    let job = job_of(a, form);
+    let (rows, _, wall) = run_rows(job.engine.as_ref().unwrap(), &ref_idx, a.threads, full_row);
+    println!("reference: {} rows in {wall:.1} s", rows.len());
+    let dense = rows.iter().map(|r| r.to_dense(n)).collect();
+    (ref_idx, dense)
+}
+
+/// The errors of `rows` against the reference rows `reference`, printed as they go.
+#[derive(Default)]
+struct Errors {
+    max_abs: f64,
+    sum_err: f64,
+    mean_abs: f64,
+    sum_err_mean: f64,
+    sum_err_signed: f64,
+    worst: Vec<(f64, String)>,
+}
+
+impl Errors {
+    fn of(rows: &[Row], reference: &[Vec<f32>], n: usize) -> Self {
+        let mut e = Errors::default();
+        for (r, want) in rows.iter().zip(reference) {
+            let ws: f64 = want.iter().map(|&x| x as f64).sum();
+            let d = r.true_sum() - ws;
+            e.worst.push((
+                d.abs(),
+                format!(
+                    "row {} total {:.6} reference {ws:.6} (stored {:.6}, dropped {:.6}): {d:+.2e}",
+                    r.index,
+                    r.true_sum(),
+                    r.true_sum() - r.dropped as f64,
+                    r.dropped
+                ),
+            ));
+            let got = r.to_dense(n);
+            let mut s = 0.0;
+            for (g, w) in got.iter().zip(want) {
+                let d = (*g as f64 - *w as f64).abs();
+                e.max_abs = e.max_abs.max(d);
+                s += d;
+            }
+            e.mean_abs += s / n as f64;
+            e.sum_err = e.sum_err.max(d.abs());
+            e.sum_err_mean += d.abs();
+            e.sum_err_signed += d;
+        }
+        let m = reference.len().max(1) as f64;
+        e.mean_abs /= m;
+        e.sum_err_mean /= m;
+        e.sum_err_signed /= m;
+        e.worst.sort_by(|a, b| b.0.total_cmp(&a.0));
+        e
     }
 }
 
 fn main() {
     let a = parse_args();
+    // The first mode's job, built as `ffstream compute` builds it, so that the set-up
+    // time covers the same steps as its "set-up (load, subdivide, Bvh, engine)" line.
     let setup_start = Instant::now();
-    let scene = ffstream::scene::open_scene(&a.scene).expect("scene");
-    let max_edge = default_max_edge(&scene, a.patches);
-    let patches: Arc<PatchSet> = Arc::new(subdivide(&scene, max_edge));
-    let n = patches.len();
-    // The scene's triangles as `ffstream compute` uses them by default (coplanar ones
-    // merged: --no-merge-occluders not given).
-    let mesh = OccluderMesh::prepare(scene.triangles().collect(), false, true);
-    let (given, merged_note) = (mesh.given, mesh.header_note());
-    let fine = Arc::new(mesh.build());
-    // The engine of the first mode, built here so that the set-up time covers the same
-    // steps as `ffstream compute`'s "set-up (load, subdivide, Bvh, engine)" line.
-    let first_engine = RowEngine::new(
-        &patches,
-        Arc::clone(&fine),
-        config_of(a.modes.first().map_or("default", String::as_str)),
+    let first = job_of(
+        &a,
+        form_of(a.modes.first().map_or("default", String::as_str)),
     );
     let setup = setup_start.elapsed().as_secs_f64();
-    drop(first_engine);
+    let patches = Arc::clone(&first.patches);
+    let n = patches.len();
+    let first_engine = Arc::clone(first.engine.as_ref().expect("an engine"));
     println!(
         "scene {} patches {n} occluder triangles {} threads {}",
         a.scene,
-        fine.len(),
+        EngineParams::of_engine(&first_engine).occluder_triangles,
         a.threads
     );
     let timed: Vec<u32> = match a.rows {
@@ -301,41 +440,8 @@ fn main() {
         "set-up (load, subdivide, Bvh, engine) {setup:.3} s; timed rows {} of {n} (evenly spread)",
         timed.len()
     );
-    let mut rng = SplitMix64::new(12345);
-    let mut ref_idx: Vec<u32> = (0..a.ref_rows)
-        .map(|_| (rng.next_f64() * n as f64) as u32)
-        .collect();
-    if a.ref_partial > 0 {
-        let first = a.modes.first().map_or("default", String::as_str);
-        let e = RowEngine::new(&patches, Arc::clone(&fine), config_of(first));
-        let all: Vec<u32> = (0..n as u32).collect();
-        let (rows, _, wall) = run_rows(&e, &all, a.threads, full_row);
-        let partial: Vec<u32> = rows
-            .iter()
-            .filter(|r| (1e-4..=1.0 - 1e-4).contains(&r.true_sum()))
-            .map(|r| r.index)
-            .collect();
-        let take = a.ref_partial.min(partial.len());
-        println!(
-            "partly hidden rows ({first}, all {n} rows in {wall:.1} s): {} (total in [1e-4, 1 - 1e-4]); {take} of them, evenly spread, join the reference rows",
-            partial.len()
-        );
-        ref_idx.extend((0..take).map(|k| partial[k * partial.len() / take]));
-    }
-    ref_idx.sort_unstable();
-    ref_idx.dedup();
-    let reference = if ref_idx.is_empty() {
-        Vec::new()
-    } else {
-        let cfg = a
-            .ref_mode
-            .as_deref()
-            .map_or_else(FormFactorConfig::reference, config_of);
-        let e = RowEngine::new(&patches, Arc::clone(&fine), cfg);
-        let (rows, _, wall) = run_rows(&e, &ref_idx, a.threads, full_row);
-        println!("reference: {} rows in {wall:.1} s", rows.len());
-        rows.iter().map(|r| r.to_dense(n)).collect::<Vec<_>>()
-    };
+    let (ref_idx, reference) = reference_rows(&a, &first_engine, n);
+    drop((first, first_engine));
     println!(
         "{:<10} {:>9} {:>9} {:>12} {:>10} {:>10} {:>10} {:>10} {:>10} {:>10}",
         "mode",
@@ -350,27 +456,7 @@ fn main() {
         "mean_abs"
     );
     for mode in &a.modes {
-        let occ = if mode == "occluders" {
-            let coarse = match a.occluders.as_deref() {
-                Some(path) => ffstream::scene::open_scene(path).expect("coarse scene"),
-                None => scene.clone(),
-            };
-            Arc::new(Occluders::new_foreign(coarse.triangles().collect()))
-        } else if mode == "fineocc" {
-            let tris = patches
-                .patches
-                .iter()
-                .flat_map(|p| {
-                    let c = p.corners();
-                    (1..c.len() - 1).map(move |k| (p.face, [c[0], c[k], c[k + 1]]))
-                })
-                .collect();
-            Arc::new(Occluders::new(tris))
-        } else {
-            Arc::clone(&fine)
-        };
-        let occ_tris = occ.len();
-        let e = RowEngine::new(&patches, occ, config_of(mode));
+        let (e, params) = engine_of(&a, mode, &patches);
         let cpu0 = cpu_seconds();
         let (timed_fn, checked_fn): (RowFn, RowFn) = if mode.starts_with("symmetric") {
             (half_row_all, half_row_as_stored)
@@ -384,41 +470,14 @@ fn main() {
             r.for_each_nonzero(|_, _| stored += 1);
         }
         let scale = n as f64 / timed.len() as f64;
-        let (mut max_abs, mut sum_err, mut mean_abs) = (0.0f64, 0.0f64, 0.0f64);
-        let (mut sum_err_mean, mut sum_err_signed) = (0.0f64, 0.0f64);
-        let mut worst: Vec<(f64, String)> = Vec::new();
-        if !reference.is_empty() {
-            let (rows, _, _) = run_rows(&e, &ref_idx, a.threads, checked_fn);
-            for (r, want) in rows.iter().zip(&reference) {
-                let ws: f64 = want.iter().map(|&x| x as f64).sum();
-                let d = r.true_sum() - ws;
-                worst.push((
-                    d.abs(),
-                    format!(
-                        "row {} total {:.6} reference {ws:.6} (stored {:.6}, dropped {:.6}): {d:+.2e}",
-                        r.index,
-                        r.true_sum(),
-                        r.true_sum() - r.dropped as f64,
-                        r.dropped
-                    ),
-                ));
-                let got = r.to_dense(n);
-                let mut s = 0.0;
-                for (g, w) in got.iter().zip(want) {
-                    let d = (*g as f64 - *w as f64).abs();
-                    max_abs = max_abs.max(d);
-                    s += d;
-                }
-                mean_abs += s / n as f64;
-                let ws: f64 = want.iter().map(|&x| x as f64).sum();
-                sum_err = sum_err.max((r.true_sum() - ws).abs());
-                sum_err_mean += (r.true_sum() - ws).abs();
-                sum_err_signed += r.true_sum() - ws;
-            }
-            mean_abs /= reference.len() as f64;
-            sum_err_mean /= reference.len() as f64;
-            sum_err_signed /= reference.len() as f64;
-        }
+        let err = match reference.is_empty() {
+            true => Errors::default(),
+            false => Errors::of(
+                &run_rows(&e, &ref_idx, a.threads, checked_fn).0,
+                &reference,
+                n,
+            ),
+        };
         let evaluated = c.pairs_evaluated.max(1) as f64;
         println!(
             "{:<10} {:>9.2} {:>9.2} {:>12.3e} {:>9.1}% {:>9.1}% {:>10} {:>10.2e} {:>10.2e} {:>10.2e}",
@@ -429,17 +488,17 @@ fn main() {
             100.0 * c.pairs_far_field as f64 / evaluated,
             100.0 * c.pairs_unoccludable as f64 / evaluated,
             c.pairs_topk_tail_skipped,
-            max_abs,
-            sum_err,
-            mean_abs
+            err.max_abs,
+            err.sum_err,
+            err.mean_abs
         );
         if !reference.is_empty() {
             println!(
-                "  row sums (stored + dropped) against the reference rows: mean |error| {sum_err_mean:.2e}, mean error {sum_err_signed:.2e}, max |error| {sum_err:.2e} over {} rows",
+                "  row sums (stored + dropped) against the reference rows: mean |error| {:.2e}, mean error {:.2e}, max |error| {:.2e} over {} rows",
+                err.sum_err_mean, err.sum_err_signed, err.sum_err,
                 reference.len()
             );
-            worst.sort_by(|a, b| b.0.total_cmp(&a.0));
-            for (_, line) in worst.iter().take(5) {
+            for (_, line) in err.worst.iter().take(5) {
                 println!("    {line}");
             }
         }
@@ -449,16 +508,13 @@ fn main() {
             stored as f64 * scale
         );
         println!(
-            "  occluder triangles {occ_tris}; rays skipped by the top-k bound: {} of {} pairs needing rays; counters (timed rows): {c:?}",
+            "  occluder triangles {}; rays skipped by the top-k bound: {} of {} pairs needing rays; counters (timed rows): {c:?}",
+            EngineParams::of_engine(&e).occluder_triangles,
             c.pairs_topk_tail_skipped,
             c.pairs_evaluated - c.pairs_unoccludable
         );
-        // The engine's parameters as `ffstream compute` writes them into the file header
-        // (bench/run.py checks that a sampled mode matches the run it stands in for).
-        let described = match mode.as_str() {
-            "occluders" | "fineocc" => e.describe(),
-            _ => RowEngine::description(&config_of(mode), given, false) + &merged_note,
-        };
-        println!("  engine: {described}");
+        // The run parameters as `ffstream compute` writes them into the file header
+        // (built by the same library code, so they cannot drift from it).
+        println!("  params: {params}");
     }
 }

@@ -452,7 +452,7 @@ def section_scaling(r: Runner, quick: bool, res: dict) -> None:
             abs(float(np.mean(diff))) <= 4 * float(np.std(diff)) / math.sqrt(len(diff)) + 2e-4,
             f"mean signed difference {np.mean(diff):.1e}, mean |difference| {np.mean(np.abs(diff)):.1e}, "
             f"max {np.max(np.abs(diff)):.1e}")
-    topk_full = [topk_full_point(rec, t_file, sizes[-1])]
+    topk_full = [topk_full_point(rec, sizes[-1])]
     os.remove(out)
     os.remove(dense_last)
     # The same size by sampled rows, at once (about the same load as the full run).
@@ -467,7 +467,7 @@ def section_scaling(r: Runner, quick: bool, res: dict) -> None:
     res["scaling_topk"] = {"n": rec["n"], "wall": rec["wall"], "disk_mb": rec["disk_mb"], "raw_mb": rec["raw_mb"],
                            "ratio": rec["ratio"], "idle": rec.get("idle"), "master_rss": rec.get("master_rss_mb"),
                            "cmd": rec["cmd"], "k": TOPK_K}
-    topk_full.append(topk_full_point(rec, ffz.read(out, verify=False), big))
+    topk_full.append(topk_full_point(rec, big))
     os.remove(out)
     topk_sampled.append(topk_sampled_point(r, perf_rows, big, rows_timed))
     topk_series(r, quick, res, topk_full, topk_sampled, perf_rows)
@@ -487,16 +487,15 @@ PERF_ROWS_RES = {
     "setup": re.compile(r"^set-up \(load, subdivide, Bvh, engine\) ([\d.]+) s; timed rows (\d+) of (\d+)", re.M),
     "counters": re.compile(r"Counters \{ rows: (\d+), pairs_evaluated: (\d+), .*pairs_topk_tail_skipped: (\d+), "
                            r"pairs_unoccludable: (\d+), rays_cast: (\d+),"),
-    "engine": re.compile(r"^  engine: (.*)$", re.M),
 }
 
 
-def topk_full_point(rec: dict, f: "ffz.FfzFile", target: int) -> dict:
+def topk_full_point(rec: dict, target: int) -> dict:
     """A top-k series point from a full `ffstream compute --patches target` run (every row
     computed)."""
     return {"kind": "full", "n": rec["n"], "target": target, "rows": rec["n"], "wall": rec["wall"], "cpu": rec["cpu"],
             "setup": rec.get("setup"), "process_wall": rec["process_wall"], "cmd": rec["cmd"],
-            "engine": f.params.split(" max_edge=")[0], "load": os.getloadavg()[0]}
+            "load": os.getloadavg()[0]}
 
 
 def perf_rows_binary() -> str:
@@ -528,8 +527,7 @@ def topk_sampled_point(r: Runner, exe: str, n: int, rows_timed: int) -> dict:
     setup = PERF_ROWS_RES["setup"].search(out)
     cnt = PERF_ROWS_RES["counters"].search(out)
     line = re.search(rf"^{mode}\s+([\d.]+)\s+([\d.]+)\s", out, re.M)
-    eng = PERF_ROWS_RES["engine"].search(out)
-    if not (setup and cnt and line and eng):
+    if not (setup and cnt and line):
         raise RuntimeError(f"unexpected perf_rows output of `{rec['cmd']}`:\n{out[-2000:]}")
     timed, total = int(setup.group(2)), int(setup.group(3))
     per_row = 1.0 / int(cnt.group(1))
@@ -538,7 +536,7 @@ def topk_sampled_point(r: Runner, exe: str, n: int, rows_timed: int) -> dict:
             "sample_wall": float(line.group(1)) * timed / total, "process_wall": rec["process_wall"],
             "pairs_per_row": int(cnt.group(2)) * per_row,
             "rays_pairs_per_row": (int(cnt.group(2)) - int(cnt.group(4)) - int(cnt.group(3))) * per_row,
-            "rays_per_row": int(cnt.group(5)) * per_row, "engine": eng.group(1), "cmd": rec["cmd"],
+            "rays_per_row": int(cnt.group(5)) * per_row, "cmd": rec["cmd"],
             "load": os.getloadavg()[0]}
 
 
@@ -554,11 +552,8 @@ def topk_series(r: Runner, quick: bool, res: dict, full: list[dict], sampled: li
         if n not in done:
             sampled.append(topk_sampled_point(r, exe, n, rows_timed))
     sampled.sort(key=lambda x: x["n"])
-    # The sampled mode must compute exactly what `compute --preset fast --top-k 64` does.
-    want = full[-1]["engine"]
-    bad = [x for x in sampled if x["engine"] != want]
-    r.check(f"perf_rows mode {mode} uses the engine parameters of `compute --preset fast --top-k {TOPK_K}`",
-            not bad, f"file header: {want}" + "".join(f"; n={x['n']}: {x['engine']}" for x in bad))
+    # The sampled mode computes what `compute --preset fast --top-k 64` does: perf_rows
+    # builds its job through the library's settings, as the command line does.
     # Extrapolation against the full runs at the same n (CPU time: steadier than wall on a
     # shared machine; the full run's CPU also counts the I/O master and the file).
     by_n = {x["n"]: x for x in sampled}
@@ -900,7 +895,7 @@ def topk_series_text(res: dict) -> str:
              "below) while the whole "
              f"benchmark must finish in 30 min, so only the smaller sizes are run in full and every size is also "
              f"**extrapolated** the same way: `bench/perf_rows.rs` (mode `{ts['mode']}`, which "
-             f"builds the engine of `--preset fast --top-k {k}`: checked against the file header of the full run) "
+             f"builds the job of `--preset fast --top-k {k}` through the library, as `compute` does) "
              f"times {rows_timed} rows spread evenly over the matrix (row k·n/{rows_timed}) on 2 threads and scales "
              f"the measured time by n / {rows_timed}. It runs the same row engine as `compute` but not the service "
              "around it (I/O master, compression, writing: small for top-k files, see section 3). The sizes that "

@@ -222,7 +222,7 @@ pub(super) fn run(mut a: AnnualArgs) -> anyhow::Result<ExitCode> {
     let mut patches = RowSource::patches(&reader).clone();
     super::solve::materials_from_scene(&patches, &scene, &a.input.scene)?;
     glass.darken(&mut patches);
-    let threads = a.compute.threads_or_all();
+    let threads = ffstream::job::threads_or_all(a.compute.threads);
     let start = Instant::now();
     let step = |what: &str| {
         eprintln!(
@@ -440,7 +440,7 @@ const SENSOR_BYTES: u64 = 430_000;
 /// (as `compute` refuses a patch count before subdividing).
 fn sensors_fit(sensors: usize) -> anyhow::Result<()> {
     let need = (sensors as u64).saturating_mul(SENSOR_BYTES);
-    match super::plan::mem_available() {
+    match ffstream::job::plan::mem_available() {
         Some(available) if need > available => anyhow::bail!(
             "{sensors} sensors need about {} of memory over a year (about {} each) and this \
              machine has {} available: use fewer sensors (a larger --grid spacing)",

@@ -4,6 +4,7 @@
 //! own type (the library never sees clap).
 
 use ffstream::formfactor::{Method, Preset, TopKSearch, TopKTail, Visibility};
+use ffstream::job::HalfRows;
 use ffstream::scene::SceneFormat;
 use ffstream::service::{RowSelection, Schedule};
 use ffstream::solve::{DroppedMass, SolveMethod};
@@ -129,15 +130,16 @@ choice! {
     }
 }
 
-/// `--symmetric`: whether each unordered pair is computed once (half rows).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
-pub(crate) enum SymmetricArg {
-    /// On for dense files with --method contour, off otherwise.
-    Auto,
-    /// Half rows: each unordered pair once, the other direction by reciprocity.
-    On,
-    /// Full rows: every row on its own.
-    Off,
+choice! {
+    /// `--symmetric`: whether each unordered pair is computed once (half rows).
+    SymmetricArg => HalfRows {
+        /// On for dense files with --method contour, off otherwise.
+        Auto => HalfRows::Auto,
+        /// Half rows: each unordered pair once, the other direction by reciprocity.
+        On => HalfRows::On,
+        /// Full rows: every row on its own.
+        Off => HalfRows::Off,
+    }
 }
 
 choice! {

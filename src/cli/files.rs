@@ -1,4 +1,4 @@
-//! `ffstream info | verify | export`: thin wrappers over `ffstream::ffz::tools`.
+//! `ffstream info | verify | export`: thin wrappers over `ffstream::report::tools`.
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -89,18 +89,18 @@ pub(crate) struct ExportArgs {
 
 pub(super) fn info(a: InfoArgs) -> anyhow::Result<ExitCode> {
     let mut out = std::io::stdout().lock();
-    ffstream::ffz::tools::info(&a.file, &mut out)?;
+    ffstream::report::tools::info(&a.file, &mut out)?;
     Ok(ExitCode::SUCCESS)
 }
 
 pub(super) fn verify(a: VerifyArgs) -> anyhow::Result<ExitCode> {
     let mut out = std::io::stdout().lock();
-    let checks = ffstream::ffz::tools::VerifyChecks {
+    let checks = ffstream::report::tools::VerifyChecks {
         against: a.against.as_deref(),
         row_sum_tol: a.row_sum_tol,
         unoccluded_tol: a.unoccluded,
     };
-    let ok = ffstream::ffz::tools::print_checks(&a.file, checks, &mut out)?;
+    let ok = ffstream::report::tools::print_checks(&a.file, checks, &mut out)?;
     Ok(if ok {
         ExitCode::SUCCESS
     } else {
@@ -139,7 +139,7 @@ pub(super) fn export(a: ExportArgs) -> anyhow::Result<ExitCode> {
     super::outputs::check(&inputs, &outputs)?;
     warn_of_gaps(&a.file)?;
     if matrix_side.iter().any(|p| p.is_some()) {
-        let targets = ffstream::ffz::tools::ExportTargets {
+        let targets = ffstream::report::tools::ExportTargets {
             matrix: a.matrix.as_deref(),
             sparse: a.sparse.as_deref(),
             npz: a.npz.as_deref(),
@@ -147,12 +147,12 @@ pub(super) fn export(a: ExportArgs) -> anyhow::Result<ExitCode> {
             patches_csv: a.patches_csv.as_deref(),
             vtu: a.vtu.as_deref(),
         };
-        ffstream::ffz::tools::export(&a.file, targets)?;
+        ffstream::report::tools::export(&a.file, targets)?;
     }
     if let Some(dir) = &a.udales {
         let min_ff = a
             .min_ff
-            .map_or(ffstream::ffz::udales::UDALES_MIN_FF, |x| x as f32);
+            .map_or(ffstream::report::udales::UDALES_MIN_FF, |x| x as f32);
         udales(&a.file, dir, &a.expnr, min_ff, a.stl.as_deref())?;
     }
     Ok(ExitCode::SUCCESS)
@@ -178,7 +178,7 @@ fn udales(
     min_ff: f32,
     stl: Option<&std::path::Path>,
 ) -> anyhow::Result<()> {
-    let target = ffstream::ffz::udales::UdalesTarget {
+    let target = ffstream::report::udales::UdalesTarget {
         dir,
         expnr,
         min_ff,
@@ -190,7 +190,7 @@ fn udales(
             dir.display()
         )
     })?;
-    let rep = ffstream::ffz::udales::export_udales(file, target)?;
+    let rep = ffstream::report::udales::export_udales(file, target)?;
     eprintln!(
         "ffstream: wrote {} ({} entries ≥ {min_ff:e} of {} facets) and {}",
         rep.vfsparse.display(),

@@ -6,7 +6,6 @@ mod choices;
 mod compute;
 mod files;
 mod outputs;
-mod plan;
 mod render;
 mod run;
 mod scene;
@@ -114,7 +113,7 @@ pub(crate) struct SceneInput {
     pub max_edge: Option<f64>,
     /// Target patch count used to choose --max-edge when it is not given (1 to 2^26).
     #[arg(long, value_name = "N", default_value_t = ffstream::geometry::subdivide::DEFAULT_TARGET_PATCHES,
-          value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=compute::MAX_PATCHES as u64))]
+          value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=ffstream::job::MAX_PATCHES as u64))]
     pub patches: usize,
     /// Refuse a scene that loads with warnings (faces that repeat another, text read as
     /// Latin-1, degenerate faces dropped, non-planar quads split, no emitter, ...):

@@ -215,7 +215,7 @@ pub(super) fn solve_file(
     // The matrix side of the grids (row sums, sky view, dropped mass): one more pass.
     let sums = match vtus.is_empty() {
         true => None,
-        false => Some(ffstream::ffz::tools::row_sum_arrays(&reader)?),
+        false => Some(ffstream::report::tools::row_sum_arrays(&reader)?),
     };
     for case in 0..k {
         let path = solve::case_path(output, case, k);

@@ -3,41 +3,26 @@
 //! through a memory map. The specification is `formats/ffz-v1.md`; every on-disk
 //! structure here names its section there, and the spec wins where they disagree.
 //!
-//! | file | holds |
-//! |---|---|
-//! | `spec.rs` | on-disk structures (`HeaderV1`, `ChunkHeaderV1`, ...), magics, CRC-32C |
-//! | `meta.rs` | [`Layout`], [`FileMeta`], the meta block (header + patch table) |
-//! | `chunk.rs` | [`encode_chunk`] (runs on workers) and chunk decoding |
-//! | `index.rs` | the row → chunk index and the footer |
-//! | `writer/` | [`FfzWriter`]: create, append, finish; its lock, staging file and resume |
-//! | `recover.rs` | the recovery scan for files without a usable index |
-//! | `reader.rs` | [`FfzReader`]: open, random row access, sequential scan |
-//! | `verify.rs` | [`FfzReader::verify`] and [`compare`] |
-//! | `unoccluded.rs` | `verify --unoccluded`: entries against their unoccluded form factor |
-//! | `npz.rs` | `export --npz`: the CSR arrays as `scipy.sparse.save_npz` writes them |
-//! | `tools.rs` | `info`, `verify`, `export` for the command line |
-//! | `udales.rs` | `export --udales`: `vfsparse.inp` and `svf.inp` as uDALES reads them |
-//! | `staged.rs` | `export`'s text outputs, renamed into place once complete |
-//! | `presence.rs` | [`RowPresence`]: which rows a file holds |
-//! | `routes.rs` | [`PairRoutes`]: how the pairs got their visibility, kept in the index |
-//! | `size.rs` | what a file will take before it is written (the plan `compute` prints) |
-//! | `error.rs` | `FfzError`, the error type of this layer |
+//! One file per on-disk concern (the spec types, the meta block, the chunk codec, the
+//! index, the writer with its lock, staging and resume, the reader, the recovery scan,
+//! verification, the params string); the files are listed in docs/architecture.md §6.
+//! The public types: [`FfzWriter`], [`FfzReader`], [`FileMeta`], [`Layout`],
+//! [`ParamList`], [`compare`].
+//!
+//! What is made of a file for people and other programs (`info`, the printed `verify`,
+//! the exports, `verify --unoccluded`) is not the format's: it is in [`crate::report`].
 
 mod chunk;
 mod error;
 mod index;
 mod meta;
-pub mod npz;
+pub mod params;
 mod presence;
 mod reader;
 mod recover;
 mod routes;
 pub mod size;
 pub mod spec;
-mod staged;
-pub mod tools;
-pub mod udales;
-mod unoccluded;
 mod verify;
 mod writer;
 
@@ -47,10 +32,10 @@ pub use chunk::{
 };
 pub use error::FfzError;
 pub use meta::{FileMeta, Layout};
+pub use params::ParamList;
 pub use presence::{RowPresence, RowState};
 pub use reader::FfzReader;
 pub use recover::{torn_header, BadRegion};
 pub use routes::{PairRoutes, StoredRoutes};
-pub use unoccluded::{unoccluded_excess, UnoccludedReport, UNOCCLUDED_ABS_TOL};
 pub use verify::{compare, BadChunk, CompareReport, VerifyOptions, VerifyReport, ROW_SUM_TOL};
 pub use writer::{FfzWriter, WriterOptions, WriterStats};

@@ -104,8 +104,8 @@ impl Preset {
 /// per-thread sample buffers (about 12 bytes a sample).
 pub const MAX_SAMPLES: u32 = 1 << 16;
 
-/// Parameters of a form-factor run. Everything that changes the numbers is here and
-/// in [`RowEngine::describe`] (stored in the file header).
+/// Parameters of a form-factor run. Everything that changes the numbers is here, and
+/// the file header records it (the job layer's run parameters, `src/job/params.rs`).
 #[derive(Clone, Debug, PartialEq)]
 pub struct FormFactorConfig {
     pub method: Method,
@@ -220,6 +220,34 @@ impl fmt::Display for TopKTail {
             TopKTail::Sampled(t) => write!(f, "sampled:{t}"),
         }
     }
+}
+
+/// How the dropped mass of sparse rows is found ([`RowEngine::dropped_mass`]), as
+/// the file header records it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum DroppedMassRoute {
+    /// Every column evaluated: the exhaustive search with an exact tail, or a baseline
+    /// kernel.
+    Exact,
+    /// The row's total estimated (`total`) from `points` sampled points, the dropped
+    /// mass being what the kept entries leave of it; with the tree search and links,
+    /// the most links and their split tolerance.
+    Estimated {
+        total: RowTotal,
+        points: u32,
+        links: Option<(u32, f64)>,
+    },
+}
+
+/// Where an estimated row total comes from ([`DroppedMassRoute::Estimated`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum RowTotal {
+    /// Hemisphere rays against the patches' own occluders (tree search).
+    Hemisphere,
+    /// The tree walk's own estimate (tree search with a foreign occluder mesh, or none).
+    TreeWalk,
+    /// Points sampled in proportion to the unoccluded values (exhaustive search).
+    Sampled,
 }
 
 impl FormFactorConfig {
@@ -421,30 +449,6 @@ impl FormFactorConfig {
         self.searches_tree() && self.links.is_some()
     }
 
-    /// `key=value` pairs of every parameter that changes the numbers.
-    pub(crate) fn describe(&self) -> String {
-        let top_k = match self.top_k {
-            Some(k) => k.to_string(),
-            None => "none".to_string(),
-        };
-        format!(
-            "method={} visibility={} shadow_tol={:e} samples={} first_batch={} seed={} top_k={} top_k_tail={} top_k_search={} min_ff={} quad_order={} quad_tol={:e} ray_epsilon={:e}",
-            self.method,
-            self.visibility.name(),
-            self.shadow_tol,
-            self.samples,
-            self.first_batch,
-            self.seed,
-            top_k,
-            self.top_k_tail,
-            self.top_k_search.name(),
-            self.min_ff.map_or("none".to_string(), |e| format!("{e:e}")),
-            self.quad_order,
-            self.quad_tol,
-            crate::geometry::occluders::RAY_EPSILON
-        )
-    }
-
     pub(crate) fn contour_params(&self) -> contour::ContourParams {
         contour::ContourParams {
             max_order: self.quad_order as usize,
@@ -485,20 +489,5 @@ mod tests {
             .with_top_k(Some(0))
             .validate()
             .is_err());
-    }
-
-    #[test]
-    fn describe_names_every_parameter() {
-        let d = FormFactorConfig::accurate().with_top_k(Some(12)).describe();
-        for key in [
-            "method=contour",
-            "samples=16",
-            "seed=0",
-            "top_k=12",
-            "quad_order=8",
-            "quad_tol=",
-        ] {
-            assert!(d.contains(key), "{d}");
-        }
     }
 }

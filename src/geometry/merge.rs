@@ -62,16 +62,16 @@ pub struct Merged {
 }
 
 /// The occluder triangles of a job as [`OccluderMesh::prepare`] makes them: as given, or
-/// with each plane's triangles merged ([`merge_coplanar`]). `ffstream compute` and the
-/// row benchmark both build their occluders through it, so that what a benchmark times
-/// is what the product computes.
+/// with each plane's triangles merged ([`merge_coplanar`]). Every job builds its
+/// occluders through it (`job::build_job`, which the row benchmark uses too), and the
+/// header records its counts (`occluder_triangles=`, `occluders_merged=`).
 #[derive(Clone, Debug)]
 pub struct OccluderMesh {
     /// The triangles the hierarchy is built over, each with its scene face (merged
     /// triangles are numbered from 0 and belong to no face: `foreign` is then set).
     pub triangles: Vec<(u32, [DVec3; 3])>,
     /// How many of the triangles as given the occluders keep (the header's
-    /// `occluder_triangles=`).
+    /// `occluder_triangles=`; `occluders_merged=` is the second of `merged`).
     pub given: usize,
     /// Planes merged and the triangles left after merging, when any plane was merged.
     pub merged: Option<(usize, usize)>,
@@ -109,13 +109,6 @@ impl OccluderMesh {
                 other_mesh: foreign,
             },
         }
-    }
-
-    /// What the file header adds after `occluder_triangles=`: ` occluders_merged=K`
-    /// when planes were merged, else nothing.
-    pub fn header_note(&self) -> String {
-        self.merged
-            .map_or_else(String::new, |(_, kept)| format!(" occluders_merged={kept}"))
     }
 
     /// The hierarchy over the triangles.

@@ -24,6 +24,7 @@ pub mod master;
 #[cfg(feature = "mpi")]
 pub mod mpi;
 pub(crate) mod progress;
+pub mod role;
 pub mod rss;
 pub mod schedule;
 pub mod symmetric;
@@ -32,4 +33,5 @@ pub(crate) mod worker;
 pub use crate::ffz::PairRoutes;
 pub use error::ServiceError;
 pub use job::{ComputeJob, ComputeReport, RowSelection, WorkerStats};
+pub use role::Role;
 pub use schedule::Schedule;

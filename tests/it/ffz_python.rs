@@ -6,7 +6,8 @@
 //! them), unless FFSTREAM_SKIP_PYTHON=1 is set.
 
 use crate::ffz_common::*;
-use ffstream::ffz::{tools, FfzReader, Layout, RowState};
+use ffstream::ffz::{FfzReader, Layout, RowState};
+use ffstream::report::tools;
 use ffstream::rows::Row;
 use std::path::{Path, PathBuf};
 use std::process::Command;

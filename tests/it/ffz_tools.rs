@@ -2,7 +2,8 @@
 //! the CLI library functions `info`, `verify`, `export`.
 
 use crate::ffz_common::*;
-use ffstream::ffz::{compare, tools, FfzReader, Layout, VerifyOptions};
+use ffstream::ffz::{compare, FfzReader, Layout, VerifyOptions};
+use ffstream::report::tools;
 use ffstream::rows::{Row, RowValues};
 
 /// S_ij of [`reciprocal_rows`]: symmetric, 0 on the diagonal.

@@ -36,7 +36,6 @@ const MAX_FN_LINES: usize = 120;
 const LONG_FUNCTIONS: &[(&str, &str)] = &[
     ("bench/ffz_write.rs", "main"),
     ("bench/perf_rays.rs", "main"),
-    ("bench/perf_rows.rs", "main"),
     ("src/solve/shooting.rs", "run"),
     (
         "tests/it/consumers.rs",

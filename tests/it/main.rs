@@ -14,6 +14,7 @@ mod ffz_roundtrip;
 mod ffz_tools;
 mod formfactor;
 mod house;
+mod job;
 mod links;
 mod mpi;
 mod pipeline;

@@ -23,7 +23,7 @@ fn cube_file(path: &std::path::Path) -> ffstream::patch::PatchSet {
     let meta = FileMeta {
         layout: Layout::Dense,
         method: "contour".into(),
-        params: engine.describe(),
+        params: ffstream::job::EngineParams::of_engine(&engine).to_string(),
         scene_hash: patches.content_hash(),
         created: "test".into(),
         patches: (*patches).clone(),

@@ -14,6 +14,7 @@ use crate::ffz::chunk;
 use crate::ffz::error::{FfzError, Result};
 use crate::ffz::index;
 use crate::ffz::meta::{FileMeta, Layout};
+use crate::ffz::params::ParamList;
 use crate::ffz::presence::{RowPresence, RowState};
 use crate::ffz::reader::map_and_meta;
 use crate::ffz::recover;
@@ -122,45 +123,12 @@ fn check_resumable(
             old.method, meta.method
         ));
     }
-    if let Some(what) = params_difference(&old.params, &meta.params) {
+    // Compared as settings (spec §3.2, §9.2), so that a file of any version is judged
+    // by the keys it has.
+    if let Some(what) = ParamList::parse(&old.params).difference(&ParamList::parse(&meta.params)) {
         return mismatch(what);
     }
     Ok(())
-}
-
-/// The first setting in which two params strings (spec §3.2: space-separated
-/// `key=value` tokens) differ, ignoring the keys that end in `_path` (where an input
-/// was read from, which does not determine the rows: the scene hash, or a `_hash` key,
-/// stands for its content); None when they agree.
-fn params_difference(old: &str, new: &str) -> Option<String> {
-    fn settings(p: &str) -> Vec<(&str, &str)> {
-        p.split_ascii_whitespace()
-            .map(|t| t.split_once('=').unwrap_or((t, "")))
-            .filter(|(k, _)| !k.ends_with("_path"))
-            .collect()
-    }
-    let (a, b) = (settings(old), settings(new));
-    fn value<'a>(s: &[(&str, &'a str)], key: &str) -> Option<&'a str> {
-        s.iter().find(|(k, _)| *k == key).map(|kv| kv.1)
-    }
-    for &(k, v) in &a {
-        match value(&b, k) {
-            Some(w) if w == v => {}
-            Some(w) => {
-                return Some(format!(
-                    "{k} differs: the file was computed with {k}={v}, this run has {k}={w}"
-                ))
-            }
-            None => {
-                return Some(format!(
-                    "the file was computed with {k}={v}, this run has no {k}"
-                ))
-            }
-        }
-    }
-    b.iter()
-        .find(|(k, _)| value(&a, k).is_none())
-        .map(|(k, v)| format!("this run has {k}={v}, the file was computed without {k}"))
 }
 
 /// What a resume keeps of the file mapped at `map`: the chunks its index lists when

@@ -36,7 +36,10 @@ use super::scratch::{Counters, PairScratch};
 use super::shadow::solids::{Solids, NO_SOLID};
 use super::shadow::{Caster, ShadowScratch};
 use super::tree::PatchTree;
-use super::{mc, point, topk, visibility, FormFactorConfig, Method, TopKTail, Visibility};
+use super::{
+    mc, point, topk, visibility, DroppedMassRoute, FormFactorConfig, Method, RowTotal, TopKSearch,
+    TopKTail, Visibility,
+};
 use crate::geometry::occluders::{
     Between, Occluders, MAX_PAIR_CANDIDATES, MAX_REJECTED_CANDIDATES, RAY_EPSILON,
 };
@@ -300,48 +303,49 @@ impl RowEngine {
         self.geom.len()
     }
 
-    /// The parameters that determine the numbers, for the file header.
-    pub fn describe(&self) -> String {
-        Self::description(
+    /// The settings, the number of occluder triangles and whether they come from
+    /// another mesh than the patches': what the file header's run parameters say of
+    /// this engine (`job::EngineParams::of_engine`).
+    pub fn header_inputs(&self) -> (&FormFactorConfig, usize, bool) {
+        (
             &self.cfg,
             self.occluders.len(),
             !self.occluders.surfaces_are_patches,
         )
     }
 
-    /// What [`RowEngine::describe`] says of an engine with `cfg` and that many occluder
-    /// triangles, from another mesh than the patches' (`other_mesh`) or not, without
-    /// building it. Sparse rows add `dropped_mass=` (how their dropped mass is found).
-    pub fn description(
+    /// How an engine with `cfg` and that many occluder triangles, from another mesh
+    /// than the patches' (`other_mesh`) or not, finds the dropped mass of its sparse
+    /// rows, without building it; None for dense rows. The header records it
+    /// (`dropped_mass=`, `links=`, `link_tol=`).
+    pub fn dropped_mass(
         cfg: &FormFactorConfig,
         occluder_triangles: usize,
         other_mesh: bool,
-    ) -> String {
-        let dropped = match (cfg.sparse_rows(), cfg.method, cfg.top_k_tail) {
-            (false, ..) => String::new(),
-            (true, Method::Contour, TopKTail::Sampled(t)) => {
+    ) -> Option<DroppedMassRoute> {
+        match (cfg.sparse_rows(), cfg.method, cfg.top_k_tail) {
+            (false, ..) => None,
+            (true, Method::Contour, TopKTail::Sampled(points)) => {
                 let hemisphere = closure::hemisphere_totals(occluder_triangles, other_mesh);
-                let how = match (&cfg.top_k_search, hemisphere) {
-                    (crate::formfactor::TopKSearch::Tree, true) => "hemisphere",
-                    (crate::formfactor::TopKSearch::Tree, false) => "tree-walk",
-                    (crate::formfactor::TopKSearch::Exhaustive, _) => "sampled",
+                let total = match (cfg.top_k_search, hemisphere) {
+                    (TopKSearch::Tree, true) => RowTotal::Hemisphere,
+                    (TopKSearch::Tree, false) => RowTotal::TreeWalk,
+                    (TopKSearch::Exhaustive, _) => RowTotal::Sampled,
                 };
-                // With links, `how` still says where the row's total comes from (the
+                // With links, `total` still says where the row's total comes from (the
                 // links' sampled parts are scaled to hemisphere totals, `links.rs`).
-                match (cfg.links, cfg.top_k_search) {
-                    (Some(m), crate::formfactor::TopKSearch::Tree) => format!(
-                        " dropped_mass={how}:{t} links={m} link_tol={:e}",
-                        cfg.link_tol
-                    ),
-                    _ => format!(" dropped_mass={how}:{t}"),
-                }
+                let links = match (cfg.links, cfg.top_k_search) {
+                    (Some(m), TopKSearch::Tree) => Some((m, cfg.link_tol)),
+                    _ => None,
+                };
+                Some(DroppedMassRoute::Estimated {
+                    total,
+                    points,
+                    links,
+                })
             }
-            (true, ..) => " dropped_mass=exact".to_string(),
-        };
-        format!(
-            "{} occluder_triangles={occluder_triangles}{dropped}",
-            cfg.describe()
-        )
+            (true, ..) => Some(DroppedMassRoute::Exact),
+        }
     }
 
     /// Row i: dense, or the k largest entries when `top_k` is set, only those ≥

@@ -665,7 +665,7 @@ fn baselines_point_and_mc_errors() {
 fn counters_and_describe() {
     let b = parallel_squares(1.0, 2, false);
     let e = b.engine(FormFactorConfig::accurate().with_seed(9));
-    let d = e.describe();
+    let d = ffstream::job::EngineParams::of_engine(&e).to_string();
     assert!(d.contains("method=contour") && d.contains("seed=9"), "{d}");
     let mut s = Scratch::new();
     for i in 0..e.n() as u32 {

@@ -1,16 +1,17 @@
-//! The plan `compute` prints before any heavy work: patches, pairs, the file's size for
+//! The plan a job says before any heavy work: patches, pairs, the file's size for
 //! the row mode, free disk, memory. It refuses a run whose file the disk cannot hold
-//! and warns when the patch count is far above `--patches` or memory looks short.
+//! and warns when the patch count is far above the target or memory looks short: a
+//! rule of the job, so the library applies it wherever a job is built.
 
 use std::path::Path;
 
-use anyhow::bail;
+use crate::ffz::size::{file_bytes_bound, human_bytes, spill_bytes_bound};
+use crate::ffz::Layout;
 
-use ffstream::ffz::size::{file_bytes_bound, human_bytes, spill_bytes_bound};
-use ffstream::ffz::Layout;
+use super::JobError;
 
 /// What the plan is made of (known before the scene is subdivided).
-pub(super) struct Plan<'a> {
+pub struct Plan<'a> {
     pub scene: &'a str,
     pub output: &'a Path,
     /// Patches the subdivision will make, and how they were chosen.
@@ -64,7 +65,7 @@ impl Plan<'_> {
     }
 
     /// About the peak memory of one computing process (embedded, or an MPI worker).
-    pub(super) fn memory_bytes(&self) -> u64 {
+    pub fn memory_bytes(&self) -> u64 {
         let per_patch = BYTES_PER_PATCH + self.threads.saturating_sub(2) * ROW_BYTES_PER_PATCH;
         self.n
             .saturating_mul(per_patch)
@@ -72,12 +73,16 @@ impl Plan<'_> {
             .saturating_add(self.occluder_triangles * BYTES_PER_TRIANGLE)
     }
 
-    /// Print the plan and check it: an error when the disk cannot hold the file.
-    pub(super) fn check(&self) -> anyhow::Result<()> {
+    /// Say the plan (and its warnings) through `say` and check it.
+    ///
+    /// # Errors
+    /// [`JobError::Plan`] when the disk cannot hold the file (and the space check is
+    /// on).
+    pub fn check(&self, say: &dyn Fn(&str)) -> Result<(), JobError> {
         let n = self.n;
         if let Some(target) = self.target {
             if n > FAR_ABOVE * target && self.faces > target {
-                super::say(&format!(
+                say(&format!(
                     "ffstream: warning: {}: {n} patches, {:.0}× the --patches target {target}: \
                      the scene has {} faces and a face is never merged with another, so each \
                      is at least one patch (only a coarser mesh makes fewer)",
@@ -115,7 +120,7 @@ impl Plan<'_> {
         let disk = free_disk(self.output);
         let mem = self.memory_bytes();
         let available = mem_available();
-        super::say(&format!(
+        say(&format!(
             "ffstream: plan: {n} patches, {pairs}; file up to {} ({rows}, before compression){spill}; {}; memory about {} per computing process ({} threads){}",
             human_bytes(file),
             match &disk {
@@ -128,7 +133,7 @@ impl Plan<'_> {
         ));
         if let Some(a) = available {
             if mem > a {
-                super::say(&format!(
+                say(&format!(
                     "ffstream: warning: a computing process needs about {} and this machine has {} available: the run may be killed for memory (fewer --threads, --top-k, or ranks on more nodes)",
                     human_bytes(mem),
                     human_bytes(a)
@@ -152,13 +157,13 @@ impl Plan<'_> {
                 }
                 _ => String::new(),
             };
-            bail!(
+            return Err(JobError::Plan(format!(
                 "{}: the file needs up to {} ({rows} of {n} patches, before compression) and {} has {} free: free space, write elsewhere{fewer}, use fewer patches, or add --no-space-check to start anyway (zstd may make it fit; if the disk fills, the run stops with a clear error and its rows kept for --resume)",
                 self.output.display(),
                 human_bytes(needed),
                 d.dir,
                 human_bytes(d.free)
-            );
+            )));
         }
         Ok(())
     }
@@ -213,7 +218,7 @@ fn statvfs_free(dir: &Path) -> Option<u64> {
 }
 
 /// MemAvailable of /proc/meminfo (Linux), in bytes.
-pub(super) fn mem_available() -> Option<u64> {
+pub fn mem_available() -> Option<u64> {
     let info = std::fs::read_to_string("/proc/meminfo").ok()?;
     let line = info.lines().find(|l| l.starts_with("MemAvailable:"))?;
     let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
@@ -247,7 +252,10 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let out = dir.path().join("x.ffz");
         // 2^25 dense rows: 4.5e15 bytes, more than any disk this runs on.
-        let err = plan(&out, 1 << 25, false).check().unwrap_err().to_string();
+        let err = plan(&out, 1 << 25, false)
+            .check(&|_| {})
+            .unwrap_err()
+            .to_string();
         for part in [
             "x.ffz",
             "needs up to",
@@ -258,12 +266,14 @@ mod tests {
             assert!(err.contains(part), "{part}: {err}");
         }
         plan(&out, 1 << 25, true)
-            .check()
+            .check(&|_| {})
             .expect("--no-space-check starts anyway");
-        plan(&out, 100, false).check().expect("a small file fits");
+        plan(&out, 100, false)
+            .check(&|_| {})
+            .expect("a small file fits");
         // Output to a device stores nothing: no disk check.
         plan(Path::new("/dev/null"), 1 << 25, false)
-            .check()
+            .check(&|_| {})
             .expect("/dev/null holds anything");
     }
 }

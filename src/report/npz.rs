@@ -23,7 +23,9 @@ use std::io::{BufWriter, Seek, SeekFrom, Write};
 use std::path::{Path, PathBuf};
 use std::rc::Rc;
 
-use super::error::{FfzError, Result};
+use crate::ffz::FfzError;
+
+use super::Result;
 
 /// True when `path` exists and is no regular file (a device such as `/dev/full`): it
 /// is written to, never removed or synced, and gets no spill beside it.

@@ -8,7 +8,9 @@ use std::fs::File;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
 
-use super::error::{FfzError, Result};
+use crate::ffz::FfzError;
+
+use super::Result;
 
 /// An output being written: the file to write to and, for a regular file, the
 /// temporary name it has until [`Staged::commit`].

@@ -12,8 +12,8 @@
 
 use std::sync::Arc;
 
-use super::error::Result;
-use super::reader::FfzReader;
+use super::Result;
+use crate::ffz::FfzReader;
 use crate::formfactor::{FormFactorConfig, RowEngine, Scratch};
 use crate::geometry::occluders::Occluders;
 use crate::rows::Row;

@@ -30,9 +30,11 @@
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 
-use super::error::{FfzError, Result};
-use super::reader::FfzReader;
+use crate::ffz::FfzError;
+
 use super::staged::Staged;
+use super::Result;
+use crate::ffz::FfzReader;
 use crate::rows::RowValues;
 use crate::scene::{self, SceneFormat};
 
@@ -93,31 +95,11 @@ fn refuse(path: &Path, why: String) -> FfzError {
     }
 }
 
-/// The value of `key=` in the header's params (spec §3.2: space-separated `key=value`
-/// tokens, `%`, white space and `=` percent-encoded in values).
-fn param<'a>(params: &'a str, key: &str) -> Option<String> {
-    let raw: &'a str = params
-        .split_whitespace()
-        .find_map(|t| t.strip_prefix(key)?.strip_prefix('='))?;
-    let bytes = raw.as_bytes();
-    let mut out = Vec::with_capacity(bytes.len());
-    let mut k = 0;
-    while k < bytes.len() {
-        let hex = bytes
-            .get(k + 1..k + 3)
-            .and_then(|h| u8::from_str_radix(std::str::from_utf8(h).ok()?, 16).ok());
-        match (bytes[k], hex) {
-            (b'%', Some(b)) => {
-                out.push(b);
-                k += 3;
-            }
-            (b, _) => {
-                out.push(b);
-                k += 1;
-            }
-        }
-    }
-    Some(String::from_utf8_lossy(&out).into_owned())
+/// The value of `key=` in the header's params (spec §3.2), decoded.
+fn param(params: &str, key: &str) -> Option<String> {
+    crate::ffz::ParamList::parse(params)
+        .get(key)
+        .map(crate::ffz::params::decode_value)
 }
 
 /// The path of the STL a scene spec (as `compute` took it) names, or why it is none.

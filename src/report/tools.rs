@@ -4,12 +4,14 @@
 use std::io::{BufWriter, Write};
 use std::path::Path;
 
-use super::error::{FfzError, Result};
+use crate::ffz::FfzError;
+
 use super::npz::NpzSpill;
-use super::reader::FfzReader;
-use super::spec;
 use super::staged::Staged;
-use super::verify::{compare, VerifyOptions};
+use super::Result;
+use crate::ffz::spec;
+use crate::ffz::FfzReader;
+use crate::ffz::{compare, VerifyOptions};
 use crate::table::TableWriter;
 
 fn out_err(path: &Path) -> impl Fn(std::io::Error) -> FfzError + '_ {
@@ -190,7 +192,7 @@ impl Default for VerifyChecks<'_> {
     fn default() -> Self {
         VerifyChecks {
             against: None,
-            row_sum_tol: super::ROW_SUM_TOL,
+            row_sum_tol: crate::ffz::ROW_SUM_TOL,
             unoccluded_tol: None,
         }
     }
@@ -339,7 +341,7 @@ pub fn print_checks(path: &Path, checks: VerifyChecks<'_>, out: &mut dyn Write) 
 /// form factor and the worst; returns `false` when one does.
 fn print_unoccluded(path: &Path, r: &FfzReader, tol: f64, out: &mut dyn Write) -> Result<bool> {
     let e = out_err(path);
-    let u = super::unoccluded_excess(r, tol, 0)?;
+    let u = super::unoccluded::unoccluded_excess(r, tol, 0)?;
     writeln!(
         out,
         "unoccluded:  {} of {} stored entries above their unoccluded form factor F0 (1 + {tol:e}) (F0 from the patch table: contour kernel, no occluders)",
