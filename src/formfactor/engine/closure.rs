@@ -51,7 +51,7 @@ const MAX_CELLS: usize = 64;
 
 /// Whether the row totals come from hemisphere rays with these occluders (that many
 /// triangles, from another mesh than the patches' or not): what the file header says
-/// (`RowEngine::description`) and what [`RowEngine::closure_total`] does.
+/// ([`RowEngine::dropped_mass`]) and what [`RowEngine::closure_total`] does.
 pub(super) fn hemisphere_totals(occluder_triangles: usize, other_mesh: bool) -> bool {
     occluder_triangles > 0 && !other_mesh
 }
