@@ -348,8 +348,8 @@ impl LinkSpace {
     }
 
     /// The transpose of [`LinkSpace::gather`], for a solve that scatters rows into
-    /// columns (`adjoint.rs`): row i with kept columns `cols` sends `w[c]` (`m`
-    /// columns) through its links, F_ij w[c] into column j of every patch j of every
+    /// columns (`adjoint.rs`): row i with kept columns `cols` sends `w` (`m`
+    /// columns) through its links, F_ij · w_c into column j of every patch j of every
     /// link. A link's range of more than [`DIRECT_SPAN`] positions goes into `into` as
     /// a range addition, O(1) a link (apply them with [`Scatter::add_to`]); a smaller
     /// one, and the patches inside a range that are not the link's (taken off), go to
