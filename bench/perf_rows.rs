@@ -40,6 +40,7 @@ use ffstream::job::{
 };
 use ffstream::patch::PatchSet;
 use ffstream::rows::Row;
+use ffstream::scene::SceneSpec;
 use ffstream::service::{ComputeJob, Role};
 
 struct Args {
@@ -276,7 +277,8 @@ fn form_of(mode: &str) -> FormSettings {
 /// The job of `mode` as `ffstream compute` builds it (output nowhere, full rows: the
 /// half rows of the `symmetric` modes are the benchmark's own, `half_row_all`).
 fn job_of(a: &Args, form: FormSettings) -> ComputeJob {
-    let mut s = JobSettings::new(a.scene.clone(), "/dev/null");
+    let scene = SceneSpec::parse(&a.scene).expect("a scene name");
+    let mut s = JobSettings::new(scene, "/dev/null");
     s.budget = PatchBudget::Target(a.patches);
     s.form = form;
     s.half_rows = HalfRows::Off;

@@ -12,7 +12,7 @@ use ffstream::ffz::WriterOptions;
 use ffstream::formfactor::{TopKTail, MAX_SAMPLES};
 use ffstream::job::settings::defaults;
 use ffstream::job::{build_job, FormSettings, JobSettings, PatchBudget, RowMode, MAX_THREADS};
-use ffstream::scene::{self, Scene};
+use ffstream::scene::{self, Scene, SceneSpec};
 use ffstream::service::{interrupt, ComputeJob, ComputeReport, Role};
 
 use super::choices::{
@@ -186,9 +186,13 @@ pub(crate) struct ComputeOptions {
 
 /// The library's settings of a job from the arguments: the only place the command
 /// line's values become the job's (the rules are the library's).
-pub(super) fn settings(input: &SceneInput, output: PathBuf, o: &ComputeOptions) -> JobSettings {
-    JobSettings {
-        scene: input.scene.clone(),
+pub(super) fn settings(
+    input: &SceneInput,
+    output: PathBuf,
+    o: &ComputeOptions,
+) -> anyhow::Result<JobSettings> {
+    Ok(JobSettings {
+        scene: SceneSpec::parse(&input.scene)?,
         budget: match input.max_edge {
             Some(e) => PatchBudget::MaxEdge(e),
             None => PatchBudget::Target(input.patches),
@@ -229,7 +233,7 @@ pub(super) fn settings(input: &SceneInput, output: PathBuf, o: &ComputeOptions) 
         stall_seconds: o.stall_seconds,
         progress: !o.quiet,
         space_check: !o.no_space_check,
-    }
+    })
 }
 
 /// Load a scene: an OBJ path, or builtin:NAME[:PARAM] (or a bare built-in name when no
@@ -283,7 +287,7 @@ pub(super) fn execute(
     output: PathBuf,
     o: &ComputeOptions,
 ) -> anyhow::Result<Outcome> {
-    let settings = settings(input, output, o);
+    let settings = settings(input, output, o)?;
     settings.check_gather()?;
     #[cfg(feature = "mpi")]
     if ffstream::service::mpi::launched_by_mpi() {
@@ -322,9 +326,14 @@ fn execute_mpi(input: &SceneInput, mut settings: JobSettings) -> anyhow::Result<
         return Ok(Outcome::Master(embedded(&job)?));
     }
     let rank = ctx.rank();
-    settings.scene = scene_for_rank(input, rank).scene;
     let role = Role::of_rank(rank, settings.gather);
-    let built = job_for(&settings, role).map_err(|e| format!("{e:#}"));
+    let built = SceneSpec::parse(&scene_for_rank(input, rank).scene)
+        .map_err(anyhow::Error::from)
+        .and_then(|scene| {
+            settings.scene = scene;
+            job_for(&settings, role)
+        })
+        .map_err(|e| format!("{e:#}"));
     let result = agree_on_job(&ctx, built).and_then(|job| {
         if settings.gather {
             run_gather(&ctx, &job)

@@ -31,7 +31,7 @@ pub fn build_job(s: &JobSettings, role: Role, say: &dyn Fn(&str)) -> Result<Comp
     s.check_gather()?;
     let cfg = s.form.config(s.half_rows)?;
     let setup_start = std::time::Instant::now();
-    let scene = tracing::info_span!("load_scene").in_scope(|| scene::open_scene(&s.scene))?;
+    let scene = tracing::info_span!("load_scene").in_scope(|| s.scene.open())?;
     let announce = role.announces();
     for w in scene_warnings(&scene, s.strict, s.daylight)? {
         if announce {
@@ -40,12 +40,12 @@ pub fn build_job(s: &JobSettings, role: Role, say: &dyn Fn(&str)) -> Result<Comp
     }
     let symmetric = s.half_rows(&cfg)?;
     let threads = s.threads_or_all();
-    let (count, max_edge) = patch_budget(&s.scene, s.budget, &scene)?;
+    let (count, max_edge) = patch_budget(s.scene.as_str(), s.budget, &scene)?;
     if announce {
         // Said and checked before subdividing: a file the disk cannot hold costs no
         // subdivision.
         Plan {
-            scene: &s.scene,
+            scene: s.scene.as_str(),
             output: &s.output,
             n: count as u64,
             faces: scene.faces.len() as u64,
@@ -85,7 +85,7 @@ pub fn build_job(s: &JobSettings, role: Role, say: &dyn Fn(&str)) -> Result<Comp
         occluders_merged: occluders.merged,
         occluders_hash: occluders.hash,
         max_edge,
-        scene_path: s.scene.clone(),
+        scene_path: s.scene.as_str().to_string(),
         // Half rows give (slightly) different numbers from full rows, so a resume
         // must use the same mode: the header says which one.
         half_rows: symmetric,

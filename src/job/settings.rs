@@ -12,6 +12,7 @@ use std::path::PathBuf;
 use crate::ffz::{Layout, WriterOptions};
 use crate::formfactor::{FormFactorConfig, Method, Preset, TopKSearch, TopKTail, Visibility};
 use crate::geometry::subdivide::DEFAULT_TARGET_PATCHES;
+use crate::scene::SceneSpec;
 use crate::service::{RowSelection, Schedule};
 
 use super::JobError;
@@ -214,10 +215,9 @@ pub fn threads_or_all(threads: Option<usize>) -> usize {
 /// Everything a compute job is asked.
 #[derive(Clone, Debug)]
 pub struct JobSettings {
-    /// The scene as named: a mesh file (`FORMAT:PATH` or a path whose extension says
-    /// the format) or `builtin:NAME[:PARAM]` ([`crate::scene::open_scene`]); the
-    /// header records it as `scene_path`.
-    pub scene: String,
+    /// The scene as named, and what the name stands for (a mesh file in a format, or a
+    /// built-in scene and its parameter); the header records the name as `scene_path`.
+    pub scene: SceneSpec,
     pub budget: PatchBudget,
     /// A scene that loads with warnings is refused.
     pub strict: bool,
@@ -249,9 +249,9 @@ pub struct JobSettings {
 impl JobSettings {
     /// The settings `ffstream compute SCENE -o OUTPUT` runs with when no other option
     /// is given (the accurate preset, dense rows, about 2000 patches, all cores).
-    pub fn new(scene: impl Into<String>, output: impl Into<PathBuf>) -> Self {
+    pub fn new(scene: SceneSpec, output: impl Into<PathBuf>) -> Self {
         JobSettings {
-            scene: scene.into(),
+            scene,
             budget: PatchBudget::Target(DEFAULT_TARGET_PATCHES),
             strict: false,
             daylight: false,

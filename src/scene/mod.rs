@@ -44,7 +44,7 @@ pub use error::SceneError;
 pub use obj::load_obj;
 pub(crate) use polygon::{polygon_area, polygon_normal};
 pub use room::builtin_room;
-pub use spec::{load_file, open_scene, SceneFormat};
+pub use spec::{load_file, open_scene, SceneFormat, SceneSource, SceneSpec};
 pub use write::write_obj;
 
 use glam::DVec3;

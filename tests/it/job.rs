@@ -9,6 +9,7 @@ use std::path::Path;
 use ffstream::ffz::{FfzReader, FfzWriter};
 use ffstream::formfactor::Scratch;
 use ffstream::job::{build_job, HalfRows, JobSettings, PatchBudget, RowMode, RunParams};
+use ffstream::scene::SceneSpec;
 use ffstream::service::embedded::run_embedded;
 use ffstream::service::{ComputeJob, Role};
 
@@ -17,7 +18,7 @@ use crate::service::assert_same_rows;
 
 /// The settings of `ffstream compute SCENE --patches N --threads 2 -q -o OUT`.
 fn settings(scene: &str, patches: usize, out: &Path) -> JobSettings {
-    let mut s = JobSettings::new(scene, out);
+    let mut s = JobSettings::new(SceneSpec::parse(scene).expect("a scene name"), out);
     s.budget = PatchBudget::Target(patches);
     s.threads = Some(2);
     s.progress = false;
