@@ -43,11 +43,13 @@ pub(crate) struct SolveOptions {
     /// Most sweeps (shooting: shots / n), at least 1.
     #[arg(long, default_value_t = 10_000, value_name = "N", value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..))]
     pub max_iterations: usize,
-    /// Memory the solve may use to make its sweeps faster, in MiB (0 to 1048576): rows
-    /// that link to clusters keep their links ready to gather (docs/numerics.md §8)
-    /// instead of working them out again at every sweep. The answer is the same with 0.
-    #[arg(long, default_value_t = (ffstream::solve::DEFAULT_CACHE_BYTES >> 20) as u64, value_name = "MIB", value_parser = clap::value_parser!(u64).range(0..=1 << 20))]
-    pub cache_mib: u64,
+    /// Memory the solve may use to make its sweeps faster, in MiB (0 to 1048576): the
+    /// rows as read, and for rows that link to clusters their links made ready to
+    /// gather (docs/numerics.md §8), so that later sweeps neither decode the file nor
+    /// work the links out again. The answer is the same with 0. Default: 3072, or half
+    /// the memory available when that is less.
+    #[arg(long, value_name = "MIB", value_parser = clap::value_parser!(u64).range(0..=1 << 20))]
+    pub cache_mib: Option<u64>,
     /// Take reflectance and emission from this scene instead of the file's patch table
     /// (the scene must be the one the file was computed from).
     #[arg(long = "scene", value_name = "SCENE.obj")]
@@ -201,7 +203,7 @@ pub(super) fn solve_file(
         method,
         tolerance: o.tolerance,
         max_iterations: o.max_iterations,
-        cache_bytes: (o.cache_mib as usize) << 20,
+        cache_bytes: cache_bytes(o.cache_mib),
         dropped: if o.no_renormalize {
             solve::DroppedMass::Absorb
         } else {
@@ -253,4 +255,15 @@ pub(super) fn solve_file(
 pub(super) fn run(a: SolveArgs) -> anyhow::Result<ExitCode> {
     solve_file(&a.file, &a.output, a.solver.into(), &a.opts)?;
     Ok(ExitCode::SUCCESS)
+}
+
+/// `--cache-mib` in bytes, or by default [`solve::DEFAULT_CACHE_BYTES`] or half the
+/// memory available, whichever is less.
+fn cache_bytes(mib: Option<u64>) -> usize {
+    match mib {
+        Some(m) => (m as usize) << 20,
+        None => ffstream::job::plan::mem_available().map_or(solve::DEFAULT_CACHE_BYTES, |a| {
+            solve::DEFAULT_CACHE_BYTES.min((a / 2) as usize)
+        }),
+    }
 }
