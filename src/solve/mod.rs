@@ -154,15 +154,16 @@ pub struct SolveConfig {
     pub max_iterations: usize,
     /// What to do with the mass top-k rows dropped. Default [`DroppedMass::Pool`].
     pub dropped: DroppedMass,
-    /// Bytes the solve may hold to make its sweeps faster: rows' links made ready to
-    /// gather once instead of at every sweep (`links.rs`), and the rows as read. Default 3 GiB; 0 holds
-    /// nothing (the same answer, slower).
+    /// Bytes the solve may hold to make its sweeps faster: the rows as read, and rows'
+    /// links made ready to gather once instead of at every sweep (`links.rs`), half
+    /// each. Default [`DEFAULT_CACHE_BYTES`]; 0 holds nothing (the same answer,
+    /// slower).
     pub cache_bytes: usize,
 }
 
-/// [`SolveConfig::cache_bytes`] by default: 3 GiB (at 100k patches with 256 links a
-/// row both halves fit, about 1 GB each; at 1M the links' half holds a seventh of the
-/// rows).
+/// [`SolveConfig::cache_bytes`] by default: 3 GiB. At 100k patches with 256 links a
+/// row both halves fit (the solve then holds 1.3 GB, bench/LINKS.md); at 1M the links'
+/// half holds about a seventh of the rows and the rows are read from the file.
 pub const DEFAULT_CACHE_BYTES: usize = 3 << 30;
 
 impl Default for SolveConfig {
