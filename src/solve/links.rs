@@ -108,12 +108,6 @@ impl Scatter {
     }
 }
 
-/// What a sweep's gathers through links read ([`LinkSpace::sums`]).
-#[derive(Debug)]
-pub(crate) struct Sums {
-    prefix: Vec<f64>,
-}
-
 /// One row's links made ready to gather, and Σ F_iL.
 #[derive(Debug)]
 struct Ready {
@@ -144,19 +138,28 @@ struct ReadyCache {
 /// rounding, and the link's mass would be divided by it.
 const FLAT_WEIGHT: f64 = 1e-6;
 
-/// [`LinkSpace::gather_ready`] for `M` columns a patch (`S` = 4 M numbers a position
-/// of the prefix sums): adds each ready link's share to `sums` and takes off the
-/// patches inside link ranges that are not the links'.
-fn gather_columns<const M: usize, const S: usize>(
-    ready: &Ready,
-    prefix: &[f64],
-    sums: &mut [f64; M],
-) {
-    let record = |p: usize| -> &[f64; S] {
-        prefix[p * S..(p + 1) * S]
-            .try_into()
-            .expect("S numbers a position")
-    };
+/// `acc[c] +=` each ready link's share of the gather, less the patches inside link
+/// ranges that are not the links', for `acc.len()` columns a patch (4 numbers of the
+/// prefix sums a column and position); returns Σ F_iL.
+fn gather_ready(ready: &Ready, prefix: &[f64], acc: &mut [f64]) -> f64 {
+    if let Ok(acc) = <&mut [f64; 3]>::try_from(&mut *acc) {
+        // The common single-case path: the length known, the three sums in registers.
+        let mut sums = [0.0; 3];
+        add_shares(ready, prefix, &mut sums);
+        for (a, s) in acc.iter_mut().zip(sums) {
+            *a += s;
+        }
+    } else {
+        add_shares(ready, prefix, acc);
+    }
+    ready.sum
+}
+
+/// The body of [`gather_ready`], adding into `sums` directly.
+#[inline(always)]
+fn add_shares(ready: &Ready, prefix: &[f64], sums: &mut [f64]) {
+    let stride = 4 * sums.len();
+    let record = |p: usize| &prefix[p * stride..(p + 1) * stride];
     for l in &ready.links {
         let (rs, re) = (record(l.start as usize), record(l.end as usize));
         let (g, q) = (l.g, l.slope.map(f64::from));
@@ -295,16 +298,8 @@ impl LinkSpace {
         self.area[j] * (1.0 + q.dot(self.centroid[j] - mean))
     }
 
-    /// What the gathers of one sweep need of radiosity `b` (`m` columns a patch): the
-    /// prefix sums ([`LinkSpace::prefix`]).
-    pub(crate) fn sums(&self, b: &[f64], m: usize) -> Sums {
-        Sums {
-            prefix: self.prefix(b, m),
-        }
-    }
-
     /// `acc[c] += Σ_L F_iL · (Σ w_j b_j / Σ w_j over L's patches)` for row i with kept
-    /// columns `cols`, against the radiosity `sums` was made of ([`LinkSpace::sums`]).
+    /// columns `cols`, against the radiosity `prefix` was made of ([`LinkSpace::prefix`]).
     /// Returns Σ F_iL. With a cache ([`LinkSpace::with_cache`]) a row's links are made
     /// ready once, the first time it is gathered, while the cache has room.
     pub(crate) fn gather(
@@ -312,12 +307,10 @@ impl LinkSpace {
         links: &[Link],
         i: u32,
         cols: &[u32],
-        sums: &Sums,
+        prefix: &[f64],
         acc: &mut [f64],
     ) -> f64 {
-        self.with_ready(links, i, cols, |ready| {
-            self.gather_ready(ready, &sums.prefix, acc)
-        })
+        self.with_ready(links, i, cols, |ready| gather_ready(ready, prefix, acc))
     }
 
     /// `f` of row i's links made ready: those kept, or made now (and kept while the
@@ -386,10 +379,8 @@ impl LinkSpace {
                     // A small range: straight into its patches.
                     for &j in &self.order[s..e] {
                         let (j, x) = (j as usize, self.centroid[j as usize]);
-                        let f = l.g
-                            * self.area[j]
-                            * (part[0]
-                                + DVec3::from_array(part[1..].try_into().expect("three")).dot(x));
+                        let q = DVec3::from_array(l.slope.map(f64::from));
+                        let f = l.g * self.area[j] * (l.k + q.dot(x));
                         for (o, &wc) in next[j * m..(j + 1) * m].iter_mut().zip(w) {
                             *o += f * wc;
                         }
@@ -480,40 +471,6 @@ impl LinkSpace {
         ready
     }
 
-    /// [`LinkSpace::gather`] of links made ready ([`LinkSpace::ready`]).
-    fn gather_ready(&self, ready: &Ready, prefix: &[f64], acc: &mut [f64]) -> f64 {
-        match acc.len() {
-            // The common single-case path: the three sums in registers.
-            3 => {
-                let mut sums = [0.0; 3];
-                gather_columns::<3, 12>(ready, prefix, &mut sums);
-                for (a, s) in acc.iter_mut().zip(sums) {
-                    *a += s;
-                }
-            }
-            m => {
-                let stride = 4 * m;
-                for l in &ready.links {
-                    let rs = &prefix[l.start as usize * stride..][..stride];
-                    let re = &prefix[l.end as usize * stride..][..stride];
-                    let (g, q) = (l.g, l.slope.map(f64::from));
-                    for (c, a) in acc.iter_mut().enumerate() {
-                        let d = |t: usize| re[4 * c + t] - rs[4 * c + t];
-                        *a += g * (l.k * d(0) + q[0] * d(1) + q[1] * d(2) + q[2] * d(3));
-                    }
-                }
-                for x in &ready.out {
-                    let p = x.position as usize;
-                    for (c, a) in acc.iter_mut().enumerate() {
-                        *a -= x.factor
-                            * (prefix[(p + 1) * stride + 4 * c] - prefix[p * stride + 4 * c]);
-                    }
-                }
-            }
-        }
-        ready.sum
-    }
-
     /// Call `f(j, F_ij)` for every patch j of row i's links (module docs), link by link
     /// in order of position.
     pub(crate) fn expand(
@@ -578,9 +535,9 @@ mod tests {
     fn gather_and_expand_agree_and_leave_out_kept_columns_and_the_row_patch() {
         let (space, b) = (space(), radiosity());
         let links = link([0.0; 3]);
-        let sums = space.sums(&b, 3);
+        let prefix = space.prefix(&b, 3);
         let mut acc = [0.0; 3];
-        let sum = space.gather(&links, 0, &[1], &sums, &mut acc);
+        let sum = space.gather(&links, 0, &[1], &prefix, &mut acc);
         assert_eq!(sum, 0.5);
         // Only patch 3 is the link's: the gather is 0.5 · b_3.
         assert!(
@@ -592,7 +549,7 @@ mod tests {
         assert_eq!(entries, vec![(3, 0.5)]);
         // Without kept columns: patches 3 and 1 (areas 4 and 2), the row patch left out.
         let mut acc = [0.0; 3];
-        space.gather(&links, 0, &[], &sums, &mut acc);
+        space.gather(&links, 0, &[], &prefix, &mut acc);
         let want = 0.5 * (4.0 * 3.0 + 2.0 * 1.0) / 6.0;
         assert!((acc[0] - want).abs() < 1e-12, "{acc:?} vs {want}");
         let mut entries = Vec::new();
@@ -606,7 +563,7 @@ mod tests {
     fn a_slope_tilts_the_link_by_the_spec_rule_in_gather_and_expand_alike() {
         let (space, b) = (space(), radiosity());
         let links = link([0.25, 0.0, 0.0]);
-        let sums = space.sums(&b, 3);
+        let prefix = space.prefix(&b, 3);
         // Row 2 (not in the range) keeps nothing: all three patches are the link's.
         let w = |a: f64, x: f64| a * (1.0 + 0.25 * (x - 2.0));
         let (w3, w1, w0) = (w(4.0, 3.0), w(2.0, 1.0), w(1.0, 0.0));
@@ -628,7 +585,7 @@ mod tests {
         // without kept columns inside the range.
         for (row, cols) in [(2u32, vec![]), (2, vec![1u32]), (0, vec![]), (1, vec![3])] {
             let mut acc = [0.0; 3];
-            space.gather(&links, row, &cols, &sums, &mut acc);
+            space.gather(&links, row, &cols, &prefix, &mut acc);
             let mut want = [0.0; 3];
             space.expand(&links, row, &cols, |j, f| {
                 for c in 0..3 {
@@ -655,9 +612,9 @@ mod tests {
         let (space, b) = (space(), radiosity());
         // x̄ = 2 over patches 3, 1, 0 (module test above): 1 + q (0 − 2) is 6e-8 at patch 0.
         let links = link([0.499_999_97, 0.0, 0.0]);
-        let sums = space.sums(&b, 3);
+        let prefix = space.prefix(&b, 3);
         let mut acc = [0.0; 3];
-        space.gather(&links, 2, &[1, 3], &sums, &mut acc);
+        space.gather(&links, 2, &[1, 3], &prefix, &mut acc);
         assert_eq!(acc, [0.0, 0.0, 0.5]);
         let mut entries = Vec::new();
         space.expand(&links, 2, &[1, 3], |j, f| entries.push((j, f)));
@@ -687,14 +644,14 @@ mod tests {
         ];
         let rows: [(u32, Vec<u32>); 3] = [(0, vec![]), (1, vec![3]), (2, vec![1, 0])];
         let plain = space();
-        let sums = plain.sums(&b, 3);
+        let prefix = plain.prefix(&b, 3);
         for budget in [0, 200, 1 << 20] {
             let kept = space().with_cache(budget);
             for _ in 0..3 {
                 for (row, cols) in &rows {
                     let (mut want, mut got) = ([0.0; 3], [0.0; 3]);
-                    let s0 = plain.gather(&links, *row, cols, &sums, &mut want);
-                    let s1 = kept.gather(&links, *row, cols, &sums, &mut got);
+                    let s0 = plain.gather(&links, *row, cols, &prefix, &mut want);
+                    let s1 = kept.gather(&links, *row, cols, &prefix, &mut got);
                     assert_eq!(s0, s1);
                     for c in 0..3 {
                         assert!(

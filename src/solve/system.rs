@@ -166,7 +166,7 @@ pub(crate) struct Ambient {
     /// The pool's β per column.
     pub(crate) pool: Vec<f64>,
     /// Prefix sums over the cluster order of A·b, for links (`links.rs`).
-    links: Option<super::links::Sums>,
+    prefix: Option<Vec<f64>>,
 }
 
 impl std::ops::Index<usize> for Ambient {
@@ -446,7 +446,7 @@ impl System {
     pub(crate) fn beta(&self, b: &[f64]) -> Ambient {
         Ambient {
             pool: self.pool_beta(b),
-            links: self.links.as_ref().map(|l| l.sums(b, self.m)),
+            prefix: self.links.as_ref().map(|l| l.prefix(b, self.m)),
         }
     }
 
@@ -472,9 +472,10 @@ impl System {
         acc: &mut [f64],
     ) -> Result<f64, SolveError> {
         let mut abs_sum = view.gather(b, self.m, acc)?;
-        if let (false, Some(space), Some(sums)) = (view.links.is_empty(), &self.links, &beta.links)
+        if let (false, Some(space), Some(prefix)) =
+            (view.links.is_empty(), &self.links, &beta.prefix)
         {
-            abs_sum += space.gather(view.links, view.index, view.cols(), sums, acc);
+            abs_sum += space.gather(view.links, view.index, view.cols(), prefix, acc);
         } else if self.pool.is_some() && view.dropped > 0.0 {
             for (a, x) in acc.iter_mut().zip(&beta.pool) {
                 *a += view.dropped * x;
