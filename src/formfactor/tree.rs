@@ -158,6 +158,9 @@ pub(crate) struct PatchTree {
     order: Vec<u32>,
     /// The inverse of `order` (u32::MAX for patches outside the tree).
     pos: Vec<u32>,
+    /// `area_before[k]`: the area of the patches at positions 0..k of `order`
+    /// (`order.len() + 1` entries).
+    area_before: Vec<f64>,
     /// The engine's plane tolerance (a patch whose corners are all within it of i's
     /// plane, or behind, faces away) and the rounding allowance of plane distances,
     /// in length units.
@@ -191,6 +194,7 @@ impl PatchTree {
             nodes: Vec::with_capacity(2 * order.len() / LEAF_PATCHES + 1),
             order: Vec::new(),
             pos: Vec::new(),
+            area_before: Vec::new(),
             plane_tol,
             slack,
         };
@@ -202,8 +206,26 @@ impl PatchTree {
         for (k, &j) in order.iter().enumerate() {
             tree.pos[j as usize] = k as u32;
         }
+        tree.area_before = std::iter::once(0.0)
+            .chain(order.iter().scan(0.0, |sum, &j| {
+                *sum += geom[j as usize].area;
+                Some(*sum)
+            }))
+            .collect();
         tree.order = order;
         tree
+    }
+
+    /// The patch under node `id` at `u` along its area, `u` in [0, the node's area):
+    /// patches taken in tree order, each as long as its area, so that a uniform `u`
+    /// draws a patch in proportion to its area (the last patch when rounding carries
+    /// `u` past the end).
+    pub(crate) fn patch_at_area(&self, id: u32, u: f64) -> u32 {
+        let (a, b) = self.range(id);
+        let before = &self.area_before[a as usize..=b as usize];
+        let target = before[0] + u;
+        let k = before[1..].partition_point(|&x| x <= target);
+        self.order[a as usize + k.min((b - a - 1) as usize)]
     }
 
     /// Where patch `j` stands in [`PatchTree::cluster_order`] (`None` for a patch

@@ -143,3 +143,28 @@ fn kinds_are_parted_before_anything_else() {
     order.sort_unstable();
     assert!(order.iter().enumerate().all(|(k, &j)| k as u32 == j));
 }
+
+/// `patch_at_area` lays a node's patches along its area in tree order: a point in the
+/// middle of a patch's stretch draws that patch, the ends of the stretch draw the
+/// first and last, and so a uniform point draws each patch in proportion to its area.
+#[test]
+fn a_point_along_a_nodes_area_draws_the_patch_whose_stretch_holds_it() {
+    let (geom, mut valid) = geometry("room", 900);
+    for j in (0..valid.len()).step_by(41) {
+        valid[j] = false;
+    }
+    let tree = PatchTree::new(&geom, &valid, 1e-10, 1e-12);
+    for id in 0..tree.len() as u32 {
+        let under = tree.patches_under(id);
+        let mut before = 0.0;
+        for &j in under {
+            let a = geom[j as usize].area;
+            assert_eq!(tree.patch_at_area(id, before + 0.5 * a), j, "node {id}");
+            before += a;
+        }
+        assert_eq!(tree.patch_at_area(id, 0.0), under[0], "node {id}");
+        let last = *under.last().unwrap();
+        assert_eq!(tree.patch_at_area(id, before), last, "node {id}");
+        assert_eq!(tree.patch_at_area(id, 2.0 * before), last, "node {id}");
+    }
+}
