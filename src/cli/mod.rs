@@ -59,8 +59,8 @@ pub(crate) struct Cli {
     /// More log output (-v: info, -vv: debug). RUST_LOG overrides.
     #[arg(short, long, action = clap::ArgAction::Count, global = true)]
     pub verbose: u8,
-    /// No progress display (the rows, rows/s and ETA lines of compute and run); results,
-    /// warnings and errors are still printed.
+    /// No progress display (the rows, rows/s and ETA lines of compute and run, the
+    /// sweep lines of solve and run); results, warnings and errors are still printed.
     #[arg(short, long, global = true)]
     pub quiet: bool,
     #[command(subcommand)]
@@ -187,10 +187,14 @@ pub(crate) fn dispatch(cli: Cli) -> anyhow::Result<ExitCode> {
         Command::Info(a) => files::info(a),
         Command::Verify(a) => files::verify(a),
         Command::Export(a) => files::export(a),
-        Command::Solve(a) => solve::run(a),
+        Command::Solve(mut a) => {
+            a.opts.quiet = cli.quiet;
+            solve::run(a)
+        }
         Command::Render(a) => render::run(a),
         Command::Run(mut a) => {
             a.compute.quiet = cli.quiet;
+            a.solve.quiet = cli.quiet;
             a.input.apply_format();
             run::run(a)
         }

@@ -37,6 +37,9 @@ pub(crate) struct SolveArgs {
 /// Settings of the solve (shared with `run`, where the solver is chosen with --solver).
 #[derive(Args, Debug, Clone)]
 pub(crate) struct SolveOptions {
+    /// No progress lines (set from the global --quiet).
+    #[arg(skip)]
+    pub quiet: bool,
     /// Stop when the relative residual (shooting: unshot / emitted power) is below this.
     #[arg(long, default_value_t = 1e-6, value_name = "E", value_parser = super::choices::number::open_unit)]
     pub tolerance: f64,
@@ -209,6 +212,7 @@ pub(super) fn solve_file(
         } else {
             o.dropped_mass.into()
         },
+        progress: (!o.quiet).then_some(print_sweep as fn(&solve::SweepProgress)),
     };
     let solution = solve::solve(&reader, &cases, &rho, &cfg)
         .with_context(|| format!("solving {}", file.display()))?;
@@ -259,6 +263,22 @@ pub(super) fn run(a: SolveArgs) -> anyhow::Result<ExitCode> {
 
 /// `--cache-mib` in bytes, or by default [`solve::DEFAULT_CACHE_BYTES`] or half the
 /// memory available, whichever is less.
+/// One progress line a sweep (shooting: every n shots) on stderr.
+fn print_sweep(p: &solve::SweepProgress) {
+    let (what, residual) = match p.method {
+        SolveMethod::Shooting => ("shots", "unshot power"),
+        SolveMethod::GaussSeidel => ("sweep", "residual bound"),
+        SolveMethod::Jacobi => ("sweep", "residual"),
+    };
+    eprintln!(
+        "progress: {} {what} {}, {residual} {:.2e}, {:.1} s",
+        p.method,
+        p.sweep,
+        p.residual,
+        p.elapsed.as_secs_f64()
+    );
+}
+
 fn cache_bytes(mib: Option<u64>) -> usize {
     match mib {
         Some(m) => (m as usize) << 20,

@@ -30,7 +30,7 @@ use super::source::RowSource;
 use super::system::{
     column_max_abs, max_of, missing_error, nan_max, relative, Presence, System, FOR_GATHER,
 };
-use super::{HState, Iterate, SolveConfig, SolveError};
+use super::{HState, Iterate, SolveConfig, SolveError, SolveMethod};
 
 /// Run Gauss–Seidel sweeps until the exact relative residual is within
 /// `cfg.tolerance` or `cfg.max_iterations` sweeps are done.
@@ -48,6 +48,7 @@ pub(crate) fn run(
     let mut h = vec![0.0; n * m];
     let mut acc = vec![0.0; m];
     let max_sweeps = cfg.max_iterations.max(1);
+    let start = std::time::Instant::now();
     let mut passes = 0;
     let mut sweep = 0;
     loop {
@@ -84,6 +85,7 @@ pub(crate) fn run(
             .collect();
         let rel_bound = max_of(&relative(&bound, &scale));
         debug!(sweep, residual_bound = rel_bound, "gauss-seidel sweep");
+        cfg.report(SolveMethod::GaussSeidel, sweep, rel_bound, start);
         let last = sweep >= max_sweeps;
         if rel_bound <= cfg.tolerance || last {
             let fp = final_pass(sys, src, &b, &mut h, Mode::Full)?;

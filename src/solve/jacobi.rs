@@ -14,7 +14,7 @@ use super::source::RowSource;
 use super::system::{
     column_max_abs, max_of, missing_error, nan_max, relative, Presence, System, FOR_GATHER,
 };
-use super::{HState, Iterate, SolveConfig, SolveError};
+use super::{HState, Iterate, SolveConfig, SolveError, SolveMethod};
 
 /// Run Jacobi sweeps until the relative residual is within `cfg.tolerance` or
 /// `cfg.max_iterations` sweeps are done.
@@ -33,6 +33,7 @@ pub(crate) fn run(
     let mut h = vec![0.0; n * m];
     let mut acc = vec![0.0; m];
     let max_sweeps = cfg.max_iterations.max(1);
+    let start = std::time::Instant::now();
     let mut sweep = 0;
     loop {
         sweep += 1;
@@ -59,6 +60,7 @@ pub(crate) fn run(
         // `change` is exactly the residual of `b` (see the module docs).
         let rel = max_of(&relative(&change, &column_max_abs(&b, m)));
         debug!(sweep, residual = rel, "jacobi sweep");
+        cfg.report(SolveMethod::Jacobi, sweep, rel, start);
         let converged = rel <= cfg.tolerance;
         if converged || sweep >= max_sweeps {
             return Ok(Iterate {

@@ -145,7 +145,7 @@ impl fmt::Display for DroppedMass {
 }
 
 /// Settings of one solve.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug)]
 pub struct SolveConfig {
     pub method: SolveMethod,
     /// Relative residual to reach (shooting: unshot power / emitted power). Default 1e-6.
@@ -159,12 +159,49 @@ pub struct SolveConfig {
     /// each. Default [`DEFAULT_CACHE_BYTES`]; 0 holds nothing (the same answer,
     /// slower).
     pub cache_bytes: usize,
+    /// Called after every sweep (shooting: every n shots) with where the solve stands,
+    /// for a progress display; `None` (the default) reports nothing. The command line
+    /// prints one line a sweep unless `--quiet`.
+    pub progress: Option<fn(&SweepProgress)>,
+}
+
+/// Where an iterative solve stands, given to [`SolveConfig::progress`].
+#[derive(Clone, Copy, Debug)]
+pub struct SweepProgress {
+    pub method: SolveMethod,
+    /// Sweeps done (shooting: shots).
+    pub sweep: usize,
+    /// The relative residual after it (Gauss–Seidel: its bound; shooting: the unshot
+    /// power over the emitted), to compare with [`SolveConfig::tolerance`].
+    pub residual: f64,
+    /// Since the solve started.
+    pub elapsed: std::time::Duration,
 }
 
 /// [`SolveConfig::cache_bytes`] by default: 3 GiB. At 100k patches with 256 links a
 /// row both halves fit (the solve then holds 1.3 GB, bench/LINKS.md); at 1M the links'
 /// half holds about a seventh of the rows and the rows are read from the file.
 pub const DEFAULT_CACHE_BYTES: usize = 3 << 30;
+
+impl SolveConfig {
+    /// Tells [`SolveConfig::progress`], if set, where the solve stands.
+    pub(crate) fn report(
+        &self,
+        method: SolveMethod,
+        sweep: usize,
+        residual: f64,
+        start: std::time::Instant,
+    ) {
+        if let Some(f) = self.progress {
+            f(&SweepProgress {
+                method,
+                sweep,
+                residual,
+                elapsed: start.elapsed(),
+            });
+        }
+    }
+}
 
 impl Default for SolveConfig {
     fn default() -> Self {
@@ -174,6 +211,7 @@ impl Default for SolveConfig {
             max_iterations: 10_000,
             dropped: DroppedMass::Pool,
             cache_bytes: DEFAULT_CACHE_BYTES,
+            progress: None,
         }
     }
 }

@@ -32,7 +32,7 @@ use tracing::debug;
 
 use super::source::RowSource;
 use super::system::{missing_error, skipped_error, System, FOR_SHOOT};
-use super::{HState, Iterate, SolveConfig, SolveError};
+use super::{HState, Iterate, SolveConfig, SolveError, SolveMethod};
 
 /// Shoot until the unshot power is within `cfg.tolerance` of the emitted power per
 /// column, or `cfg.max_iterations × n` shots are done.
@@ -48,6 +48,7 @@ pub(crate) fn run(
     let (n, m) = (sys.n, sys.m);
     let patches = src.patches();
     let emitted = sys.emitted_power();
+    let start = std::time::Instant::now();
     let weight: Vec<f64> = emitted
         .iter()
         .map(|&p| if p > 0.0 { 1.0 / p } else { 0.0 })
@@ -184,6 +185,7 @@ pub(crate) fn run(
         shots += 1;
         if shots.is_multiple_of(n.max(1)) {
             debug!(shots, unshot = worst, "shooting");
+            cfg.report(SolveMethod::Shooting, shots, worst, start);
         }
     };
     debug!(shots, converged, "shooting done");

@@ -339,3 +339,64 @@ fn summary_reports_iterations_residual_and_energy() {
         s.warnings
     );
 }
+
+/// `solve` prints one progress line a sweep on stderr, numbered from 1 without a gap,
+/// whose residual falls to the tolerance by the last (Gauss–Seidel: the bound that
+/// stops it; Jacobi: the residual itself), and none with `--quiet`; the answer is the
+/// same either way.
+#[test]
+fn solve_reports_each_sweep_unless_quiet() {
+    use crate::common::{ffstream, ok, path_str};
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("c.ffz");
+    ok(&[
+        "compute",
+        "builtin:cornell",
+        "--patches",
+        "300",
+        "-q",
+        "-o",
+        path_str(&file),
+    ]);
+    for (solver, label) in [("gauss-seidel", "residual bound"), ("jacobi", "residual")] {
+        let (loud, quiet) = (dir.path().join("loud.csv"), dir.path().join("quiet.csv"));
+        let out = ffstream(&[
+            "solve",
+            path_str(&file),
+            "--solver",
+            solver,
+            "-o",
+            path_str(&loud),
+        ]);
+        assert!(out.status.success());
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        let lines: Vec<&str> = stderr
+            .lines()
+            .filter(|l| l.starts_with("progress:"))
+            .collect();
+        assert!(lines.len() >= 3, "{solver}: {stderr}");
+        let mut last = f64::INFINITY;
+        for (k, line) in lines.iter().enumerate() {
+            let head = format!("progress: {solver} sweep {}, {label} ", k + 1);
+            let rest = line.strip_prefix(&head).unwrap_or_else(|| panic!("{line}"));
+            last = rest.split(',').next().unwrap().parse().unwrap();
+        }
+        assert!(last <= 1e-6, "{solver}: last {last}");
+        let out = ffstream(&[
+            "-q",
+            "solve",
+            path_str(&file),
+            "--solver",
+            solver,
+            "-o",
+            path_str(&quiet),
+        ]);
+        assert!(out.status.success());
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(!stderr.contains("progress:"), "{stderr}");
+        assert_eq!(
+            std::fs::read(&loud).unwrap(),
+            std::fs::read(&quiet).unwrap()
+        );
+    }
+}
