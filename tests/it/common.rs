@@ -330,9 +330,12 @@ fn a_hung_job_is_killed_and_named() {
 
 #[test]
 fn a_process_outliving_its_job_is_named() {
-    // The shell ends at once; the sleep it leaves holds both pipes for two seconds.
+    // The shell ends at once; the sleep it leaves holds both pipes for eight seconds.
+    // The wait must give up 200 ms after the shell's exit, long before the sleep ends
+    // (measured 2.2 s from the spawn on the 2-core machine at load 6, where two seconds
+    // of sleep were too few to tell giving up from waiting).
     let child = Command::new("sh")
-        .args(["-c", "sleep 2 & exit 0"])
+        .args(["-c", "sleep 8 & exit 0"])
         .stdin(Stdio::null())
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
@@ -356,8 +359,8 @@ fn a_process_outliving_its_job_is_named() {
         "{message}"
     );
     assert!(
-        t0.elapsed() < Duration::from_secs(2),
-        "gave up late: {:?}",
+        t0.elapsed() < Duration::from_secs(8),
+        "gave up late (the orphan had ended): {:?}",
         t0.elapsed()
     );
 }
