@@ -91,7 +91,8 @@ fn solve(file: &Path) -> BTreeMap<String, [f64; 3]> {
 /// where in each cluster. Measured at 1,512 patches: pool worst surface 62–84 %; links
 /// without slopes 3–6 % (c23c811 + links), 2.1 % (87d3b76), with slopes 0.4 %
 /// (6c9adeb), with links sampled by one-ray points 0.5 % (1.0 % when links of up to
-/// 4 patches are sampled too, not evaluated in full). The bound below, the issue's
+/// 4 patches are sampled too, not evaluated in full; 0.5 % with 4t points shared by
+/// weight). The bound below, the issue's
 /// 1 %, fails without slopes.
 #[test]
 fn links_put_the_rooms_light_where_dense_rows_put_it_and_the_pool_does_not() {
@@ -246,7 +247,8 @@ fn corridor(dir: &Path) -> std::path::PathBuf {
 /// with this test): two rooms, pool worst surface +767 % (the dark room's wall by the
 /// door; the lit room −50 %), links 0.5 %; corridor, pool 115× the dense radiosity at
 /// the far end's ceiling, links 1.1 %. With links sampled by one-ray points (spec
-/// §5.7's writer, docs/numerics.md §8): two rooms 1.9 %, corridor 0.6 %.
+/// §5.7's writer, docs/numerics.md §8): two rooms 1.9 %, corridor 0.6 % with at least
+/// 4 points a link; 0.3 % and 0.9 % with 4t points shared by weight, at least 2.
 #[test]
 fn links_keep_light_in_the_lit_room_and_near_the_lit_end_where_the_pool_spreads_it() {
     let dir = tempfile::tempdir().unwrap();

@@ -38,10 +38,10 @@
 //! 2. **The mass.** Each link's value is the exact mass of the columns the search
 //!    evaluated and did not keep (pushed out of the top k, below `--min-ff`, or
 //!    unoccludable tail columns) plus an estimate of the rest: tail columns that need
-//!    visibility and nodes the search never opened. The row's `t` points are shared
-//!    out over the links in proportion to the kernel's estimate of their tail, at
-//!    least [`LINK_POINTS`] a link, so that every link's estimate is unbiased on its
-//!    own, not only their sum; inside a link they fall systematically on its items
+//!    visibility and nodes the search never opened. [`LINK_POINT_FACTOR`] times the
+//!    row's `t` points are shared out over the links in proportion to the kernel's
+//!    estimate of their tail, at least [`LINK_POINTS`] a link, so that every link's
+//!    estimate is unbiased on its own, not only their sum; inside a link they fall systematically on its items
 //!    by the same weights (`topk_tree.rs` step 3). A point on a tail column takes the
 //!    pair's visibility by its own rule. Points on an unopened node are spread over
 //!    its area and each is one ray between a point of the row patch and a point of
@@ -98,9 +98,16 @@ const EXACT_TAIL_FACTOR: usize = 2;
 /// A link of at most this many patches to evaluate is evaluated in full, not sampled.
 const FULL_LINK_PATCHES: usize = 4;
 
-/// The fewest points a sampled link gets (step 2): enough to tell where in its cluster
-/// its mass lies, which the slope needs.
-const LINK_POINTS: usize = 4;
+/// The points a row's sampled links share, in proportion to their weights, are this
+/// many times the row's `t` (step 2): a point costs one ray, not a pair evaluation.
+/// On the room at 10k patches, 4 (at least 2 a link) gave the same compute as a floor
+/// of 4 points a link with t shared out, the same worst surface, and half the noise of
+/// single patches (bench/LINKS.md).
+const LINK_POINT_FACTOR: usize = 4;
+
+/// The fewest points a sampled link gets (step 2): two, so that its slope has more
+/// than one place to lean toward.
+const LINK_POINTS: usize = 2;
 
 /// What a row did not keep, located in the cluster order.
 struct Dropped {
@@ -434,7 +441,8 @@ impl RowEngine {
             } else {
                 let w: f64 = of.iter().map(|x| x.1).sum();
                 if w.is_finite() && w > 0.0 && weight > 0.0 {
-                    let p = ((t as f64 * w / weight).round() as usize).max(LINK_POINTS);
+                    let share = (LINK_POINT_FACTOR * t) as f64 * w / weight;
+                    let p = (share.round() as usize).max(LINK_POINTS);
                     points[k] = p;
                     unoccluded[k] = w;
                     // Σ (value / weight) x of the samples: times the step below, the
