@@ -261,8 +261,6 @@ pub(super) fn run(a: SolveArgs) -> anyhow::Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
-/// `--cache-mib` in bytes, or by default [`solve::DEFAULT_CACHE_BYTES`] or half the
-/// memory available, whichever is less.
 /// One progress line a sweep (shooting: every n shots) on stderr.
 fn print_sweep(p: &solve::SweepProgress) {
     let (what, residual) = match p.method {
@@ -279,6 +277,8 @@ fn print_sweep(p: &solve::SweepProgress) {
     );
 }
 
+/// `--cache-mib` in bytes, or by default [`solve::DEFAULT_CACHE_BYTES`] or half the
+/// memory available, whichever is less.
 fn cache_bytes(mib: Option<u64>) -> usize {
     match mib {
         Some(m) => (m as usize) << 20,
