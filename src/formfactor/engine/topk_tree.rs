@@ -500,33 +500,19 @@ impl RowEngine {
     pub(super) fn node_sample(
         &self,
         tree: &PatchTree,
-        id: u32,
-        i: u32,
-        row: &PatchBound,
-        rng: &mut SplitMix64,
-        scratch: &mut Scratch,
-    ) -> f64 {
-        self.node_sample_at(tree, id, i, row, rng, scratch).0
-    }
-
-    /// [`RowEngine::node_sample`] and the patch it evaluated (none when the node has
-    /// nothing the row can see).
-    pub(super) fn node_sample_at(
-        &self,
-        tree: &PatchTree,
         mut id: u32,
         i: u32,
         row: &PatchBound,
         rng: &mut SplitMix64,
         scratch: &mut Scratch,
-    ) -> (f64, Option<u32>) {
+    ) -> f64 {
         let mut p = 1.0f64;
         loop {
             match tree.node(id).kids {
                 Kids::Inner(left, right) => {
                     let (l, r) = (tree.bound(left, row).guess, tree.bound(right, row).guess);
                     if (l + r).is_nan() || l + r <= 0.0 {
-                        return (0.0, None);
+                        return 0.0;
                     }
                     let u = rng.next_f64() * (l + r);
                     let (next, w) = if u < l { (left, l) } else { (right, r) };
@@ -541,7 +527,7 @@ impl RowEngine {
                     };
                     let total: f64 = patches.iter().map(|&j| bound(j)).sum();
                     if total.is_nan() || total <= 0.0 {
-                        return (0.0, None);
+                        return 0.0;
                     }
                     let u = rng.next_f64() * total;
                     let mut cumulative = 0.0;
@@ -559,11 +545,11 @@ impl RowEngine {
                         }
                     }
                     let Some((j, b)) = chosen else {
-                        return (0.0, None);
+                        return 0.0;
                     };
                     p *= b / total;
                     scratch.pair.counters.tree_tail_samples += 1;
-                    return (self.pair_value(i, j, scratch) / p, Some(j));
+                    return self.pair_value(i, j, scratch) / p;
                 }
             }
         }
