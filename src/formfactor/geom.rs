@@ -56,6 +56,27 @@ pub(crate) struct PatchGeom {
 }
 
 impl PatchGeom {
+    /// The points of this patch and of `other` at the unit-square coordinates
+    /// `q` = (p_i, q_i, p_j, q_j) and the form factor's integrand there without 1/π,
+    /// J_i J_j cos θ_i cos θ_j / r² (J the parametrisations' area elements; the
+    /// cosines taken unnormalised, so J_i J_j (n_i · d)(−n_j · d) / r⁴): `None` where
+    /// either side faces away. Σ over uniform `q` of it, over π A_i times the count, is
+    /// an unbiased estimate of F⁰_ij (visibility left to the caller).
+    #[inline]
+    pub(crate) fn kernel_point(
+        &self,
+        other: &PatchGeom,
+        q: [f64; 4],
+    ) -> Option<(DVec3, DVec3, f64)> {
+        let (x, jx) = self.map.eval(q[0], q[1]);
+        let (y, jy) = other.map.eval(q[2], q[3]);
+        let d = y - x;
+        let r2 = d.length_squared();
+        let ci = self.normal.dot(d);
+        let cj = -other.normal.dot(d);
+        (ci > 0.0 && cj > 0.0 && r2 > 0.0).then(|| (x, y, jx * jy * ci * cj / (r2 * r2)))
+    }
+
     pub(crate) fn new(p: &crate::patch::Patch) -> Self {
         let poly = Polygon::new(p.corners());
         let edges = EdgeSet::from_polygon(&poly);

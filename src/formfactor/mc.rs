@@ -38,22 +38,16 @@ pub(crate) fn pair(
     let mut sum = 0.0;
     let mut cast = 0u64;
     for q in &scratch.samples {
-        let (x, jx) = gi.map.eval(q[0], q[1]);
-        let (y, jy) = gj.map.eval(q[2], q[3]);
-        let d = y - x;
-        let r2 = d.length_squared();
-        let ci = gi.normal.dot(d);
-        let cj = -gj.normal.dot(d);
-        if !(ci > 0.0 && cj > 0.0 && r2 > 0.0) {
+        let Some((x, y, w)) = gi.kernel_point(gj, *q) else {
             continue;
-        }
+        };
         if need_rays {
             cast += 1;
             if occ.occluded(x, y, (gi.face, gj.face)) {
                 continue;
             }
         }
-        sum += jx * jy * ci * cj / (r2 * r2);
+        sum += w;
     }
     if need_rays {
         scratch.counters.pairs_rays += 1;

@@ -135,15 +135,9 @@ fn run_batch(
     let mut n_rays = 0;
     let samples = scratch.samples.len();
     for (k, q) in scratch.samples.iter().enumerate() {
-        let (x, jx) = gi.map.eval(q[0], q[1]);
-        let (y, jy) = gj.map.eval(q[2], q[3]);
-        let d = y - x;
-        let r2 = d.length_squared();
-        let ci = gi.normal.dot(d);
-        let cj = -gj.normal.dot(d);
-        if ci > 0.0 && cj > 0.0 && r2 > 0.0 {
+        if let Some((x, y, w)) = gi.kernel_point(gj, *q) {
             segs[n_rays] = (x, y);
-            weights[n_rays] = jx * jy * ci * cj / (r2 * r2);
+            weights[n_rays] = w;
             n_rays += 1;
         }
         if n_rays == PACKET || (k + 1 == samples && n_rays > 0) {

@@ -519,13 +519,10 @@ impl RowEngine {
         for s in 0..hits {
             let j = tree.patch_at_area(n, start + s as f64 * step);
             let gj = &self.geom[j as usize];
-            let (x, jx) = gi.map.eval(rng.next_f64(), rng.next_f64());
-            let (y, jy) = gj.map.eval(rng.next_f64(), rng.next_f64());
-            let d = y - x;
-            let r2 = d.length_squared();
-            let (ci, cj) = (gi.normal.dot(d), -gj.normal.dot(d));
+            let q = std::array::from_fn(|_| rng.next_f64());
+            let skip = j == i || !self.valid[j as usize];
             let mut v = 0.0;
-            if j != i && self.valid[j as usize] && ci > 0.0 && cj > 0.0 && r2 > 0.0 {
+            if let Some((x, y, w)) = gi.kernel_point(gj, q).filter(|_| !skip) {
                 let planes = self
                     .occluders
                     .is_foreign()
@@ -535,11 +532,9 @@ impl RowEngine {
                     .occluders
                     .occluded_between_planes(x, y, (gi.face, gj.face), planes)
                 {
-                    v = (area / gj.area) * (jx * jy / gi.area) * ci * cj
-                        / (std::f64::consts::PI * r2 * r2);
+                    v = area / (gj.area * gi.area * std::f64::consts::PI) * w;
                 }
             }
-            scratch.pair.counters.tree_tail_samples += 1;
             each(v, j);
         }
     }
