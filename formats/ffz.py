@@ -1017,7 +1017,10 @@ class FfzReader:
         whole matrix. Empty without links. Spec 5.7: over each link's patches j (those
         in its range that are not a kept column of row i and not i),
         F_ij = F_iL w_j / sum(w), w_j = A_j (1 + q_L . (x_j - mean_L)), mean_L the
-        area-weighted mean centroid of the whole range, q_L the link's slope."""
+        area-weighted mean centroid of the whole range, q_L the link's slope. Some
+        entries may be negative where a slope takes weights below zero (spec 5.7: the
+        weights are the rule a link gathers by, not single form factors); each link's
+        entries still sum to F_iL."""
         n = self.n
         kept = self.to_csr()
         area = self.patches["area"].astype(np.float64)

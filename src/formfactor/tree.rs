@@ -324,15 +324,7 @@ impl PatchTree {
         node.range = (start as u32, end as u32);
         for &j in patches.iter() {
             let g = &geom[j as usize];
-            let r = g.centroid - node.mean;
-            let products = [
-                r.x * r.x,
-                r.y * r.y,
-                r.z * r.z,
-                r.x * r.y,
-                r.x * r.z,
-                r.y * r.z,
-            ];
+            let products = second_products(g.centroid - node.mean);
             for (m, p) in node.second.iter_mut().zip(products) {
                 *m += g.area * p;
             }
@@ -546,6 +538,19 @@ fn cos_above(theta: f64) -> f64 {
     } else {
         theta.cos()
     }
+}
+
+/// The products of r's components that second moments sum, in their stored order
+/// (xx, yy, zz, xy, xz, yz).
+pub(crate) fn second_products(r: DVec3) -> [f64; 6] {
+    [
+        r.x * r.x,
+        r.y * r.y,
+        r.z * r.z,
+        r.x * r.y,
+        r.x * r.z,
+        r.y * r.z,
+    ]
 }
 
 #[cfg(test)]

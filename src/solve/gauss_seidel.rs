@@ -6,7 +6,9 @@
 //! ρ_i < 1 and row sums ≤ 1, I − ρF is a nonsingular M-matrix and "rows read before i"
 //! versus "the rest" (the self term F_ii, non-zero only for curved patches, taken from
 //! the old value) is a regular splitting of it (Varga, Matrix Iterative Analysis,
-//! thm. 3.13). The answer differs between orders only within the tolerance. Random
+//! thm. 3.13). Links whose slope takes some weights below zero (spec §5.7) make some
+//! entries negative; then it converges whenever max_i ρ_i Σ_j |F_ij| < 1 (the sweep
+//! is a contraction in the max norm), the coefficient of the stopping rule below. The answer differs between orders only within the tolerance. Random
 //! access in patch order would cost a seek per row for no gain in convergence.
 //!
 //! Stopping rule. Splitting F into the entries read before and after row i in a

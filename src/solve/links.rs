@@ -27,6 +27,7 @@ use std::sync::OnceLock;
 
 use glam::DVec3;
 
+use crate::formfactor::tree::second_products;
 use crate::rows::Link;
 
 /// The cluster order of a source, with what the gather through links needs.
@@ -39,9 +40,11 @@ pub(crate) struct LinkSpace {
     /// Area and centroid of each patch.
     area: Vec<f64>,
     centroid: Vec<DVec3>,
-    /// Σ A and Σ A x over positions < p, for p in 0..=n.
+    /// Σ A, Σ A x and Σ A x xᵀ (xx, yy, zz, xy, xz, yz) over positions < p, for p in
+    /// 0..=n.
     prefix_area: Vec<f64>,
     prefix_moment: Vec<DVec3>,
+    prefix_second: Vec<[f64; 6]>,
     /// Rows' links made ready to gather, kept while they fit ([`LinkSpace::with_cache`]).
     cache: Option<ReadyCache>,
 }
@@ -108,7 +111,8 @@ impl Scatter {
     }
 }
 
-/// One row's links made ready to gather, and Σ F_iL.
+/// One row's links made ready to gather, and a bound on Σ |F_ij| over their patches
+/// (Σ F_iL when no weight is negative).
 #[derive(Debug)]
 struct Ready {
     links: Vec<ReadyLink>,
@@ -140,7 +144,8 @@ const FLAT_WEIGHT: f64 = 1e-6;
 
 /// `acc[c] +=` each ready link's share of the gather, less the patches inside link
 /// ranges that are not the links', for `acc.len()` columns a patch (4 numbers of the
-/// prefix sums a column and position); returns Σ F_iL.
+/// prefix sums a column and position); returns the bound on Σ |F_ij| of
+/// [`Ready::sum`].
 fn gather_ready(ready: &Ready, prefix: &[f64], acc: &mut [f64]) -> f64 {
     if let Ok(acc) = <&mut [f64; 3]>::try_from(&mut *acc) {
         // The common single-case path: the length known, the three sums in registers.
@@ -187,16 +192,23 @@ impl LinkSpace {
         let mut pos = vec![0u32; order.len()];
         let mut prefix_area = Vec::with_capacity(order.len() + 1);
         let mut prefix_moment = Vec::with_capacity(order.len() + 1);
-        let (mut a, mut x) = (0.0, DVec3::ZERO);
+        let mut prefix_second = Vec::with_capacity(order.len() + 1);
+        let (mut a, mut x, mut xx) = (0.0, DVec3::ZERO, [0.0; 6]);
         prefix_area.push(a);
         prefix_moment.push(x);
+        prefix_second.push(xx);
         for (p, &j) in order.iter().enumerate() {
             let j = j as usize;
             pos[j] = p as u32;
+            let c = centroid[j];
             a += area[j];
-            x += area[j] * centroid[j];
+            x += area[j] * c;
+            for (s, v) in xx.iter_mut().zip(second_products(c)) {
+                *s += area[j] * v;
+            }
             prefix_area.push(a);
             prefix_moment.push(x);
+            prefix_second.push(xx);
         }
         LinkSpace {
             order: order.to_vec(),
@@ -205,6 +217,7 @@ impl LinkSpace {
             centroid: centroid.to_vec(),
             prefix_area,
             prefix_moment,
+            prefix_second,
             cache: None,
         }
     }
@@ -293,6 +306,22 @@ impl LinkSpace {
         (mean, q, w)
     }
 
+    /// √(A Σ A_j (q · (x_j − x̄))²) over positions [s, e) of area A and mean `mean`: it
+    /// bounds Σ |q · (x_j − x̄)| A_j (Cauchy–Schwarz), so twice what the weights
+    /// A_j (1 + q · (x_j − x̄)) of the range can hold below zero.
+    fn tilt_size(&self, s: usize, e: usize, mean: DVec3, q: DVec3) -> f64 {
+        let a = self.prefix_area[e] - self.prefix_area[s];
+        let m: Vec<f64> = (0..6)
+            .map(|k| self.prefix_second[e][k] - self.prefix_second[s][k])
+            .collect();
+        // qᵀ (Σ A x xᵀ) q − A (q · x̄)²: the second moments about the mean.
+        let about_origin = q.x * q.x * m[0]
+            + q.y * q.y * m[1]
+            + q.z * q.z * m[2]
+            + 2.0 * (q.x * q.y * m[3] + q.x * q.z * m[4] + q.y * q.z * m[5]);
+        (a * (about_origin - a * q.dot(mean).powi(2)).max(0.0)).sqrt()
+    }
+
     /// Weight w_j of patch j in a link with mean `mean` and slope `q` (module docs).
     fn weight(&self, j: usize, mean: DVec3, q: DVec3) -> f64 {
         self.area[j] * (1.0 + q.dot(self.centroid[j] - mean))
@@ -300,7 +329,8 @@ impl LinkSpace {
 
     /// `acc[c] += Σ_L F_iL · (Σ w_j b_j / Σ w_j over L's patches)` for row i with kept
     /// columns `cols`, against the radiosity `prefix` was made of ([`LinkSpace::prefix`]).
-    /// Returns Σ F_iL. With a cache ([`LinkSpace::with_cache`]) a row's links are made
+    /// Returns a bound on Σ |F_ij| over the links' patches, Σ F_iL when no weight is
+    /// negative (the Gauss–Seidel bound's). With a cache ([`LinkSpace::with_cache`]) a row's links are made
     /// ready once, the first time it is gathered, while the cache has room.
     pub(crate) fn gather(
         &self,
@@ -432,7 +462,6 @@ impl LinkSpace {
         };
         let mut next = 0;
         for (k, l) in links.iter().enumerate() {
-            ready.sum += f64::from(l.value);
             let (s, e) = (l.start as usize, l.end() as usize);
             let first = next;
             while out.get(next).is_some_and(|x| x.0 == k) {
@@ -453,6 +482,14 @@ impl LinkSpace {
                 continue;
             }
             let g = f64::from(l.value) / w;
+            // Σ |F_ij| over the link's patches: F_iL when no weight is negative; a
+            // slope's negative weights (spec §5.7) add at most g times the range's
+            // tilt (what the range holds below zero, twice).
+            ready.sum += f64::from(l.value)
+                + match q == DVec3::ZERO {
+                    true => 0.0,
+                    false => g * self.tilt_size(s, e, mean, q),
+                };
             let slope = if q == DVec3::ZERO { [0.0; 3] } else { l.slope };
             ready.links.push(ReadyLink {
                 start: l.start,
@@ -555,6 +592,46 @@ mod tests {
         let mut entries = Vec::new();
         space.expand(&links, 0, &[], |j, f| entries.push((j, f)));
         assert_eq!(entries, vec![(3, 0.5 * 4.0 / 6.0), (1, 0.5 * 2.0 / 6.0)]);
+    }
+
+    /// A slope that takes a weight below zero (q = 1: w_0 = 1 · (1 + (0 − 2)) = −1):
+    /// what gather returns for the stopping rule is still at least Σ |F_ij| of the
+    /// expanded entries, and exactly F_iL without a slope. The bound must fail if the
+    /// negative entries are counted by their sign.
+    #[test]
+    fn the_gathers_absolute_sum_bounds_negative_entries_of_a_steep_slope() {
+        let (space, b) = (space(), radiosity());
+        let prefix = space.prefix(&b, 3);
+        for (q, kept) in [
+            (1.0f32, &[][..]),
+            (1.0, &[1][..]),
+            (-0.6, &[][..]),
+            (0.0, &[][..]),
+        ] {
+            let links = link([q, 0.0, 0.0]);
+            let mut entries = Vec::new();
+            space.expand(&links, 2, kept, |_, f| entries.push(f));
+            let signed: f64 = entries.iter().sum();
+            let abs: f64 = entries.iter().map(|f| f.abs()).sum();
+            let mut acc = [0.0; 3];
+            let bound = space.gather(&links, 2, kept, &prefix, &mut acc);
+            assert!(
+                (signed - 0.5).abs() < 1e-12,
+                "q {q}: entries sum to {signed}"
+            );
+            assert!(
+                bound >= abs - 1e-12,
+                "q {q}, kept {kept:?}: {bound} < {abs}"
+            );
+            if q == 0.0 {
+                assert_eq!(bound, 0.5);
+            } else if q == 1.0 && kept.is_empty() {
+                assert!(
+                    abs > 0.5 + 1e-3,
+                    "the case must hold a negative entry: {entries:?}"
+                );
+            }
+        }
     }
 
     /// With a slope the weights are w_j = A_j (1 + q · (x_j − x̄)), x̄ the area mean of

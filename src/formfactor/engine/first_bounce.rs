@@ -3,7 +3,8 @@
 //!
 //! A link gathers a weighted mean of the radiosity over its cluster; what it gets
 //! wrong is at most its mass times how much the radiosity varies over the cluster
-//! (the weights are never negative). Where the radiosity is flat the link is exact,
+//! (times the spread of its weights when a slope takes some below zero, `links.rs`
+//! step 3). Where the radiosity is flat the link is exact,
 //! however the row's form factor is spread inside the cluster; where a lamp makes a
 //! bright spot the cluster must be small. Hierarchical radiosity refines links by
 //! this product, form factor times radiosity ("BF refinement", Hanrahan, Salzman and

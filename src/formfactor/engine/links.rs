@@ -59,7 +59,9 @@
 //!    cost. The link stores the slope q of the linear weights A_j (1 + q · (x_j − x̄))
 //!    (spec §5.7) whose centroid is that one ([`link_slope`]). This is the linear
 //!    term of the link's distribution: from a few points a link it is a noisy
-//!    estimate, limited so that no weight is negative. The same samples give the F-weighted
+//!    estimate, limited so that no weight falls below [`WEIGHT_FLOOR`] times its
+//!    patch's area (the weights are a rule for the gather, like a quadrature's, and
+//!    some may be negative). The same samples give the F-weighted
 //!    mean of B¹ over the link; the slope is then moved, as little as it can be in the
 //!    weights' own metric, until the weights gather that mean of B¹: where the
 //!    radiosity is B¹ plus a smooth remainder, the link then gathers what the row's
@@ -68,7 +70,8 @@
 //!
 //! 4. **The link error.** The same estimate of the radiosity, its second bounce
 //!    added, measures what the row's links may get wrong: their placement (each
-//!    link's mass times the range of the radiosity over its cluster) and their
+//!    link's mass times the range of the radiosity over its cluster, times the
+//!    spread of its weights when some are negative) and their
 //!    sampling (two standard errors), over what the row gathers ([`LinkSpread`]). It is
 //!    stored with the row (spec §5.7) and checked against the true error of rows
 //!    against dense rows in `tests/it/links.rs`.
@@ -86,7 +89,7 @@ use super::first_bounce::Contrast;
 use super::topk_bounded::systematic;
 use super::topk_tree::Tail;
 use super::{RowEngine, Scratch};
-use crate::formfactor::geom::PatchBound;
+use crate::formfactor::geom::{PatchBound, PatchGeom};
 use crate::formfactor::sampling::SplitMix64;
 use crate::formfactor::tree::{Kids, PatchTree};
 use crate::rows::Link;
@@ -120,6 +123,37 @@ struct Dropped {
 }
 
 impl Dropped {
+    /// What row i dropped, by position in the cluster order: the columns not kept
+    /// whose values are known (`exact`, those > 0) and the search's `tail`.
+    fn new(tree: &PatchTree, exact: &[(u32, f64)], tail: &[Tail]) -> Dropped {
+        let at = |j: u32| {
+            tree.position(j)
+                .expect("a column of the row is a tree patch")
+        };
+        let mut d = Dropped {
+            exact: exact
+                .iter()
+                .filter(|x| x.1 > 0.0)
+                .map(|&(j, v)| (at(j), v))
+                .collect(),
+            columns: Vec::new(),
+            nodes: Vec::new(),
+        };
+        for x in tail {
+            match *x {
+                Tail::Column(j, f0) => d.columns.push((at(j), j, f0)),
+                Tail::Node(id, guess) => {
+                    let (a, b) = tree.range(id);
+                    d.nodes.push((a, b, id, guess));
+                }
+            }
+        }
+        d.exact.sort_unstable_by_key(|x| x.0);
+        d.columns.sort_unstable_by_key(|x| x.0);
+        d.nodes.sort_unstable_by_key(|x| x.0);
+        d
+    }
+
     /// Whether positions [a, b) hold anything dropped.
     fn holds(&self, a: u32, b: u32) -> bool {
         let k = self.nodes.partition_point(|n| n.1 <= a);
@@ -157,7 +191,8 @@ enum Item {
 
 impl RowEngine {
     /// The links of row i (module docs): `known` is the mass the row knows exactly
-    /// (kept entries and `exact`), `exact` the columns not kept whose values are known,
+    /// (kept entries and `exact`), `kept` the columns the row stores, `exact` the
+    /// columns not kept whose values are known,
     /// `tail` the tail columns that need visibility and the unopened nodes, `t` the
     /// row's sample points, `max` the most links.
     #[allow(clippy::too_many_arguments)]
@@ -169,6 +204,7 @@ impl RowEngine {
         t: usize,
         max: usize,
         known: f64,
+        kept: &[u32],
         exact: &[(u32, f64)],
         tail: &[Tail],
         scratch: &mut Scratch,
@@ -180,27 +216,14 @@ impl RowEngine {
             tree.position(j)
                 .expect("a column of the row is a tree patch")
         };
-        let mut d = Dropped {
-            exact: exact
-                .iter()
-                .filter(|x| x.1 > 0.0)
-                .map(|&(j, v)| (at(j), v))
-                .collect(),
-            columns: Vec::new(),
-            nodes: Vec::new(),
-        };
-        for x in tail {
-            match *x {
-                Tail::Column(j, f0) => d.columns.push((at(j), j, f0)),
-                Tail::Node(id, guess) => {
-                    let (a, b) = tree.range(id);
-                    d.nodes.push((a, b, id, guess));
-                }
-            }
-        }
-        d.exact.sort_unstable_by_key(|x| x.0);
-        d.columns.sort_unstable_by_key(|x| x.0);
-        d.nodes.sort_unstable_by_key(|x| x.0);
+        let d = Dropped::new(tree, exact, tail);
+        // The patches of a range that are not its link's: the kept columns and i.
+        let mut others: Vec<(u32, u32)> = kept
+            .iter()
+            .chain(std::iter::once(&i))
+            .map(|&j| (at(j), j))
+            .collect();
+        others.sort_unstable();
         let total = known
             + d.columns.iter().map(|x| x.2).sum::<f64>()
             + d.nodes.iter().map(|x| x.3).sum::<f64>();
@@ -229,7 +252,7 @@ impl RowEngine {
         }
         let mut links = Vec::with_capacity(cut.len());
         // Per link of the cut, stored or not: (value, the scale of its sampled part's
-        // error, node id). That scale is the sampled part's mass without occluders
+        // error, node id, the spread of its weights). That scale is the sampled part's mass without occluders
         // over √points: one point's estimate can be 0 (a hidden patch) for a cluster
         // that holds much visible mass, or a large multiple of a small visible part, so
         // the realized value says little of its own error.
@@ -239,17 +262,33 @@ impl RowEngine {
             let value = mass as f32;
             let error = scale * unoccluded[k] / (points[k].max(1) as f64).sqrt();
             let stored = value.is_finite() && value > 0.0;
-            spread.push((if stored { f64::from(value) } else { 0.0 }, error, id));
+            let mut weights = 1.0;
             if stored {
                 let (a, b) = tree.range(id);
                 let centre = (known_x + scale * found_x) / mass;
+                let others: Vec<u32> = within(&others, |x| x.0, a, b).iter().map(|x| x.1).collect();
+                let slope = link_slope(
+                    tree,
+                    &self.geom,
+                    self.contrast.as_ref(),
+                    id,
+                    centre,
+                    &others,
+                );
+                weights = slope.spread;
                 links.push(Link {
                     start: a,
                     len: b - a,
                     value,
-                    slope: link_slope(tree, id, centre, self.contrast.as_ref()),
+                    slope: slope.q,
                 });
             }
+            spread.push((
+                if stored { f64::from(value) } else { 0.0 },
+                error,
+                id,
+                weights,
+            ));
         }
         let spread = self
             .contrast
@@ -569,8 +608,9 @@ const SAMPLING_SIGMAS: f64 = 2.0;
 /// (`first_bounce.rs`; the row's link error, spec §5.7): see [`LinkSpread::error`].
 #[derive(Clone, Copy, Debug, Default)]
 pub(super) struct LinkSpread {
-    /// Σ_L F_L (max − min of B over L's cluster): the most the links' placement of
-    /// their mass can change the gathered B, their weights being ≥ 0.
+    /// Σ_L F_L s_L (max − min of B over L's cluster): the most the links' placement
+    /// of their mass can change the gathered B, s_L the spread of L's weights
+    /// ([`Slope::spread`], 1 when none is negative).
     placement: f64,
     /// √Σ_L (σ_L (B̄_L − ḡ))²: the standard error that the sampling of the masses
     /// (σ_L for link L, B̄_L its cluster's area mean of B; ḡ the links' mass-weighted
@@ -588,22 +628,23 @@ pub(super) struct LinkSpread {
 }
 
 impl LinkSpread {
-    /// The spread of links given as (value, standard error of its mass, node id), with
-    /// `total` the standard error of the row total they were scaled to.
-    fn of(c: &Contrast, links: &[(f64, f64, u32)], total: f64) -> LinkSpread {
+    /// The spread of links given as (value, standard error of its mass, node id, the
+    /// spread of its weights), with `total` the standard error of the row total they
+    /// were scaled to.
+    fn of(c: &Contrast, links: &[(f64, f64, u32, f64)], total: f64) -> LinkSpread {
         let mean = |id: u32| c.both_mean[id as usize];
-        let (mass, gathered) = links
-            .iter()
-            .fold((0.0, 0.0), |(m, g), &(v, _, id)| (m + v, g + v * mean(id)));
+        let (mass, gathered) = links.iter().fold((0.0, 0.0), |(m, g), &(v, _, id, _)| {
+            (m + v, g + v * mean(id))
+        });
         let centre = if mass > 0.0 { gathered / mass } else { 0.0 };
         LinkSpread {
             placement: links
                 .iter()
-                .map(|&(v, _, id)| v * c.both_range[id as usize] as f64)
+                .map(|&(v, _, id, s)| v * s * c.both_range[id as usize] as f64)
                 .sum(),
             sampling: links
                 .iter()
-                .map(|&(_, e, id)| (e * (mean(id) - centre)).powi(2))
+                .map(|&(_, e, id, _)| (e * (mean(id) - centre)).powi(2))
                 .sum::<f64>()
                 .sqrt(),
             gathered,
@@ -628,27 +669,54 @@ impl LinkSpread {
     }
 }
 
+/// A link's slope (spec §5.7) and how far its weights may carry the gather outside
+/// the range of the radiosity over its patches.
+struct Slope {
+    q: [f32; 3],
+    /// (1 + Σ|u_j|) / 2 for the link's normalised weights u_j = w_j / Σ w: 1 when no
+    /// weight is negative, else an upper bound. The gathered mean of B then lies
+    /// within this many ranges of B over the link's patches from the true one.
+    spread: f64,
+}
+
 /// Step 3 (module docs): the slope q of a link to node `id` whose mass has its
-/// centroid at `centre` (spec §5.7). The weights A_j (1 + q · (x_j − x̄)) over the
-/// node's patches have their centroid at x̄ + M q / A (M the node's second moments,
-/// A its area), so q = A M⁺ (centre − x̄), with M⁺ the pseudo-inverse (a planar or
-/// straight cluster has no second moment across itself, and no slope there). Then q
-/// is shrunk, if need be, until 1 + q · (x − x̄) ≥ 0 over the box of the node's
-/// centroids, so that no weight is negative (the mass then leans less than it should,
-/// never the wrong way). The box holds more than the centroids, so this shrinks more
-/// than it must (bench/LINKS.md).
+/// centroid at `centre` (spec §5.7), `others` the patches of the node's range
+/// that are not the link's (the row's kept columns and the row patch). The weights
+/// A_j (1 + q · (x_j − x̄)) over the node's patches have their centroid at
+/// x̄ + M q / A (M the node's second moments, A its area), so q = A M⁺ (centre −
+/// x̄), with M⁺ the pseudo-inverse (a planar or straight cluster has no second
+/// moment across itself, and no slope there).
 ///
-/// With a first-bounce estimate (`contrast`), `centre.w` is the F-weighted mean of B¹
-/// over the link, and before the limit q moves by δ = M⁺g (t − g · q) / (gᵀM⁺g), with
-/// g = Σ A_j (x_j − x̄) B¹_j and t = A centre.w − Σ A_j B¹_j: the least change, in
-/// the metric δᵀMδ = Σ A_j (δ · (x_j − x̄))² of the weights it moves, after which the
-/// weights' mean of B¹ is that target.
-fn link_slope(tree: &PatchTree, id: u32, centre: DVec4, contrast: Option<&Contrast>) -> [f32; 3] {
+/// With a first-bounce estimate, `centre.w` is the F-weighted mean of B¹ over the
+/// link, and q then moves by δ = M⁺g (t − g · q) / (gᵀM⁺g), with g = Σ A_j (x_j −
+/// x̄) B¹_j and t = A centre.w − Σ A_j B¹_j: the least change, in the metric δᵀMδ =
+/// Σ A_j (δ · (x_j − x̄))² of the weights it moves, after which the weights' mean
+/// of B¹ is that target.
+///
+/// The weights are a rule for the gather, not form factors of single patches, and
+/// may be negative (as a quadrature's may), but not without limit: q is shrunk
+/// until 1 + q · (x − x̄) ≥ [`WEIGHT_FLOOR`] over the box of the node's centroids
+/// and the link's own patches keep at least half their area as weight, Σ w ≥ A_L
+/// / 2. That bounds what the weights can do to noise in the radiosity
+/// ([`Slope::spread`]); a floor of 0, no negative weight, left the ceiling of the
+/// 16-box room 2.5 % dark at 10k patches (bench/LINKS.md, "Weights below zero").
+fn link_slope(
+    tree: &PatchTree,
+    geom: &[PatchGeom],
+    contrast: Option<&Contrast>,
+    id: u32,
+    centre: DVec4,
+    others: &[u32],
+) -> Slope {
+    let flat = Slope {
+        q: [0.0; 3],
+        spread: 1.0,
+    };
     let node = tree.node(id);
     let (area, mean, m) = node.moments();
     let shift = centre.truncate() - mean;
     if node.count() < 2 || !shift.is_finite() || area.is_nan() || area <= 0.0 {
-        return [0.0; 3];
+        return flat;
     }
     let mut q = area * pseudo_solve(m, shift);
     if let Some(c) = contrast {
@@ -662,16 +730,51 @@ fn link_slope(tree: &PatchTree, id: u32, centre: DVec4, contrast: Option<&Contra
     }
     let (lo, hi) = node.centroid_bounds();
     // The least of q · (x − x̄) over the box: each axis at its worse end.
-    let least: f64 = (0..3)
-        .map(|k| (q[k] * (lo[k] - mean[k])).min(q[k] * (hi[k] - mean[k])))
-        .sum();
-    let q = if least < -1.0 { q / -least } else { q };
-    if q.is_finite() {
-        q.to_array().map(|x| round_slope(x as f32))
+    let least = |q: DVec3| -> f64 {
+        (0..3)
+            .map(|k| (q[k] * (lo[k] - mean[k])).min(q[k] * (hi[k] - mean[k])))
+            .sum()
+    };
+    // The link's own area, and Σ A_j (x_j − x̄) over the patches that are not its
+    // own: Σ w over its own patches is A_L − q · that (the weights of the whole
+    // range sum to A).
+    let (others_area, others_moment) = others.iter().fold((0.0, DVec3::ZERO), |(a, x), &j| {
+        let g = &geom[j as usize];
+        (a + g.area, x + g.area * (g.centroid - mean))
+    });
+    let link_area = area - others_area;
+    let mut shrink: f64 = 1.0;
+    let low = least(q);
+    if low < WEIGHT_FLOOR - 1.0 {
+        shrink = shrink.min((1.0 - WEIGHT_FLOOR) / -low);
+    }
+    let lost = q.dot(others_moment);
+    if lost > 0.5 * link_area {
+        shrink = shrink.min(0.5 * link_area / lost);
+    }
+    let full = q * shrink;
+    // Cut to a few bits, unless that moves the weights' centroid (M q / A) by more
+    // than an eighth of its shift: across a thin cluster M is nearly singular, q
+    // large there, and the cut of that large component would land in the wide
+    // directions, where M magnifies it.
+    let cut = full.to_array().map(|x| round_slope(x as f32));
+    let shift_of = |q: DVec3| matrix(m) * q;
+    let cut_miss = shift_of(DVec3::from_array(cut.map(f64::from)) - full).length();
+    let q = match cut_miss <= shift_of(full).length() / 8.0 {
+        true => cut,
+        false => full.to_array().map(|x| x as f32),
+    };
+    let qd = DVec3::from_array(q.map(f64::from));
+    let sum = link_area - qd.dot(others_moment);
+    let below = -(1.0 + least(qd)).min(0.0);
+    let spread = 1.0 + below * link_area / sum;
+    if q.iter().all(|x| x.is_finite()) && sum > 0.0 && spread.is_finite() {
+        Slope { q, spread }
     } else {
-        [0.0; 3]
+        flat
     }
 }
+
 /// `x` cut to [`SLOPE_BITS`] bits of mantissa, toward zero (so a slope the limiter
 /// allowed stays allowed): a slope needs no more than a few percent, and cut values
 /// compress (their low bytes are zero, and shuffling puts them together). Measured on
@@ -681,6 +784,17 @@ fn round_slope(x: f32) -> f32 {
     const DROP: u32 = 23 - SLOPE_BITS;
     f32::from_bits((x.to_bits() >> DROP) << DROP)
 }
+
+/// The symmetric 3 × 3 matrix of second moments stored as (xx, yy, zz, xy, xz, yz).
+pub(super) fn matrix(m: [f64; 6]) -> glam::DMat3 {
+    glam::DMat3::from_cols_array(&[m[0], m[3], m[4], m[3], m[1], m[5], m[4], m[5], m[2]])
+}
+
+/// The least a link's weight may be, as a multiple of its patch's area (spec §5.7):
+/// 1 + q · (x − x̄) ≥ this over the box of the cluster's centroids. On the 16-box room
+/// at 10k patches, floors of 0, −1, −2, −4 and none left the ceiling −2.5, −1.3,
+/// −0.8, −0.55 and −0.34 % off dense rows (bench/LINKS.md, "Weights below zero").
+const WEIGHT_FLOOR: f64 = -4.0;
 
 /// Mantissa bits a stored slope keeps (relative error at most 2^-4).
 const SLOPE_BITS: u32 = 4;

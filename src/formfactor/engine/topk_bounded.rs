@@ -301,6 +301,15 @@ impl Kept {
         }
     }
 
+    /// The columns the row will store (those whose value is > 0 as f32), in no order.
+    pub(super) fn columns(&self) -> Vec<u32> {
+        self.heap
+            .iter()
+            .filter(|Reverse((bits, _))| f64::from_bits(*bits) as f32 > 0.0)
+            .map(|Reverse((_, Reverse(j)))| *j)
+            .collect()
+    }
+
     /// Row i of the kept entries (columns ascending; entries whose visibility came out
     /// 0 carry no mass and stay out), dropped = pushed out + `tail`.
     pub(super) fn into_row(self, i: u32, tail: f64) -> Row {

@@ -277,8 +277,10 @@ impl RowEngine {
         if let Some(max) = links {
             let mut exact = kept.out.take().unwrap_or_default();
             exact.extend(exact_columns);
-            let (links, spread) =
-                self.row_links(tree, i, &row, t, max, known, &exact, &tail, scratch);
+            let stored = kept.columns();
+            let (links, spread) = self.row_links(
+                tree, i, &row, t, max, known, &stored, &exact, &tail, scratch,
+            );
             let mut out = kept.into_linked_row(i, 0.0, links);
             if !out.links.is_empty() {
                 let (gather, mass) = self.kept_bounce(&out);

@@ -13,10 +13,6 @@ fn room_tree() -> (PatchTree, Vec<PatchGeom>) {
     (PatchTree::new(&geom, &valid, 1e-10, 1e-12), geom)
 }
 
-fn matrix(m: [f64; 6]) -> glam::DMat3 {
-    glam::DMat3::from_cols_array(&[m[0], m[3], m[4], m[3], m[1], m[5], m[4], m[5], m[2]])
-}
-
 /// The points of an unopened node (step 2) estimate the node's Σ_j F_ij without
 /// bias: in the 16-box room (boxes between many pairs), for rows on the floor,
 /// the ceiling and a wall and every node of a few dozen patches clear of the row
@@ -111,9 +107,10 @@ fn pseudo_solve_inverts_a_full_matrix_and_leaves_out_a_flat_direction() {
 
 /// The slope puts the centroid of the link's weights A_j (1 + q · (x_j − x̄)) at
 /// the centre it was given, for every node of the room's tree with some extent,
-/// while the limiter keeps every weight ≥ 0; a centre far outside shrinks it.
+/// while the limiter keeps every weight ≥ [`WEIGHT_FLOOR`] A_j; a centre far outside
+/// shrinks it, and the spread it reports bounds (1 + Σ |w_j| / Σ w_j) / 2.
 #[test]
-fn a_slope_moves_the_weights_centroid_to_the_links_centre_and_no_weight_below_zero() {
+fn a_slope_moves_the_weights_centroid_to_the_links_centre_and_no_weight_below_the_floor() {
     let (tree, geom) = room_tree();
     let mut exact = 0;
     for id in 0..tree.len() as u32 {
@@ -127,14 +124,25 @@ fn a_slope_moves_the_weights_centroid_to_the_links_centre_and_no_weight_below_ze
         let near = mean + 0.05 * (geom[pat[0] as usize].centroid - mean);
         let far = mean + 1e3 * (geom[pat[0] as usize].centroid - mean);
         for centre in [near, far] {
-            let q =
-                DVec3::from_array(link_slope(&tree, id, centre.extend(0.0), None).map(f64::from));
+            let slope = link_slope(&tree, &geom, None, id, centre.extend(0.0), &[]);
+            let q = DVec3::from_array(slope.q.map(f64::from));
             let w: Vec<f64> = pat
                 .iter()
                 .map(|&j| geom[j as usize].area * (1.0 + q.dot(geom[j as usize].centroid - mean)))
                 .collect();
-            assert!(w.iter().all(|&x| x >= -1e-12 * area), "node {id}: {w:?}");
+            assert!(
+                pat.iter()
+                    .zip(&w)
+                    .all(|(&j, &x)| x >= WEIGHT_FLOOR * geom[j as usize].area - 1e-12 * area),
+                "node {id}: {w:?}"
+            );
             let sum: f64 = w.iter().sum();
+            let abs: f64 = w.iter().map(|x| x.abs()).sum();
+            assert!(
+                slope.spread >= (1.0 + abs / sum) / 2.0 - 1e-12,
+                "node {id}: spread {} for weights {w:?}",
+                slope.spread
+            );
             assert!(
                 (sum - area).abs() < 1e-9 * area,
                 "node {id}: weights sum {sum} vs {area}"
@@ -154,7 +162,11 @@ fn a_slope_moves_the_weights_centroid_to_the_links_centre_and_no_weight_below_ze
             }
             if centre == far {
                 // Limited: it leans the right way, less far.
-                assert!((got - mean).dot(want - mean) >= 0.0, "node {id}");
+                assert!(
+                    (got - mean).dot(want - mean) >= 0.0,
+                    "node {id}: got {got} want {want} mean {mean} q {q} m {m:?} count {}",
+                    node.count()
+                );
                 assert!((got - mean).length() <= (want - mean).length() + 1e-9 * size);
             }
         }
@@ -190,7 +202,9 @@ fn a_first_bounce_target_is_gathered_by_the_weights() {
             .fold(f64::MIN, f64::max);
         let target = sum / area + 0.02 * (top - sum / area);
         let q = DVec3::from_array(
-            link_slope(&tree, id, mean.extend(target), Some(&contrast)).map(f64::from),
+            link_slope(&tree, &geom, Some(&contrast), id, mean.extend(target), &[])
+                .q
+                .map(f64::from),
         );
         let w = |j: u32| geom[j as usize].area * (1.0 + q.dot(geom[j as usize].centroid - mean));
         let total: f64 = pat.iter().map(|&j| w(j)).sum();
