@@ -49,7 +49,7 @@ pub(crate) struct SolveOptions {
     /// Memory the solve may use to make its sweeps faster, in MiB (0 to 1048576): the
     /// rows as read, and for rows that link to clusters their links made ready to
     /// gather (docs/numerics.md §8), so that later sweeps neither decode the file nor
-    /// work the links out again. The answer is the same with 0. Default: 3072, or half
+    /// work the links out again. The answer is the same with 0. Default: 2048, or half
     /// the memory available when that is less.
     #[arg(long, value_name = "MIB", value_parser = clap::value_parser!(u64).range(0..=1 << 20))]
     pub cache_mib: Option<u64>,
