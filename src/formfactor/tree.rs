@@ -540,6 +540,11 @@ fn cos_above(theta: f64) -> f64 {
     }
 }
 
+/// Second moments stored as (xx, yy, zz, xy, xz, yz) as the symmetric 3 × 3 matrix.
+pub(crate) fn second_matrix(m: [f64; 6]) -> glam::DMat3 {
+    glam::DMat3::from_cols_array(&[m[0], m[3], m[4], m[3], m[1], m[5], m[4], m[5], m[2]])
+}
+
 /// The products of r's components that second moments sum, in their stored order
 /// (xx, yy, zz, xy, xz, yz).
 pub(crate) fn second_products(r: DVec3) -> [f64; 6] {

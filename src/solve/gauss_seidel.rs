@@ -8,8 +8,9 @@
 //! the old value) is a regular splitting of it (Varga, Matrix Iterative Analysis,
 //! thm. 3.13). Links whose slope takes some weights below zero (spec §5.7) make some
 //! entries negative; then it converges whenever max_i ρ_i Σ_j |F_ij| < 1 (the sweep
-//! is a contraction in the max norm), the coefficient of the stopping rule below. The answer differs between orders only within the tolerance. Random
-//! access in patch order would cost a seek per row for no gain in convergence.
+//! is a contraction in the max norm), the coefficient of the stopping rule below.
+//! The answer differs between orders only within the tolerance. Random access in
+//! patch order would cost a seek per row for no gain in convergence.
 //!
 //! Stopping rule. Splitting F into the entries read before and after row i in a
 //! sweep, the residual after the sweep is r_i = ρ_i Σ_{j not yet updated when row i

@@ -27,7 +27,7 @@ use std::sync::OnceLock;
 
 use glam::DVec3;
 
-use crate::formfactor::tree::second_products;
+use crate::formfactor::tree::{second_matrix, second_products};
 use crate::rows::Link;
 
 /// The cluster order of a source, with what the gather through links needs.
@@ -311,14 +311,9 @@ impl LinkSpace {
     /// A_j (1 + q · (x_j − x̄)) of the range can hold below zero.
     fn tilt_size(&self, s: usize, e: usize, mean: DVec3, q: DVec3) -> f64 {
         let a = self.prefix_area[e] - self.prefix_area[s];
-        let m: Vec<f64> = (0..6)
-            .map(|k| self.prefix_second[e][k] - self.prefix_second[s][k])
-            .collect();
+        let m = std::array::from_fn(|k| self.prefix_second[e][k] - self.prefix_second[s][k]);
         // qᵀ (Σ A x xᵀ) q − A (q · x̄)²: the second moments about the mean.
-        let about_origin = q.x * q.x * m[0]
-            + q.y * q.y * m[1]
-            + q.z * q.z * m[2]
-            + 2.0 * (q.x * q.y * m[3] + q.x * q.z * m[4] + q.y * q.z * m[5]);
+        let about_origin = q.dot(second_matrix(m) * q);
         (a * (about_origin - a * q.dot(mean).powi(2)).max(0.0)).sqrt()
     }
 
@@ -330,8 +325,9 @@ impl LinkSpace {
     /// `acc[c] += Σ_L F_iL · (Σ w_j b_j / Σ w_j over L's patches)` for row i with kept
     /// columns `cols`, against the radiosity `prefix` was made of ([`LinkSpace::prefix`]).
     /// Returns a bound on Σ |F_ij| over the links' patches, Σ F_iL when no weight is
-    /// negative (the Gauss–Seidel bound's). With a cache ([`LinkSpace::with_cache`]) a row's links are made
-    /// ready once, the first time it is gathered, while the cache has room.
+    /// negative (the Gauss–Seidel bound's). With a cache ([`LinkSpace::with_cache`])
+    /// a row's links are made ready once, the first time it is gathered, while the
+    /// cache has room.
     pub(crate) fn gather(
         &self,
         links: &[Link],
@@ -484,12 +480,8 @@ impl LinkSpace {
             let g = f64::from(l.value) / w;
             // Σ |F_ij| over the link's patches: F_iL when no weight is negative; a
             // slope's negative weights (spec §5.7) add at most g times the range's
-            // tilt (what the range holds below zero, twice).
-            ready.sum += f64::from(l.value)
-                + match q == DVec3::ZERO {
-                    true => 0.0,
-                    false => g * self.tilt_size(s, e, mean, q),
-                };
+            // tilt (what the range holds below zero, twice; 0 without a slope).
+            ready.sum += f64::from(l.value) + g * self.tilt_size(s, e, mean, q);
             let slope = if q == DVec3::ZERO { [0.0; 3] } else { l.slope };
             ready.links.push(ReadyLink {
                 start: l.start,

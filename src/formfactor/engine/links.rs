@@ -91,7 +91,7 @@ use super::topk_tree::Tail;
 use super::{RowEngine, Scratch};
 use crate::formfactor::geom::{PatchBound, PatchGeom};
 use crate::formfactor::sampling::SplitMix64;
-use crate::formfactor::tree::{Kids, PatchTree};
+use crate::formfactor::tree::{second_matrix, Kids, PatchTree};
 use crate::rows::Link;
 
 /// A tail of at most this many times `t` patches is evaluated in full (as without
@@ -126,22 +126,18 @@ impl Dropped {
     /// What row i dropped, by position in the cluster order: the columns not kept
     /// whose values are known (`exact`, those > 0) and the search's `tail`.
     fn new(tree: &PatchTree, exact: &[(u32, f64)], tail: &[Tail]) -> Dropped {
-        let at = |j: u32| {
-            tree.position(j)
-                .expect("a column of the row is a tree patch")
-        };
         let mut d = Dropped {
             exact: exact
                 .iter()
                 .filter(|x| x.1 > 0.0)
-                .map(|&(j, v)| (at(j), v))
+                .map(|&(j, v)| (position(tree, j), v))
                 .collect(),
             columns: Vec::new(),
             nodes: Vec::new(),
         };
         for x in tail {
             match *x {
-                Tail::Column(j, f0) => d.columns.push((at(j), j, f0)),
+                Tail::Column(j, f0) => d.columns.push((position(tree, j), j, f0)),
                 Tail::Node(id, guess) => {
                     let (a, b) = tree.range(id);
                     d.nodes.push((a, b, id, guess));
@@ -167,6 +163,12 @@ impl Dropped {
         let k = self.nodes.partition_point(|n| n.1 <= a);
         self.nodes.get(k).copied().filter(|n| n.0 <= a && b <= n.1)
     }
+}
+
+/// Patch j's position in the cluster order: a row's columns are all tree patches.
+fn position(tree: &PatchTree, j: u32) -> u32 {
+    tree.position(j)
+        .expect("a column of the row is a tree patch")
 }
 
 /// Whether some item of `items` (sorted by `pos`) has its position in [a, b).
@@ -212,16 +214,12 @@ impl RowEngine {
         let Some(root) = tree.root() else {
             return (Vec::new(), LinkSpread::default());
         };
-        let at = |j: u32| {
-            tree.position(j)
-                .expect("a column of the row is a tree patch")
-        };
         let d = Dropped::new(tree, exact, tail);
         // The patches of a range that are not its link's: the kept columns and i.
         let mut others: Vec<(u32, u32)> = kept
             .iter()
             .chain(std::iter::once(&i))
-            .map(|&j| (at(j), j))
+            .map(|&j| (position(tree, j), j))
             .collect();
         others.sort_unstable();
         let total = known
@@ -252,10 +250,10 @@ impl RowEngine {
         }
         let mut links = Vec::with_capacity(cut.len());
         // Per link of the cut, stored or not: (value, the scale of its sampled part's
-        // error, node id, the spread of its weights). That scale is the sampled part's mass without occluders
-        // over √points: one point's estimate can be 0 (a hidden patch) for a cluster
-        // that holds much visible mass, or a large multiple of a small visible part, so
-        // the realized value says little of its own error.
+        // error, node id, the spread of its weights). That scale is the sampled part's
+        // mass without occluders over √points: one point's estimate can be 0 (a hidden
+        // patch) for a cluster that holds much visible mass, or a large multiple of a
+        // small visible part, so the realized value says little of its own error.
         let mut spread = Vec::with_capacity(cut.len());
         for (k, (&id, (known_x, found_x))) in cut.iter().zip(lean).enumerate() {
             let mass = exact[k] + scale * (evaluated[k] + sampled[k]);
@@ -266,14 +264,13 @@ impl RowEngine {
             if stored {
                 let (a, b) = tree.range(id);
                 let centre = (known_x + scale * found_x) / mass;
-                let others: Vec<u32> = within(&others, |x| x.0, a, b).iter().map(|x| x.1).collect();
                 let slope = link_slope(
                     tree,
                     &self.geom,
                     self.contrast.as_ref(),
                     id,
                     centre,
-                    &others,
+                    within(&others, |x| x.0, a, b),
                 );
                 weights = slope.spread;
                 links.push(Link {
@@ -681,7 +678,8 @@ struct Slope {
 
 /// Step 3 (module docs): the slope q of a link to node `id` whose mass has its
 /// centroid at `centre` (spec §5.7), `others` the patches of the node's range
-/// that are not the link's (the row's kept columns and the row patch). The weights
+/// that are not the link's (the row's kept columns and the row patch), as (position,
+/// patch). The weights
 /// A_j (1 + q · (x_j − x̄)) over the node's patches have their centroid at
 /// x̄ + M q / A (M the node's second moments, A its area), so q = A M⁺ (centre −
 /// x̄), with M⁺ the pseudo-inverse (a planar or straight cluster has no second
@@ -706,7 +704,7 @@ fn link_slope(
     contrast: Option<&Contrast>,
     id: u32,
     centre: DVec4,
-    others: &[u32],
+    others: &[(u32, u32)],
 ) -> Slope {
     let flat = Slope {
         q: [0.0; 3],
@@ -738,7 +736,7 @@ fn link_slope(
     // The link's own area, and Σ A_j (x_j − x̄) over the patches that are not its
     // own: Σ w over its own patches is A_L − q · that (the weights of the whole
     // range sum to A).
-    let (others_area, others_moment) = others.iter().fold((0.0, DVec3::ZERO), |(a, x), &j| {
+    let (others_area, others_moment) = others.iter().fold((0.0, DVec3::ZERO), |(a, x), &(_, j)| {
         let g = &geom[j as usize];
         (a + g.area, x + g.area * (g.centroid - mean))
     });
@@ -758,7 +756,7 @@ fn link_slope(
     // large there, and the cut of that large component would land in the wide
     // directions, where M magnifies it.
     let cut = full.to_array().map(|x| round_slope(x as f32));
-    let shift_of = |q: DVec3| matrix(m) * q;
+    let shift_of = |q: DVec3| second_matrix(m) * q;
     let cut_miss = shift_of(DVec3::from_array(cut.map(f64::from)) - full).length();
     let q = match cut_miss <= shift_of(full).length() / 8.0 {
         true => cut,
@@ -783,11 +781,6 @@ fn link_slope(
 fn round_slope(x: f32) -> f32 {
     const DROP: u32 = 23 - SLOPE_BITS;
     f32::from_bits((x.to_bits() >> DROP) << DROP)
-}
-
-/// The symmetric 3 × 3 matrix of second moments stored as (xx, yy, zz, xy, xz, yz).
-pub(super) fn matrix(m: [f64; 6]) -> glam::DMat3 {
-    glam::DMat3::from_cols_array(&[m[0], m[3], m[4], m[3], m[1], m[5], m[4], m[5], m[2]])
 }
 
 /// The least a link's weight may be, as a multiple of its patch's area (spec §5.7):

@@ -360,16 +360,21 @@ fn solve_reports_each_sweep_unless_quiet() {
     ]);
     for (solver, label) in [("gauss-seidel", "residual bound"), ("jacobi", "residual")] {
         let (loud, quiet) = (dir.path().join("loud.csv"), dir.path().join("quiet.csv"));
-        let out = ffstream(&[
-            "solve",
-            path_str(&file),
-            "--solver",
-            solver,
-            "-o",
-            path_str(&loud),
-        ]);
-        assert!(out.status.success());
-        let stderr = String::from_utf8_lossy(&out.stderr);
+        // `solve` of the file with this solver into `out`, after the global `first`.
+        let solve = |first: &[&str], out: &Path| {
+            let args = [
+                "solve",
+                path_str(&file),
+                "--solver",
+                solver,
+                "-o",
+                path_str(out),
+            ];
+            let out = ffstream(&[first, &args[..]].concat());
+            assert!(out.status.success());
+            String::from_utf8_lossy(&out.stderr).into_owned()
+        };
+        let stderr = solve(&[], &loud);
         let lines: Vec<&str> = stderr
             .lines()
             .filter(|l| l.starts_with("progress:"))
@@ -382,17 +387,7 @@ fn solve_reports_each_sweep_unless_quiet() {
             last = rest.split(',').next().unwrap().parse().unwrap();
         }
         assert!(last <= 1e-6, "{solver}: last {last}");
-        let out = ffstream(&[
-            "-q",
-            "solve",
-            path_str(&file),
-            "--solver",
-            solver,
-            "-o",
-            path_str(&quiet),
-        ]);
-        assert!(out.status.success());
-        let stderr = String::from_utf8_lossy(&out.stderr);
+        let stderr = solve(&["-q"], &quiet);
         assert!(!stderr.contains("progress:"), "{stderr}");
         assert_eq!(
             std::fs::read(&loud).unwrap(),

@@ -2,6 +2,7 @@
 
 use super::*;
 use crate::formfactor::geom::PatchGeom;
+use crate::formfactor::tree::second_matrix;
 use crate::geometry::subdivide::{default_max_edge, subdivide};
 use crate::scene::builtin;
 
@@ -87,7 +88,7 @@ fn pseudo_solve_inverts_a_full_matrix_and_leaves_out_a_flat_direction() {
     let m = [4.0, 3.0, 2.0, 1.0, 0.5, -0.25];
     let v = DVec3::new(1.0, -2.0, 0.5);
     let x = pseudo_solve(m, v);
-    assert!((matrix(m) * x - v).length() < 1e-12, "{x}");
+    assert!((second_matrix(m) * x - v).length() < 1e-12, "{x}");
     // A cluster flat across z (rotated): no second moment along the normal n.
     let n = DVec3::new(1.0, 2.0, 2.0) / 3.0;
     let (u, w) = n.any_orthonormal_pair();
@@ -154,7 +155,7 @@ fn a_slope_moves_the_weights_centroid_to_the_links_centre_and_no_weight_below_th
                 .sum::<DVec3>()
                 / sum;
             // The reachable part of the shift: its projection on the node's extent.
-            let want = mean + matrix(m) * pseudo_solve(m, centre - mean);
+            let want = mean + second_matrix(m) * pseudo_solve(m, centre - mean);
             let size = (node.centroid_bounds().1 - node.centroid_bounds().0).length();
             if centre == near && (got - want).length() < 0.07 * (want - mean).length() + 1e-9 * size
             {
