@@ -15,8 +15,9 @@ pub(crate) struct InfoArgs {
 pub(crate) struct VerifyArgs {
     /// The .ffz file.
     pub file: PathBuf,
-    /// Compare row by row with this file (same scene): reports identical rows, the
-    /// largest difference, and rows present in only one of them.
+    /// Compare row by row with this file (same scene): reports identical rows (every
+    /// stored bit: entries, dropped mass, links with their slopes, link error), the
+    /// largest difference of the entries, and rows present in only one of them.
     #[arg(long, value_name = "OTHER.ffz")]
     pub against: Option<PathBuf>,
     /// A row whose sum (stored + dropped mass) exceeds 1 + TOL fails the file (exit 3):

@@ -16,7 +16,7 @@ use super::meta::Layout;
 use super::presence::RowState;
 use super::reader::FfzReader;
 use super::spec;
-use crate::rows::{Row, RowValues};
+use crate::rows::{Link, Row, RowValues};
 
 /// Options of [`FfzReader::verify_with`] and [`compare`].
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -705,11 +705,21 @@ fn collect_rows(
     });
 }
 
-/// Equality of bit patterns (so NaN = NaN and 0.0 ≠ −0.0), which `PartialEq` on f32 is not.
+/// Equality of bit patterns (so NaN = NaN and 0.0 ≠ −0.0), which `PartialEq` on f32 is not,
+/// of everything a row stores: entries, dropped mass, links (slopes included) and link error.
 fn bitwise_eq(a: &Row, b: &Row) -> bool {
     let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+    let link_bits = |l: &Link| {
+        let s = l.slope.map(f32::to_bits);
+        (l.start, l.len, l.value.to_bits(), s)
+    };
     a.index == b.index
         && a.dropped.to_bits() == b.dropped.to_bits()
+        && a.links
+            .iter()
+            .map(link_bits)
+            .eq(b.links.iter().map(link_bits))
+        && a.link_error.map(f32::to_bits) == b.link_error.map(f32::to_bits)
         && match (&a.values, &b.values) {
             (RowValues::Dense(x), RowValues::Dense(y)) => bits(x) == bits(y),
             (
@@ -719,4 +729,44 @@ fn bitwise_eq(a: &Row, b: &Row) -> bool {
             (RowValues::Skipped, RowValues::Skipped) => true,
             _ => false,
         }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Rows that differ only in a link's slope, value or range, or in the link error,
+    /// are not identical (their entries and dropped mass are).
+    #[test]
+    fn rows_that_differ_in_their_links_alone_are_not_identical() {
+        let link = Link {
+            start: 3,
+            len: 5,
+            value: 0.25,
+            slope: [0.5, 0.0, -1.0],
+        };
+        let row = Row {
+            index: 7,
+            values: RowValues::Sparse {
+                cols: vec![1, 2],
+                vals: vec![0.125, 0.0625],
+            },
+            dropped: 0.25,
+            links: vec![link],
+            link_error: Some(0.01),
+        };
+        assert!(bitwise_eq(&row, &row.clone()));
+        let changes: [fn(&mut Row); 5] = [
+            |r| r.links[0].slope[1] = 1e-3,
+            |r| r.links[0].value = 0.5,
+            |r| r.links[0].start = 4,
+            |r| r.link_error = Some(0.02),
+            |r| r.links.clear(),
+        ];
+        for change in changes {
+            let mut other = row.clone();
+            change(&mut other);
+            assert!(!bitwise_eq(&row, &other), "{other:?}");
+        }
+    }
 }

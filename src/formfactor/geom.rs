@@ -68,12 +68,23 @@ impl PatchGeom {
         other: &PatchGeom,
         q: [f64; 4],
     ) -> Option<(DVec3, DVec3, f64)> {
+        self.kernel_point_on(&other.map, other.normal, q)
+    }
+
+    /// [`PatchGeom::kernel_point`] toward the patch with map `map` and normal `normal`.
+    #[inline]
+    pub(crate) fn kernel_point_on(
+        &self,
+        map: &PatchMap,
+        normal: DVec3,
+        q: [f64; 4],
+    ) -> Option<(DVec3, DVec3, f64)> {
         let (x, jx) = self.map.eval(q[0], q[1]);
-        let (y, jy) = other.map.eval(q[2], q[3]);
+        let (y, jy) = map.eval(q[2], q[3]);
         let d = y - x;
         let r2 = d.length_squared();
         let ci = self.normal.dot(d);
-        let cj = -other.normal.dot(d);
+        let cj = -normal.dot(d);
         (ci > 0.0 && cj > 0.0 && r2 > 0.0).then(|| (x, y, jx * jy * ci * cj / (r2 * r2)))
     }
 

@@ -216,16 +216,57 @@ impl PatchTree {
         tree
     }
 
-    /// The patch under node `id` at `u` along its area, `u` in [0, the node's area):
-    /// patches taken in tree order, each as long as its area, so that a uniform `u`
-    /// draws a patch in proportion to its area (the last patch when rounding carries
-    /// `u` past the end).
-    pub(crate) fn patch_at_area(&self, id: u32, u: f64) -> u32 {
+    /// One (node, u) of [`PatchTree::positions_at_area`], by `partition_point`: the
+    /// tests' reference.
+    #[cfg(test)]
+    pub(crate) fn position_at_area(&self, id: u32, u: f64) -> u32 {
         let (a, b) = self.range(id);
         let before = &self.area_before[a as usize..=b as usize];
         let target = before[0] + u;
         let k = before[1..].partition_point(|&x| x <= target);
-        self.order[a as usize + k.min((b - a - 1) as usize)]
+        a + k.min((b - a - 1) as usize) as u32
+    }
+
+    /// For each (node `id`, `u`) of `at`, into `out`: the position (in
+    /// [`PatchTree::cluster_order`]) of the patch under node `id` at `u` along its
+    /// area, `u` in [0, the node's area), patches taken in tree order, each as long as
+    /// its area, so that a uniform `u` draws a patch in proportion to its area (the
+    /// last patch when rounding carries `u` past the end). The binary searches advance
+    /// in step, so that their cache misses overlap instead of following one another
+    /// (the links' points, `engine/points.rs`); the tests check the positions against
+    /// one search at a time (a monotone predicate has one partition point).
+    pub(crate) fn positions_at_area<const B: usize>(&self, at: &[(u32, f64)], out: &mut [u32; B]) {
+        assert!(at.len() <= B, "{} searches for {B} places", at.len());
+        let (mut from, mut base, mut size, mut target) = ([0; B], [0; B], [0; B], [0.0; B]);
+        for (t, &(id, u)) in at.iter().enumerate() {
+            let (a, b) = self.range(id);
+            // The search is over area_before[a + 1..=b], for the last entry <= target.
+            from[t] = a as usize + 1;
+            size[t] = (b - a) as usize;
+            target[t] = self.area_before[a as usize] + u;
+        }
+        let m = at.len();
+        loop {
+            let mut more = false;
+            for t in 0..m {
+                if size[t] > 1 {
+                    let half = size[t] / 2;
+                    if self.area_before[from[t] + base[t] + half] <= target[t] {
+                        base[t] += half;
+                    }
+                    size[t] -= half;
+                    more = true;
+                }
+            }
+            if !more {
+                break;
+            }
+        }
+        for t in 0..m {
+            let k = base[t] + usize::from(self.area_before[from[t] + base[t]] <= target[t]);
+            let (a, b) = self.range(at[t].0);
+            out[t] = a + k.min((b - a - 1) as usize) as u32;
+        }
     }
 
     /// Where patch `j` stands in [`PatchTree::cluster_order`] (`None` for a patch

@@ -258,13 +258,22 @@ fn engine_for(
     }
     let occluders = Arc::new(tracing::info_span!("build_bvh").in_scope(|| mesh.build()));
     let engine = tracing::info_span!("prepare_engine")
-        .in_scope(|| RowEngine::new(patches, occluders, cfg.clone()));
+        .in_scope(|| RowEngine::with_threads(patches, occluders, cfg.clone(), s.threads_or_all()));
     // Under mpirun rank 0 builds no engine: the first worker says it (every rank
     // finds the same solids in the same scene).
     let who = match role {
         Role::Worker(1) => "rank 1: ",
         _ => "",
     };
+    if let (Some(took), true) = (
+        engine.links_setup_seconds(),
+        announce || role == Role::Worker(1),
+    ) {
+        say(&format!(
+            "ffstream: {who}links: their set-up (mostly the first-bounce radiosity that \
+             steers them) took {took:.3} s of the set-up"
+        ));
+    }
     if let (Some((solids, triangles)), true) =
         (engine.solids_found(), announce || role == Role::Worker(1))
     {

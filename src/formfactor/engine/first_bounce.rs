@@ -134,23 +134,16 @@ impl RowEngine {
         rng: &mut SplitMix64,
         scratch: &mut Scratch,
     ) -> Option<(f64, u32)> {
-        // Weights of the choices: the estimates, or the areas where one is not finite.
-        let weigh = |w: Vec<(f64, f64)>| -> Vec<f64> {
-            if w.iter().all(|x| x.0.is_finite()) {
-                w.iter().map(|x| x.0.max(0.0)).collect()
-            } else {
-                w.iter()
-                    .map(|x| if x.0 > 0.0 || x.0.is_nan() { x.1 } else { 0.0 })
-                    .collect()
-            }
-        };
         let mut p = 1.0;
         loop {
-            let (choices, weights): (Vec<u32>, Vec<f64>) = match tree.node(id).kids {
+            match tree.node(id).kids {
                 Kids::Inner(left, right) => {
                     let w =
                         [left, right].map(|c| (tree.bound(c, row).guess, tree.node(c).moments().0));
-                    ([left, right].to_vec(), weigh(w.to_vec()))
+                    let mut weights = [0.0; 2];
+                    weigh(&w, &mut weights);
+                    let k = draw(&weights, &mut p, rng)?;
+                    id = [left, right][k];
                 }
                 Kids::Leaf => {
                     let patches: Vec<u32> = tree
@@ -159,44 +152,28 @@ impl RowEngine {
                         .copied()
                         .filter(|&k| k != j)
                         .collect();
-                    let w = patches
+                    let w: Vec<(f64, f64)> = patches
                         .iter()
                         .map(|&k| {
                             let g = &self.geom[k as usize];
                             (tree.patch_bound(g, row).guess, g.area)
                         })
                         .collect();
-                    (patches, weigh(w))
-                }
-            };
-            let total: f64 = weights.iter().sum();
-            if !(total > 0.0 && total.is_finite()) {
-                return None;
-            }
-            let u = rng.next_f64() * total;
-            let mut at = 0.0;
-            let k = (0..choices.len())
-                .find(|&k| {
-                    at += weights[k];
-                    u < at && weights[k] > 0.0
-                })
-                .or_else(|| weights.iter().rposition(|&w| w > 0.0))?;
-            p *= weights[k] / total;
-            match tree.node(id).kids {
-                Kids::Inner(..) => id = choices[k],
-                Kids::Leaf => {
-                    let v = self.pair_value(j, choices[k], scratch) / p;
-                    return v.is_finite().then_some((v, choices[k]));
+                    let mut weights = vec![0.0; w.len()];
+                    weigh(&w, &mut weights);
+                    let k = draw(&weights, &mut p, rng)?;
+                    let v = self.pair_value(j, patches[k], scratch) / p;
+                    return v.is_finite().then_some((v, patches[k]));
                 }
             }
         }
     }
 
-    /// `f(j)` for every patch j, on as many threads as the machine has (each patch's
+    /// `f(j)` for every patch j, on the engine's set-up threads (each patch's
     /// value depends on j alone, so not on how they are shared out).
     fn per_patch(&self, f: impl Fn(u32, &mut Scratch) -> f64 + Sync) -> Vec<f32> {
         let n = self.n();
-        let threads = std::thread::available_parallelism().map_or(1, |t| t.get());
+        let threads = self.setup_threads;
         let chunk = n.div_ceil(threads).max(1);
         let mut out = vec![0.0f32; n];
         std::thread::scope(|s| {
@@ -257,6 +234,38 @@ impl RowEngine {
         let own: f64 = p.emission.iter().map(|&e| e as f64).sum();
         (b.iter().sum::<f64>() + own) / 3.0
     }
+}
+
+/// The weights of a draw's choices from (the kernel's estimate, area) per choice:
+/// the estimates, or the areas where one is not finite (near the row patch).
+fn weigh(w: &[(f64, f64)], out: &mut [f64]) {
+    let finite = w.iter().all(|x| x.0.is_finite());
+    for (o, x) in out.iter_mut().zip(w) {
+        *o = match finite {
+            true => x.0.max(0.0),
+            false if x.0 > 0.0 || x.0.is_nan() => x.1,
+            false => 0.0,
+        };
+    }
+}
+
+/// One choice drawn in proportion to `weights` (none when they sum to nothing),
+/// its probability multiplied into `p`.
+fn draw(weights: &[f64], p: &mut f64, rng: &mut SplitMix64) -> Option<usize> {
+    let total: f64 = weights.iter().sum();
+    if !(total > 0.0 && total.is_finite()) {
+        return None;
+    }
+    let u = rng.next_f64() * total;
+    let mut at = 0.0;
+    let k = (0..weights.len())
+        .find(|&k| {
+            at += weights[k];
+            u < at && weights[k] > 0.0
+        })
+        .or_else(|| weights.iter().rposition(|&w| w > 0.0))?;
+    *p *= weights[k] / total;
+    Some(k)
 }
 
 impl RowEngine {

@@ -45,7 +45,7 @@
 //!    by the same weights (`topk_tree.rs` step 3). A point on a tail column takes the
 //!    pair's visibility by its own rule. Points on an unopened node are spread over
 //!    its area and each is one ray between a point of the row patch and a point of
-//!    the node ([`RowEngine::node_points`]): a pair evaluation costs its contour or
+//!    the node ([`RowEngine::plan_node_points`]): a pair evaluation costs its contour or
 //!    quadrature and up to 16 rays, a point one ray, so a link gets several points
 //!    for less than one pair, and several points are what tell where in the cluster
 //!    the mass lies (step 3). A link of at most 4 patches is evaluated in full, and
@@ -90,7 +90,6 @@ use super::topk_bounded::systematic;
 use super::topk_tree::Tail;
 use super::{RowEngine, Scratch};
 use crate::formfactor::geom::{PatchBound, PatchGeom};
-use crate::formfactor::sampling::SplitMix64;
 use crate::formfactor::tree::{second_matrix, Kids, PatchTree};
 use crate::rows::Link;
 
@@ -191,6 +190,56 @@ enum Item {
     Node(u32, f64),
 }
 
+/// What one item of a sampled link gave ([`RowEngine::link_values`]): nothing (no
+/// point fell on it), a tail column's value and moment point, or a node's weight
+/// and the range of its points in the row's plan.
+enum Event {
+    Nothing,
+    Column(f64, DVec4),
+    Node(f64, std::ops::Range<usize>),
+}
+
+impl Event {
+    /// Over one link's `events`, in order, with its points' (Y, moment point) in
+    /// `values`: Σ value / weight of its samples and Σ (value / weight) x, which
+    /// times the sampling step are the link's estimate and the first moment of it.
+    fn sums(events: &[Event], values: &[(f64, DVec4)]) -> (f64, DVec4) {
+        let mut moment = DVec4::ZERO;
+        let mut estimate = 0.0;
+        for e in events {
+            estimate += match e {
+                Event::Nothing => 0.0,
+                Event::Column(v, x) => {
+                    moment += *v * *x;
+                    *v
+                }
+                Event::Node(g, points) => {
+                    let mut sum = 0.0;
+                    for &(v, x) in &values[points.clone()] {
+                        moment += (v / g) * x;
+                        sum += v / g;
+                    }
+                    sum
+                }
+            };
+        }
+        (estimate, moment)
+    }
+}
+
+/// The items of each link of a cut, in one allocation: link k's are
+/// `all[starts[k]..starts[k + 1]]`, with their weights.
+struct Items {
+    all: Vec<(Item, f64)>,
+    starts: Vec<usize>,
+}
+
+impl Items {
+    fn iter(&self) -> impl Iterator<Item = &[(Item, f64)]> + '_ {
+        self.starts.windows(2).map(|w| &self.all[w[0]..w[1]])
+    }
+}
+
 impl RowEngine {
     /// The links of row i (module docs): `known` is the mass the row knows exactly
     /// (kept entries and `exact`), `kept` the columns the row stores, `exact` the
@@ -268,7 +317,7 @@ impl RowEngine {
                     tree,
                     &self.geom,
                     self.contrast.as_ref(),
-                    id,
+                    (id, &self.inverses[id as usize]),
                     centre,
                     within(&others, |x| x.0, a, b),
                 );
@@ -374,10 +423,14 @@ impl RowEngine {
         row: &PatchBound,
         d: &Dropped,
         cut: &[u32],
-    ) -> (Vec<f64>, Vec<(DVec4, DVec4)>, Vec<Vec<(Item, f64)>>) {
+    ) -> (Vec<f64>, Vec<(DVec4, DVec4)>, Items) {
         let mut exact = Vec::with_capacity(cut.len());
         let mut lean = Vec::with_capacity(cut.len());
-        let mut items: Vec<Vec<(Item, f64)>> = Vec::with_capacity(cut.len());
+        let mut items = Items {
+            all: Vec::new(),
+            starts: Vec::with_capacity(cut.len() + 1),
+        };
+        items.starts.push(0);
         // The whole cluster order: the known columns are given by position in it.
         let order = tree.root().map_or(&[][..], |root| tree.patches_under(root));
         for &id in cut {
@@ -389,10 +442,12 @@ impl RowEngine {
                 .map(|&(p, v)| v * self.moment_point(order[p as usize]))
                 .sum::<DVec4>();
             lean.push((moment, DVec4::ZERO));
-            let mut of: Vec<(Item, f64)> = within(&d.columns, |x| x.0, a, b)
-                .iter()
-                .map(|&(_, j, f0)| (Item::Column(j, f0), f0))
-                .collect();
+            let of = &mut items.all;
+            of.extend(
+                within(&d.columns, |x| x.0, a, b)
+                    .iter()
+                    .map(|&(_, j, f0)| (Item::Column(j, f0), f0)),
+            );
             match d.inside(a, b) {
                 // Inside an unopened node: all of it is tail.
                 Some(_) => {
@@ -405,7 +460,7 @@ impl RowEngine {
                         .map(|&(_, _, n, g)| (Item::Node(n, g), g)),
                 ),
             }
-            items.push(of);
+            items.starts.push(of.len());
         }
         (exact, lean, items)
     }
@@ -437,7 +492,7 @@ impl RowEngine {
                 })
                 .sum()
         };
-        let evaluate_all = items.iter().map(|of| size(of)).sum::<usize>() <= EXACT_TAIL_FACTOR * t;
+        let evaluate_all = items.iter().map(size).sum::<usize>() <= EXACT_TAIL_FACTOR * t;
         // Small links are evaluated in full: a few points on a link of a few patches
         // are noisier than its pairs, for about their cost (bench/LINKS.md).
         let in_full: Vec<bool> = items
@@ -456,6 +511,9 @@ impl RowEngine {
         let mut unoccluded = vec![0.0; cut.len()];
         let mut sampled = vec![0.0; cut.len()];
         let mut evaluated = vec![0.0; cut.len()];
+        // The sampled links' items in order, the points their nodes drew, and which
+        // items are whose link.
+        let (mut events, mut plan, mut replay) = (Vec::new(), Vec::new(), Vec::new());
         for (k, of) in items.iter().enumerate() {
             if in_full[k] {
                 for (x, _) in of {
@@ -481,30 +539,37 @@ impl RowEngine {
                     let p = (share.round() as usize).max(LINK_POINTS);
                     points[k] = p;
                     unoccluded[k] = w;
-                    // Σ (value / weight) x of the samples: times the step below, the
-                    // first moment of the estimate.
-                    let mut moment = DVec4::ZERO;
-                    sampled[k] = systematic(of.iter().copied(), w, p, &mut rng, |x, hits, rng| {
-                        match (x, hits) {
-                            (_, 0) => 0.0,
+                    // The points of unopened nodes are drawn now and evaluated
+                    // with the row's others below (`points.rs`); what each item
+                    // gives is kept in order, so that the sums come out as they
+                    // would one item at a time.
+                    let first = events.len();
+                    systematic(of.iter().copied(), w, p, &mut rng, |x, hits, rng| {
+                        events.push(match (x, hits) {
+                            (_, 0) => Event::Nothing,
                             (Item::Column(j, f0), _) => {
                                 let v = hits as f64 * self.visibility_fraction(i, j, f0, scratch);
-                                moment += v * at(j);
-                                v
+                                Event::Column(v, at(j))
                             }
                             (Item::Node(n, g), _) => {
-                                let mut sum = 0.0;
-                                self.node_points(tree, n, i, hits, rng, scratch, |v, j| {
-                                    moment += (v / g) * at(j);
-                                    sum += v / g;
-                                });
-                                sum
+                                let start = plan.len();
+                                self.plan_node_points(tree, n, i, hits, rng, &mut plan);
+                                Event::Node(g, start..plan.len())
                             }
-                        }
+                        });
+                        0.0
                     });
-                    lean[k].1 += moment * (w / p as f64);
+                    replay.push((k, first..events.len()));
                 }
             }
+        }
+        let mut values = Vec::with_capacity(plan.len());
+        self.eval_points(tree, i, &plan, scratch, &mut values);
+        for (k, range) in replay {
+            let (estimate, moment) = Event::sums(&events[range], &values);
+            let (w, p) = (unoccluded[k], points[k]);
+            sampled[k] = estimate * (w / p as f64);
+            lean[k].1 += moment * (w / p as f64);
         }
         LinkValues {
             exact,
@@ -514,64 +579,6 @@ impl RowEngine {
             unoccluded,
             all: evaluate_all,
             lean,
-        }
-    }
-
-    /// Step 2 for an unopened node `n` that `hits` of a link's points fell on:
-    /// calls `each(Y, j)` for each point, Y an unbiased estimate of Σ_j F_ij over the
-    /// node's patches, j the patch the point fell on. The points are spread over the
-    /// node's area (systematically along the tree order, which keeps neighbours
-    /// together, so they stratify the node in space), each with a uniform point on
-    /// patch i and one on patch j and one ray between them:
-    ///
-    ///   Y = (A_N / A_j) · (J_i J_j / A_i) · cos θ_i cos θ_j V / (π r²),
-    ///
-    /// J the area elements of the two points' parametrisations (A on a triangle), V
-    /// the ray's visibility. This is the Monte Carlo form of the form factor's double
-    /// area integral (Cohen and Wallace, "Radiosity and Realistic Image Synthesis",
-    /// 1993, §4.9); a row's unopened nodes are clear of the row patch's sphere (their
-    /// bound is finite), so the kernel is bounded there. One point costs one ray, where
-    /// a pair's own rule costs its contour or quadrature and up to 16 rays: the row
-    /// can afford several points a link, which is what places its mass
-    /// (bench/LINKS.md).
-    #[allow(clippy::too_many_arguments)]
-    fn node_points(
-        &self,
-        tree: &PatchTree,
-        n: u32,
-        i: u32,
-        hits: u32,
-        rng: &mut SplitMix64,
-        scratch: &mut Scratch,
-        mut each: impl FnMut(f64, u32),
-    ) {
-        let gi = &self.geom[i as usize];
-        let (area, _, _) = tree.node(n).moments();
-        if hits == 0 || area.is_nan() || area <= 0.0 || gi.area <= 0.0 {
-            return;
-        }
-        let step = area / hits as f64;
-        let start = rng.next_f64() * step;
-        for s in 0..hits {
-            let j = tree.patch_at_area(n, start + s as f64 * step);
-            let gj = &self.geom[j as usize];
-            let q = std::array::from_fn(|_| rng.next_f64());
-            let skip = j == i || !self.valid[j as usize];
-            let mut v = 0.0;
-            if let Some((x, y, w)) = gi.kernel_point(gj, q).filter(|_| !skip) {
-                let planes = self
-                    .occluders
-                    .is_foreign()
-                    .then_some([(gi.normal, gi.offset), (gj.normal, gj.offset)]);
-                scratch.pair.counters.rays_cast += 1;
-                if !self
-                    .occluders
-                    .occluded_between_planes(x, y, (gi.face, gj.face), planes)
-                {
-                    v = area / (gj.area * gi.area * std::f64::consts::PI) * w;
-                }
-            }
-            each(v, j);
         }
     }
 }
@@ -702,7 +709,7 @@ fn link_slope(
     tree: &PatchTree,
     geom: &[PatchGeom],
     contrast: Option<&Contrast>,
-    id: u32,
+    (id, inverse): (u32, &PseudoInverse),
     centre: DVec4,
     others: &[(u32, u32)],
 ) -> Slope {
@@ -716,10 +723,10 @@ fn link_slope(
     if node.count() < 2 || !shift.is_finite() || area.is_nan() || area <= 0.0 {
         return flat;
     }
-    let mut q = area * pseudo_solve(m, shift);
+    let mut q = area * inverse.times(shift);
     if let Some(c) = contrast {
         let (sum, g) = c.moments[id as usize];
-        let step = pseudo_solve(m, g);
+        let step = inverse.times(g);
         let gg = g.dot(step);
         let miss = area * centre.w - sum - q.dot(g);
         if gg > 0.0 && (miss / gg).is_finite() {
@@ -796,47 +803,84 @@ const SLOPE_BITS: u32 = 4;
 /// as zero (directions the cluster does not extend in).
 const FLAT: f64 = 1e-6;
 
-/// M⁺ v for the symmetric 3 × 3 matrix `m` (xx, yy, zz, xy, xz, yz), by Jacobi
-/// rotations: eigenvalues below [`FLAT`] times the largest are left out.
+/// M⁺ v for the symmetric 3 × 3 matrix `m` (xx, yy, zz, xy, xz, yz): see
+/// [`PseudoInverse`].
+#[cfg(test)]
 fn pseudo_solve(m: [f64; 6], v: DVec3) -> DVec3 {
-    let mut a = [[m[0], m[3], m[4]], [m[3], m[1], m[5]], [m[4], m[5], m[2]]];
-    let mut e = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
-    for _ in 0..32 {
-        let off = a[0][1].abs() + a[0][2].abs() + a[1][2].abs();
-        let scale = a[0][0].abs() + a[1][1].abs() + a[2][2].abs();
-        if off <= 1e-15 * scale || off.is_nan() {
-            break;
-        }
-        for (p, q) in [(0, 1), (0, 2), (1, 2)] {
-            if a[p][q] == 0.0 {
-                continue;
-            }
-            // The rotation that zeroes a[p][q] (Golub and Van Loan, §8.5.2); signum
-            // of 0 is 1 here, as the rule wants.
-            let tau = (a[q][q] - a[p][p]) / (2.0 * a[p][q]);
-            let t = tau.signum() / (tau.abs() + (1.0 + tau * tau).sqrt());
-            let c = 1.0 / (1.0 + t * t).sqrt();
-            let s = t * c;
-            // A ← Jᵀ A J, E ← E J: columns p and q, then rows p and q.
-            let turn = |x: f64, y: f64| (c * x - s * y, s * x + c * y);
-            for row in a.iter_mut().chain(e.iter_mut()) {
-                (row[p], row[q]) = turn(row[p], row[q]);
-            }
-            let (rp, rq) = (a[p], a[q]);
-            a[p] = std::array::from_fn(|k| turn(rp[k], rq[k]).0);
-            a[q] = std::array::from_fn(|k| turn(rp[k], rq[k]).1);
-        }
+    PseudoInverse::of(m).times(v)
+}
+
+/// The pseudo-inverse M⁺ of a symmetric 3 × 3 matrix, as its eigenvectors and
+/// eigenvalues, found by Jacobi rotations: eigenvalues below [`FLAT`] times the
+/// largest are left out (M⁺ is 0 along their eigenvectors). A link's slope
+/// applies one of its node's to two vectors (`link_slope`); the engine finds one
+/// for every node before any row (96 bytes a node), not one for every link of
+/// every row.
+#[derive(Clone, Debug)]
+pub(super) struct PseudoInverse {
+    /// Per eigenvalue: its unit eigenvector and λ, 0 where it is left out.
+    axes: [(DVec3, f64); 3],
+}
+
+impl PseudoInverse {
+    /// One for each node of `tree`, by id.
+    pub(super) fn of_nodes(tree: &PatchTree) -> Vec<PseudoInverse> {
+        (0..tree.len() as u32)
+            .map(|id| PseudoInverse::of(tree.node(id).moments().2))
+            .collect()
     }
-    let largest = (0..3).map(|k| a[k][k].abs()).fold(0.0, f64::max);
-    let mut out = DVec3::ZERO;
-    for (k, row) in a.iter().enumerate() {
-        let lambda = row[k];
-        if lambda > FLAT * largest && lambda > 0.0 {
+
+    fn of(m: [f64; 6]) -> PseudoInverse {
+        let mut a = [[m[0], m[3], m[4]], [m[3], m[1], m[5]], [m[4], m[5], m[2]]];
+        let mut e = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+        for _ in 0..32 {
+            let off = a[0][1].abs() + a[0][2].abs() + a[1][2].abs();
+            let scale = a[0][0].abs() + a[1][1].abs() + a[2][2].abs();
+            if off <= 1e-15 * scale || off.is_nan() {
+                break;
+            }
+            for (p, q) in [(0, 1), (0, 2), (1, 2)] {
+                if a[p][q] == 0.0 {
+                    continue;
+                }
+                // The rotation that zeroes a[p][q] (Golub and Van Loan, §8.5.2);
+                // signum of 0 is 1 here, as the rule wants.
+                let tau = (a[q][q] - a[p][p]) / (2.0 * a[p][q]);
+                let t = tau.signum() / (tau.abs() + (1.0 + tau * tau).sqrt());
+                let c = 1.0 / (1.0 + t * t).sqrt();
+                let s = t * c;
+                // A ← Jᵀ A J, E ← E J: columns p and q, then rows p and q.
+                let turn = |x: f64, y: f64| (c * x - s * y, s * x + c * y);
+                for row in a.iter_mut().chain(e.iter_mut()) {
+                    (row[p], row[q]) = turn(row[p], row[q]);
+                }
+                let (rp, rq) = (a[p], a[q]);
+                a[p] = std::array::from_fn(|k| turn(rp[k], rq[k]).0);
+                a[q] = std::array::from_fn(|k| turn(rp[k], rq[k]).1);
+            }
+        }
+        let largest = (0..3).map(|k| a[k][k].abs()).fold(0.0, f64::max);
+        let axes = std::array::from_fn(|k| {
+            let lambda = a[k][k];
             let axis = DVec3::new(e[0][k], e[1][k], e[2][k]);
-            out += axis * (axis.dot(v) / lambda);
-        }
+            match lambda > FLAT * largest && lambda > 0.0 {
+                true => (axis, lambda),
+                false => (axis, 0.0),
+            }
+        });
+        PseudoInverse { axes }
     }
-    out
+
+    /// M⁺ v.
+    fn times(&self, v: DVec3) -> DVec3 {
+        let mut out = DVec3::ZERO;
+        for &(axis, lambda) in &self.axes {
+            if lambda != 0.0 {
+                out += axis * (axis.dot(v) / lambda);
+            }
+        }
+        out
+    }
 }
 
 #[cfg(test)]

@@ -149,6 +149,16 @@ pub struct RowEngine {
     /// With links: how much the first-bounce radiosity varies over each tree node
     /// (`first_bounce.rs`; `None` when nothing emits), which steers the links' cut.
     contrast: Option<first_bounce::Contrast>,
+    /// With links: what the links' one-ray points read of each patch, in cluster
+    /// order (`points.rs`).
+    points: Vec<points::PointPatch>,
+    /// With links: the pseudo-inverse of each tree node's second moments, by id (the
+    /// links' slopes, `links.rs`).
+    inverses: Vec<links::PseudoInverse>,
+    /// With links: the seconds the first-bounce estimate took (`first_bounce.rs`).
+    links_setup: Option<f64>,
+    /// Threads of the engine's own set-up work ([`RowEngine::with_threads`]).
+    setup_threads: usize,
 }
 
 /// Pair candidate lists (`Occluders::collect_between`) pay off only with few occluder
@@ -175,6 +185,19 @@ impl RowEngine {
     /// zero rows and columns. The configuration should have passed
     /// [`FormFactorConfig::validate`]; out-of-range values are clamped.
     pub fn new(patches: &PatchSet, occluders: Arc<Occluders>, cfg: FormFactorConfig) -> Self {
+        let threads = std::thread::available_parallelism().map_or(1, |t| t.get());
+        Self::with_threads(patches, occluders, cfg, threads)
+    }
+
+    /// [`RowEngine::new`], whose own set-up work (with links, the first-bounce
+    /// estimate) runs on `threads` threads: a process's `--threads`, so that ranks
+    /// sharing a node do not each take every core.
+    pub fn with_threads(
+        patches: &PatchSet,
+        occluders: Arc<Occluders>,
+        cfg: FormFactorConfig,
+        threads: usize,
+    ) -> Self {
         let geom: Vec<PatchGeom> = patches.patches.iter().map(PatchGeom::new).collect();
         let valid: Vec<bool> = geom.iter().map(PatchGeom::is_valid).collect();
         let (diag, magnitude) = extent(&geom);
@@ -234,14 +257,33 @@ impl RowEngine {
             span,
             cull_hidden: true,
             contrast: None,
+            points: Vec::new(),
+            inverses: Vec::new(),
+            links_setup: None,
+            setup_threads: threads.max(1),
         };
         if engine.cfg.links_rows() {
+            let started = std::time::Instant::now();
             if let (Some(b), Some(tree)) = (engine.first_bounce(patches), &engine.tree) {
                 let second = engine.second_bounce(patches, tree, &b);
                 engine.contrast = Some(first_bounce::Contrast::new(tree, b, &second, &engine.geom));
             }
+            if let Some(tree) = &engine.tree {
+                let bounce = engine.contrast.as_ref().map_or(&[][..], |c| &c.bounce[..]);
+                engine.points = points::PointPatch::table(tree, &engine.geom, bounce);
+                engine.inverses = links::PseudoInverse::of_nodes(tree);
+            }
+            engine.links_setup = Some(started.elapsed().as_secs_f64());
         }
         engine
+    }
+
+    /// With links: the seconds this engine spent on what its links need before any
+    /// row (the first-bounce radiosity that steers their cut, `first_bounce.rs`, the
+    /// points' table, `points.rs`, and the nodes' pseudo-inverses); `None` without
+    /// links.
+    pub fn links_setup_seconds(&self) -> Option<f64> {
+        self.links_setup
     }
 
     /// The same engine without the hidden rows' node skipping (for tests: it must
@@ -762,6 +804,7 @@ mod closure;
 mod exact;
 mod first_bounce;
 mod links;
+mod points;
 #[cfg(test)]
 mod tests;
 mod topk_bounded;

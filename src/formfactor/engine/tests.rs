@@ -5,6 +5,20 @@ use super::*;
 use crate::patch::Patch;
 use glam::dvec3;
 
+/// The 16-box room at about `target` patches and an engine for linked top-16 rows
+/// (64 links), as the links' tests use them.
+pub(super) fn linked_room(target: usize) -> (PatchSet, RowEngine) {
+    use crate::geometry::subdivide::{default_max_edge, subdivide};
+    let scene = crate::scene::builtin("room", None).unwrap();
+    let patches = subdivide(&scene, default_max_edge(&scene, target));
+    let occ = Arc::new(Occluders::new(scene.triangles().collect()));
+    let mut cfg = FormFactorConfig::accurate();
+    cfg.top_k = Some(16);
+    cfg.links = Some(64);
+    let engine = RowEngine::new(&patches, occ, cfg);
+    (patches, engine)
+}
+
 fn square(origin: DVec3, u: DVec3, v: DVec3, face: u32) -> Patch {
     quad([origin, origin + u, origin + u + v, origin + v], face)
 }
@@ -65,7 +79,7 @@ fn contour_single_pair_matches_howell() {
 /// rays, and hierarchy rays), and the Cornell box: every row is bitwise the same
 /// whether pairs take their occluders from cluster lists or query the hierarchy,
 /// in full rows and in the half rows of a partial run, whatever rows came before
-/// through the same scratch.
+/// through the same scratch; so are the kept entries of linked top-k rows.
 #[test]
 fn cluster_lists_change_no_value() {
     use crate::geometry::subdivide::{default_max_edge, subdivide};
@@ -93,50 +107,61 @@ fn cluster_lists_change_no_value() {
             Arc::new(Occluders::new(scene.triangles().collect()))
         };
         let patches = Arc::new(patches);
-        let cfg = FormFactorConfig::accurate();
-        let with = RowEngine::new(&patches, occ.clone(), cfg.clone());
-        assert!(with.clusters.is_some(), "{name}: no clusters");
-        let without = RowEngine::new(&patches, occ, cfg).without_clusters();
-        let n = with.n();
-        // A partial run (rows already in the file or skipped), so half rows also
-        // evaluate pairs (j, i) with j < i; the rows in a shuffled order through one
-        // scratch, so its cluster cache holds whatever earlier rows left.
-        let in_run: Vec<bool> = (0..n).map(|k| k % 3 != 1).collect();
-        let mut order: Vec<u32> = (0..n as u32).step_by(step).collect();
-        let mut rng = crate::formfactor::sampling::SplitMix64::new(n as u64);
-        for k in (1..order.len()).rev() {
-            order.swap(k, rng.below(k + 1));
-        }
-        let (mut s1, mut s2) = (Scratch::new(), Scratch::new());
-        let (mut own1, mut own2, mut m1, mut m2) = (vec![], vec![], vec![], vec![]);
-        for &i in &order {
-            assert_eq!(
-                with.compute_row(i, &mut s1),
-                without.compute_row(i, &mut s2),
-                "{name}: row {i}"
-            );
-            if in_run[i as usize] {
-                with.half_row(i, &in_run, &mut s1, &mut own1, &mut m1);
-                without.half_row(i, &in_run, &mut s2, &mut own2, &mut m2);
-                assert!(own1 == own2 && m1 == m2, "{name}: half row {i}");
+        // Dense rows, and the kept entries of linked rows.
+        let mut linked = FormFactorConfig::fast().with_top_k(Some(16));
+        linked.links = Some(64);
+        for (cfg, linked) in [(FormFactorConfig::accurate(), false), (linked, true)] {
+            let with = RowEngine::new(&patches, occ.clone(), cfg.clone());
+            assert!(with.clusters.is_some(), "{name}: no clusters");
+            let without = RowEngine::new(&patches, occ.clone(), cfg).without_clusters();
+            let n = with.n();
+            // A partial run (rows already in the file or skipped), so half rows also
+            // evaluate pairs (j, i) with j < i; the rows in a shuffled order through one
+            // scratch, so its cluster cache holds whatever earlier rows left.
+            let in_run: Vec<bool> = (0..n).map(|k| k % 3 != 1).collect();
+            let mut order: Vec<u32> = (0..n as u32).step_by(step).collect();
+            let mut rng = crate::formfactor::sampling::SplitMix64::new(n as u64);
+            for k in (1..order.len()).rev() {
+                order.swap(k, rng.below(k + 1));
             }
+            let (mut s1, mut s2) = (Scratch::new(), Scratch::new());
+            let (mut own1, mut own2, mut m1, mut m2) = (vec![], vec![], vec![], vec![]);
+            for &i in &order {
+                let (r1, r2) = (
+                    with.compute_row(i, &mut s1),
+                    without.compute_row(i, &mut s2),
+                );
+                match linked {
+                    // Kept entries only: a tail column the lists find nothing in front
+                    // of is exact in a link, one whose own query gave up is sampled,
+                    // so the links' estimates may differ (both unbiased; with the
+                    // clusters always built, a row is the same on every thread).
+                    true => assert_eq!(r1.values, r2.values, "{name}: row {i}"),
+                    false => assert_eq!(r1, r2, "{name}: row {i}"),
+                }
+                if in_run[i as usize] {
+                    with.half_row(i, &in_run, &mut s1, &mut own1, &mut m1);
+                    without.half_row(i, &in_run, &mut s2, &mut own2, &mut m2);
+                    assert!(own1 == own2 && m1 == m2, "{name}: half row {i}");
+                }
+            }
+            let (c1, c2) = (s1.counters(), s2.counters());
+            // The pair's own query gives up on crowded pairs (rays then decide);
+            // cluster lists are complete, so they may spare rays, never add any.
+            assert!(c1.rays_cast <= c2.rays_cast && c1.pairs_unoccludable >= c2.pairs_unoccludable);
+            assert!(
+                c1.pairs_unoccludable > 0 && c1.rays_cast > 0,
+                "{name}: both kinds of pairs: {c1:?}"
+            );
         }
-        let (c1, c2) = (s1.counters(), s2.counters());
-        // The pair's own query gives up on crowded pairs (rays then decide);
-        // cluster lists are complete, so they may spare rays, never add any.
-        assert!(c1.rays_cast <= c2.rays_cast && c1.pairs_unoccludable >= c2.pairs_unoccludable);
-        assert!(
-            c1.pairs_unoccludable > 0 && c1.rays_cast > 0,
-            "{name}: both kinds of pairs: {c1:?}"
-        );
     }
 }
 
 /// Rows of a room of 64 boxes (780 occluder triangles: pairs walk the hierarchy)
 /// and of the 16-box room (188 triangles: pairs test their candidate lists), each
 /// with its own occluders and with the same room as foreign (`--occluders`)
-/// occluders, full rows and top-k rows: bitwise the same whether a pair's rays go
-/// as packets or one at a time.
+/// occluders, full rows, top-k rows and linked rows (whose points' rays go as packets
+/// too, `points.rs`): bitwise the same whether rays go as packets or one at a time.
 #[test]
 fn packets_change_no_value() {
     use crate::geometry::subdivide::{default_max_edge, subdivide};
@@ -151,9 +176,12 @@ fn packets_change_no_value() {
                 Occluders::new(scene.triangles().collect())
             };
             let occ = Arc::new(occ);
+            let mut linked = FormFactorConfig::fast().with_top_k(Some(32));
+            linked.links = Some(64);
             for cfg in [
                 FormFactorConfig::accurate(),
                 FormFactorConfig::fast().with_top_k(Some(32)),
+                linked,
             ] {
                 let packets = RowEngine::new(&patches, occ.clone(), cfg.clone());
                 assert_eq!(packets.list_max > 0, lists, "{boxes} boxes");

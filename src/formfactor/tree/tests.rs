@@ -144,7 +144,7 @@ fn kinds_are_parted_before_anything_else() {
     assert!(order.iter().enumerate().all(|(k, &j)| k as u32 == j));
 }
 
-/// `patch_at_area` lays a node's patches along its area in tree order: a point in the
+/// `position_at_area` lays a node's patches along its area in tree order: a point in the
 /// middle of a patch's stretch draws that patch, the ends of the stretch draw the
 /// first and last, and so a uniform point draws each patch in proportion to its area.
 #[test]
@@ -154,17 +154,35 @@ fn a_point_along_a_nodes_area_draws_the_patch_whose_stretch_holds_it() {
         valid[j] = false;
     }
     let tree = PatchTree::new(&geom, &valid, 1e-10, 1e-12);
+    let order = tree.cluster_order(geom.len());
+    let at = |id: u32, u: f64| order[tree.position_at_area(id, u) as usize];
     for id in 0..tree.len() as u32 {
         let under = tree.patches_under(id);
         let mut before = 0.0;
         for &j in under {
             let a = geom[j as usize].area;
-            assert_eq!(tree.patch_at_area(id, before + 0.5 * a), j, "node {id}");
+            assert_eq!(at(id, before + 0.5 * a), j, "node {id}");
             before += a;
         }
-        assert_eq!(tree.patch_at_area(id, 0.0), under[0], "node {id}");
+        assert_eq!(at(id, 0.0), under[0], "node {id}");
         let last = *under.last().unwrap();
-        assert_eq!(tree.patch_at_area(id, before), last, "node {id}");
-        assert_eq!(tree.patch_at_area(id, 2.0 * before), last, "node {id}");
+        assert_eq!(at(id, before), last, "node {id}");
+        assert_eq!(at(id, 2.0 * before), last, "node {id}");
+    }
+    // Several searches in step give the positions of one at a time, for points
+    // anywhere along every node (and past its end).
+    let mut rng = crate::formfactor::sampling::SplitMix64::new(5);
+    let ids: Vec<u32> = (0..tree.len() as u32).collect();
+    for group in ids.chunks(7) {
+        let queries: Vec<(u32, f64)> = group
+            .iter()
+            .map(|&id| (id, 1.05 * rng.next_f64() * tree.node(id).moments().0))
+            .collect();
+        let mut out = [u32::MAX; 8];
+        tree.positions_at_area(&queries, &mut out);
+        for (t, &(id, u)) in queries.iter().enumerate() {
+            assert_eq!(out[t], tree.position_at_area(id, u), "node {id} at {u}");
+        }
+        assert_eq!(out[queries.len()], u32::MAX);
     }
 }

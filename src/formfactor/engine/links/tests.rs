@@ -2,6 +2,7 @@
 
 use super::*;
 use crate::formfactor::geom::PatchGeom;
+use crate::formfactor::sampling::SplitMix64;
 use crate::formfactor::tree::second_matrix;
 use crate::geometry::subdivide::{default_max_edge, subdivide};
 use crate::scene::builtin;
@@ -22,16 +23,7 @@ fn room_tree() -> (PatchTree, Vec<PatchGeom>) {
 /// the pair rule's own ray estimate (16 rays a pair, a ratio estimator).
 #[test]
 fn node_points_estimate_the_nodes_form_factor_sum_without_bias() {
-    use crate::formfactor::FormFactorConfig;
-    use crate::geometry::occluders::Occluders;
-    use std::sync::Arc;
-    let scene = builtin("room", None).unwrap();
-    let patches = subdivide(&scene, default_max_edge(&scene, 600));
-    let occ = Arc::new(Occluders::new(scene.triangles().collect()));
-    let mut cfg = FormFactorConfig::accurate();
-    cfg.top_k = Some(16);
-    cfg.links = Some(64);
-    let e = RowEngine::new(&patches, occ, cfg);
+    let (patches, e) = crate::formfactor::engine::tests::linked_room(600);
     let tree = e.tree.as_ref().expect("a tree search");
     let group = |name: &str| {
         let g = patches.groups.iter().position(|x| x == name).unwrap() as u32;
@@ -62,11 +54,14 @@ fn node_points_estimate_the_nodes_form_factor_sum_without_bias() {
                 .sum();
             let mut rng = SplitMix64::new(u64::from(id) << 32 | u64::from(i));
             let (mut sum, mut squares, mut count) = (0.0, 0.0, 0.0);
-            e.node_points(tree, id, i, 4000, &mut rng, &mut s, |y, _| {
+            let (mut plan, mut points) = (Vec::new(), Vec::new());
+            e.plan_node_points(tree, id, i, 4000, &mut rng, &mut plan);
+            e.eval_points(tree, i, &plan, &mut s, &mut points);
+            for (y, _) in points {
                 sum += y;
                 squares += y * y;
                 count += 1.0;
-            });
+            }
             let mean = sum / count;
             let se = ((squares / count - mean * mean).max(0.0) / count).sqrt();
             assert!(
@@ -125,7 +120,8 @@ fn a_slope_moves_the_weights_centroid_to_the_links_centre_and_no_weight_below_th
         let near = mean + 0.05 * (geom[pat[0] as usize].centroid - mean);
         let far = mean + 1e3 * (geom[pat[0] as usize].centroid - mean);
         for centre in [near, far] {
-            let slope = link_slope(&tree, &geom, None, id, centre.extend(0.0), &[]);
+            let inverse = PseudoInverse::of(tree.node(id).moments().2);
+            let slope = link_slope(&tree, &geom, None, (id, &inverse), centre.extend(0.0), &[]);
             let q = DVec3::from_array(slope.q.map(f64::from));
             let w: Vec<f64> = pat
                 .iter()
@@ -203,9 +199,16 @@ fn a_first_bounce_target_is_gathered_by_the_weights() {
             .fold(f64::MIN, f64::max);
         let target = sum / area + 0.02 * (top - sum / area);
         let q = DVec3::from_array(
-            link_slope(&tree, &geom, Some(&contrast), id, mean.extend(target), &[])
-                .q
-                .map(f64::from),
+            link_slope(
+                &tree,
+                &geom,
+                Some(&contrast),
+                (id, &PseudoInverse::of(tree.node(id).moments().2)),
+                mean.extend(target),
+                &[],
+            )
+            .q
+            .map(f64::from),
         );
         let w = |j: u32| geom[j as usize].area * (1.0 + q.dot(geom[j as usize].centroid - mean));
         let total: f64 = pat.iter().map(|&j| w(j)).sum();
