@@ -7,7 +7,8 @@
 //! ```text
 //! cargo bench --no-default-features --bench perf_rows -- SCENE PATCHES [options]
 //!   --modes symmetric,default,topk256,occluders   modes to time (default: default)
-//!                   (modes: see `config_of`; `fasttopk64` is `--preset fast --top-k 64`)
+//!                   (modes: see `config_of`; `fasttopk64` is `--preset fast --top-k 64`,
+//!                   `topk64p` `--top-k 64 --links off`)
 //!   --rows R        rows timed per mode, spread evenly over the matrix (default: all)
 //!   --threads T     threads (default: 2)
 //!   --ref-rows M    random rows compared against the reference preset (default: 0)
@@ -193,7 +194,8 @@ fn sparse(i: u32, entries: &[(u32, f64)]) -> Row {
 
 /// Modes: `symmetric` (accurate preset, half rows: `--symmetric on`), `default` (accurate
 /// preset, full rows), `topkK` (accurate + top-k K: what `--top-k K` does, the tree
-/// search with the preset's sampled tail), `topkKe` (exhaustive search, exact tail:
+/// search with the preset's sampled tail and its links), `topkKp` (the same with
+/// `--links off`: the pool), `topkKe` (exhaustive search, exact tail:
 /// every pair evaluated), `topkKs` (exhaustive search with the tail sampled from 32
 /// pairs), `fast`, `fasttopkK` (exactly `--preset fast --top-k K`, as bench/run.py's
 /// top-k scaling series runs it), `fasttopkKx` (the same with `--top-k-search
@@ -219,6 +221,10 @@ fn form_of(mode: &str) -> FormSettings {
             ),
             top_k_search: m.ends_with('x').then_some(TopKSearch::Exhaustive),
             ..base
+        },
+        m if m.starts_with("topk") && m.ends_with('p') => FormSettings {
+            links: Some(None),
+            ..form_of(&m[..m.len() - 1])
         },
         m if m.starts_with("topk") => {
             let exhaustive = m.ends_with('s') || m.ends_with('e');
@@ -458,7 +464,9 @@ fn main() {
         "mean_abs"
     );
     for mode in &a.modes {
+        let (wall0, cpu0) = (Instant::now(), cpu_seconds());
         let (e, params) = engine_of(&a, mode, &patches);
+        let engine_setup = (wall0.elapsed().as_secs_f64(), cpu_seconds() - cpu0);
         let cpu0 = cpu_seconds();
         let (timed_fn, checked_fn): (RowFn, RowFn) = if mode.starts_with("symmetric") {
             (half_row_all, half_row_as_stored)
@@ -504,6 +512,13 @@ fn main() {
                 println!("    {line}");
             }
         }
+        println!(
+            "  set-up (load, subdivide, Bvh, engine; with links the first-bounce pass) \
+             {:.2} s wall, {:.2} CPU-s; with it, all rows {:.1} CPU-s",
+            engine_setup.0,
+            engine_setup.1,
+            engine_setup.1 + cpu * scale
+        );
         println!(
             "  nonzero entries per timed row: {:.1} (all rows: {:.3e})",
             stored as f64 / timed.len() as f64,
