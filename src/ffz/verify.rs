@@ -478,9 +478,13 @@ pub struct CompareReport {
     pub(crate) meta_differences: Vec<String>,
     /// Rows held (present or skipped) by both files.
     pub(crate) rows_compared: u64,
-    /// Of those, bitwise equal (values, columns, dropped mass, skipped state).
+    /// Of those, bitwise equal (values, columns, dropped mass, skipped state, links
+    /// with their slopes, link error).
     pub identical_rows: u64,
     pub differing_rows: u64,
+    /// Of the differing rows, those whose entries and dropped mass are bitwise equal:
+    /// they differ in their links or link error alone.
+    pub links_only_rows: u64,
     /// Largest |F_ij(a) − F_ij(b)| over rows present in both (absent entries count as 0),
     /// and |dropped(a) − dropped(b)|.
     pub max_abs_diff: f64,
@@ -653,6 +657,7 @@ pub fn compare(a: &FfzReader, b: &FfzReader, opts: VerifyOptions) -> Result<Comp
                     rep.identical_rows += 1;
                 } else {
                     rep.differing_rows += 1;
+                    rep.links_only_rows += u64::from(entries_eq(&ra, rb));
                     let m = max_abs_diff(&ra, rb, n);
                     if m > rep.max_abs_diff || rep.worst_row.is_none() {
                         rep.max_abs_diff = rep.max_abs_diff.max(m);
@@ -706,20 +711,16 @@ fn collect_rows(
 }
 
 /// Equality of bit patterns (so NaN = NaN and 0.0 ≠ −0.0), which `PartialEq` on f32 is not,
-/// of everything a row stores: entries, dropped mass, links (slopes included) and link error.
+/// of everything a row stores: [`entries_eq`] and [`links_eq`].
 fn bitwise_eq(a: &Row, b: &Row) -> bool {
+    entries_eq(a, b) && links_eq(a, b)
+}
+
+/// Bitwise equality of a row's entries and dropped mass (and its being skipped).
+fn entries_eq(a: &Row, b: &Row) -> bool {
     let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
-    let link_bits = |l: &Link| {
-        let s = l.slope.map(f32::to_bits);
-        (l.start, l.len, l.value.to_bits(), s)
-    };
     a.index == b.index
         && a.dropped.to_bits() == b.dropped.to_bits()
-        && a.links
-            .iter()
-            .map(link_bits)
-            .eq(b.links.iter().map(link_bits))
-        && a.link_error.map(f32::to_bits) == b.link_error.map(f32::to_bits)
         && match (&a.values, &b.values) {
             (RowValues::Dense(x), RowValues::Dense(y)) => bits(x) == bits(y),
             (
@@ -729,6 +730,19 @@ fn bitwise_eq(a: &Row, b: &Row) -> bool {
             (RowValues::Skipped, RowValues::Skipped) => true,
             _ => false,
         }
+}
+
+/// Bitwise equality of a row's links (ranges, values, slopes) and link error.
+fn links_eq(a: &Row, b: &Row) -> bool {
+    let link_bits = |l: &Link| {
+        let s = l.slope.map(f32::to_bits);
+        (l.start, l.len, l.value.to_bits(), s)
+    };
+    a.links
+        .iter()
+        .map(link_bits)
+        .eq(b.links.iter().map(link_bits))
+        && a.link_error.map(f32::to_bits) == b.link_error.map(f32::to_bits)
 }
 
 #[cfg(test)]
@@ -767,6 +781,13 @@ mod tests {
             let mut other = row.clone();
             change(&mut other);
             assert!(!bitwise_eq(&row, &other), "{other:?}");
+            assert!(
+                entries_eq(&row, &other) && !links_eq(&row, &other),
+                "{other:?}"
+            );
         }
+        let mut other = row.clone();
+        other.dropped = 0.5;
+        assert!(!entries_eq(&row, &other) && links_eq(&row, &other));
     }
 }

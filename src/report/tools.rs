@@ -372,10 +372,14 @@ fn print_against(path: &Path, r: &FfzReader, other: &Path, out: &mut dyn Write) 
     }
     writeln!(
         out,
-        "  rows compared {}: {} identical, {} differ (max abs diff {:.3e}{}); only in this file {} {:?}, only in the other {} {:?}",
+        "  rows compared {}: {} identical, {} differ ({}max abs diff {:.3e}{}); only in this file {} {:?}, only in the other {} {:?}",
         c.rows_compared,
         c.identical_rows,
         c.differing_rows,
+        match c.links_only_rows {
+            0 => String::new(),
+            k => format!("{k} of them in their links or link error alone; "),
+        },
         c.max_abs_diff,
         c.worst_row.map(|r| format!(" in row {r}")).unwrap_or_default(),
         c.only_in_a,
