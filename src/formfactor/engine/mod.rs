@@ -155,7 +155,7 @@ pub struct RowEngine {
     /// With links: the pseudo-inverse of each tree node's second moments, by id (the
     /// links' slopes, `links.rs`).
     inverses: Vec<links::PseudoInverse>,
-    /// With links: the seconds the first-bounce estimate took (`first_bounce.rs`).
+    /// With links: the seconds of the links' set-up ([`RowEngine::links_setup_seconds`]).
     links_setup: Option<f64>,
     /// Threads of the engine's own set-up work ([`RowEngine::with_threads`]).
     setup_threads: usize,
